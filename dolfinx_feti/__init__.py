@@ -1,0 +1,26 @@
+"""dolfinx_feti: contact problems of elasticity by FETI domain decomposition with MPRGP/SMALBE.
+
+A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve`::
+
+    mesh = dolfinx_feti.read_gmsh("model.msh")
+    problem = dolfinx_feti.ContactProblem(
+        mesh, dolfinx_feti.Elasticity(E=200.0, nu=0.3, tractions={"load": (0.0, -1.0)}),
+        dirichlet=[dolfinx_feti.Dirichlet("bottom")],
+        contact=[dolfinx_feti.NodeToNode(slave="disk_contact", master="block_contact")])
+    solution = dolfinx_feti.solve(problem, rtol=1e-8)
+"""
+
+from .errors import InputError, SolveError
+from .fem import Elasticity, Poisson, Subdomain
+from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from .options import SolverOptions
+from .problem import (ContactProblem, Cylinder, Dirichlet, NodeToNode, Plane, RigidObstacle,
+                      SignedDistance, Sphere)
+from .report import Report
+from .solution import ContactData, Solution
+from .solve import solve
+
+__all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Cylinder", "Dirichlet",
+           "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
+           "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
+           "SolverOptions", "Sphere", "Subdomain", "read_gmsh", "solve"]

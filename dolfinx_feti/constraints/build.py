@@ -1,0 +1,36 @@
+"""Building all constraint rows of a decomposed problem, in a rank-independent order."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..mesh.decompose import Decomposition
+from ..problem import ContactProblem, NodeToNode, RigidObstacle
+from .contact import node_to_node_rows, obstacle_rows
+from .dirichlet import dirichlet_mask, dirichlet_rows
+from .gluing import gluing_rows
+from .rows import Rows
+
+
+def build_rows(problem: ContactProblem, dec: Decomposition) -> Rows:
+    """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
+
+    Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
+    are contiguous and the global order does not depend on the number of ranks.
+    """
+    mesh, bs = problem.mesh, problem.value_size
+    node_ptr, node_subs = dec.node_subdomains()
+    fixed, values = dirichlet_mask(problem, mesh)
+    blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
+              dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim)]
+    for i, c in enumerate(problem.contact):
+        if isinstance(c, NodeToNode):
+            blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs))
+        elif isinstance(c, RigidObstacle):
+            blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs))
+    rows = Rows.concatenate(blocks)
+    if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
+        raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "
+                         "distance is NaN or Inf)")
+    return rows.permuted(np.argsort(rows.min_subdomain(), kind="stable"))

@@ -1,0 +1,141 @@
+"""Non-penetration rows: node-to-node pairs between two bodies, and a body on a rigid obstacle."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from ..mesh.gmsh_input import MeshData
+from ..mesh.topology import nodal_normals_and_areas
+from ..problem import NodeToNode, RigidObstacle
+from .rows import Kind, Rows
+
+
+def surface(mesh: MeshData, group: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Nodes, outward unit normals and lumped areas of a boundary group."""
+    try:
+        return nodal_normals_and_areas(mesh.x, mesh.cells, mesh.facets(group))
+    except ValueError as e:
+        raise InputError(f"boundary group {group!r}: {e} (is it a boundary of a body?)") from None
+
+
+def _mean_edge(mesh: MeshData, group: str) -> float:
+    f = mesh.facets(group)
+    return float(np.mean(np.linalg.norm(mesh.x[f[:, 1]] - mesh.x[f[:, 0]], axis=1)))
+
+
+def match_pairs(xs: np.ndarray, xm: np.ndarray, nm: np.ndarray, tol: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """For each slave point, the master point at the same place along the master surface.
+
+    The distance that counts is the tangential one (the offset along the master normal is the
+    gap). A planar master surface is matched exactly in its plane; a curved one among the
+    nearest candidates.
+
+    Returns:
+        (index of the master point per slave point, tangential mismatch per slave point).
+    """
+    nbar = nm.mean(axis=0)
+    nbar /= np.linalg.norm(nbar)
+    if np.all(nm @ nbar > 1.0 - 1e-10):
+        ys = xs - np.outer(xs @ nbar, nbar)
+        ym = xm - np.outer(xm @ nbar, nbar)
+        dist, j = cKDTree(ym).query(ys)
+        return j, dist
+    k = min(16, xm.shape[0])
+    _, cand = cKDTree(xm).query(xs, k=k)
+    cand = cand.reshape(xs.shape[0], k)
+    d = xs[:, None, :] - xm[cand]
+    dn = np.einsum("ijk,ijk->ij", d, nm[cand])
+    tang = np.sqrt(np.maximum(np.einsum("ijk,ijk->ij", d, d) - dn**2, 0.0))
+    best = np.argmin(tang, axis=1)
+    return cand[np.arange(xs.shape[0]), best], tang[np.arange(xs.shape[0]), best]
+
+
+def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np.ndarray,
+                      node_subs: np.ndarray, bs: int) -> Rows:
+    """Rows (u_m − u_s)·n <= gap for matched node pairs, scaled to unit norm."""
+    s_nodes, s_normals, _ = surface(mesh, spec.slave)
+    m_nodes, m_normals, _ = surface(mesh, spec.master)
+    name = f"contact pair {spec.slave!r} (slave) / {spec.master!r} (master)"
+    s_body = set(np.unique(mesh.cell_body[np.isin(mesh.cells, s_nodes).any(axis=1)]))
+    m_body = set(np.unique(mesh.cell_body[np.isin(mesh.cells, m_nodes).any(axis=1)]))
+    if s_body & m_body:
+        raise InputError(f"{name}: both surfaces belong to body "
+                         f"{mesh.body_names[min(s_body & m_body)]!r}; node-to-node contact is "
+                         "between two bodies")
+    tol = spec.match_tol * _mean_edge(mesh, spec.slave)
+    j, mismatch = match_pairs(mesh.x[s_nodes], mesh.x[m_nodes], m_normals, tol)
+    bad = mismatch > tol
+    if np.any(bad):
+        raise InputError(f"{name}: {int(bad.sum())} of {s_nodes.size} slave nodes have no "
+                         f"matching master node (largest mismatch {mismatch.max():.3g}, "
+                         f"tolerance {tol:.3g}; e.g. slave node at "
+                         f"{mesh.x[s_nodes[np.argmax(mismatch)]].round(6).tolist()}). "
+                         "Node-to-node contact needs matching meshes on the two surfaces")
+    if np.unique(j).size != j.size:
+        raise InputError(f"{name}: several slave nodes match the same master node; the "
+                         "surfaces' meshes do not match one to one")
+    m = m_nodes[j]
+    n = m_normals[j]
+    if bs > 1:
+        facing = np.einsum("ij,ij->i", s_normals, n)
+        if np.any(facing > 0.0):
+            raise InputError(f"{name}: inconsistent normals: at {int(np.sum(facing > 0))} pairs "
+                             "the two surfaces face the same way (their outward normals agree); "
+                             "contact surfaces must face each other")
+        gap = np.einsum("ij,ij->i", mesh.x[s_nodes] - mesh.x[m], n)
+        coef_s, coef_m = -n, n
+    else:
+        gap = np.zeros(s_nodes.size)
+        coef_s, coef_m = np.ones((s_nodes.size, 1)), -np.ones((s_nodes.size, 1))
+    if spec.gap is not None:
+        gap = np.full(s_nodes.size, float(spec.gap))
+    scale = 1.0 / np.sqrt(2.0)
+    first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
+    npair = s_nodes.size
+    rows = np.arange(npair)
+    e_row = np.concatenate([np.repeat(rows, bs), np.repeat(rows, bs)])
+    e_sub = np.concatenate([np.repeat(first[s_nodes], bs), np.repeat(first[m], bs)])
+    e_node = np.concatenate([np.repeat(s_nodes, bs), np.repeat(m, bs)])
+    e_comp = np.tile(np.arange(bs), 2 * npair)
+    e_coef = scale * np.concatenate([coef_s.ravel(), coef_m.ravel()])
+    keep = e_coef != 0.0
+    normal = n if bs > 1 else np.zeros((npair, mesh.gdim))
+    return Rows(e_row=e_row[keep], e_sub=e_sub[keep].astype(np.int32), e_node=e_node[keep],
+                e_comp=e_comp[keep].astype(np.int8), e_coef=e_coef[keep], rhs=scale * gap,
+                kind=np.full(npair, Kind.CONTACT, dtype=np.int8), scale=np.full(npair, scale),
+                node=s_nodes, partner=m, normal=normal,
+                spec=np.full(npair, index, dtype=np.int32))
+
+
+def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.ndarray,
+                  node_subs: np.ndarray) -> Rows:
+    """Rows −n·u <= φ/|∇φ| at the nodes of a boundary group, n = ∇φ/|∇φ|."""
+    nodes, normals, _ = surface(mesh, spec.group)
+    phi, grad = spec.obstacle.distance(mesh.x[nodes])
+    phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
+    if phi.shape != (nodes.size,) or grad.shape != (nodes.size, mesh.gdim):
+        raise InputError(f"obstacle on {spec.group!r}: distance() must return arrays of shape "
+                         f"({nodes.size},) and ({nodes.size}, {mesh.gdim})")
+    if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(grad))):
+        raise InputError(f"obstacle on {spec.group!r}: the signed distance is not finite")
+    g = np.linalg.norm(grad, axis=1)
+    if np.any(g <= 0):
+        raise InputError(f"obstacle on {spec.group!r}: zero distance gradient at some nodes")
+    n = grad / g[:, None]
+    away = np.einsum("ij,ij->i", normals, n) > 0.0
+    if np.any(away):
+        raise InputError(f"obstacle on {spec.group!r}: inconsistent normals: the surface faces "
+                         f"away from the obstacle at {int(away.sum())} nodes (the body's "
+                         "outward normal and the obstacle's outward normal agree)")
+    first = node_subs[node_ptr[:-1]]
+    gdim = mesh.gdim
+    npn = nodes.size
+    return Rows(e_row=np.repeat(np.arange(npn), gdim),
+                e_sub=np.repeat(first[nodes], gdim).astype(np.int32),
+                e_node=np.repeat(nodes, gdim), e_comp=np.tile(np.arange(gdim), npn).astype(np.int8),
+                e_coef=-n.ravel(), rhs=phi / g, kind=np.full(npn, Kind.OBSTACLE, dtype=np.int8),
+                scale=np.ones(npn), node=nodes, partner=np.full(npn, -1), normal=n,
+                spec=np.full(npn, index, dtype=np.int32))

@@ -1,0 +1,54 @@
+"""Dirichlet rows of Total FETI: u = u_D on every subdomain copy of a constrained node."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..mesh.gmsh_input import MeshData
+from ..problem import ContactProblem
+from .rows import Kind, Rows
+
+
+def dirichlet_mask(problem: ContactProblem, mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
+    """(N, bs) masks of constrained components and their values (later conditions win)."""
+    bs = problem.value_size
+    fixed = np.zeros((mesh.num_nodes, bs), dtype=bool)
+    values = np.zeros((mesh.num_nodes, bs))
+    for bc in problem.dirichlet:
+        nodes = np.unique(mesh.facets(bc.group))
+        comps = list(range(bs)) if bc.components is None else [int(c) for c in bc.components]
+        if callable(bc.value):
+            v = np.asarray(bc.value(mesh.x[nodes]), dtype=float).reshape(nodes.size, -1)
+            if v.shape[1] == 1:
+                v = np.repeat(v, len(comps), axis=1)
+        else:
+            v = np.broadcast_to(np.asarray(bc.value, dtype=float).ravel(), (len(comps),))
+            v = np.broadcast_to(v, (nodes.size, len(comps)))
+        if v.shape[1] != len(comps):
+            raise InputError(f"Dirichlet on {bc.group!r}: {v.shape[1]} values for "
+                             f"{len(comps)} components")
+        if not np.all(np.isfinite(v)):
+            raise InputError(f"Dirichlet on {bc.group!r}: the value is not finite")
+        for j, c in enumerate(comps):
+            fixed[nodes, c] = True
+            values[nodes, c] = v[:, j]
+    return fixed, values
+
+
+def dirichlet_rows(node_ptr: np.ndarray, node_subs: np.ndarray, fixed: np.ndarray,
+                   values: np.ndarray, bs: int, gdim: int) -> Rows:
+    """One row e_(s,node,c) = u_D per constrained component and per subdomain holding the node."""
+    node, comp = np.nonzero(fixed)
+    count = np.diff(node_ptr)[node]
+    row_node = np.repeat(node, count)
+    row_comp = np.repeat(comp, count)
+    start = np.repeat(node_ptr[node], count)
+    offset = np.arange(row_node.size) - np.repeat(np.cumsum(count) - count, count)
+    subs = node_subs[start + offset]
+    n = row_node.size
+    return Rows(e_row=np.arange(n), e_sub=subs.astype(np.int32), e_node=row_node,
+                e_comp=row_comp.astype(np.int8), e_coef=np.ones(n),
+                rhs=values[row_node, row_comp], kind=np.full(n, Kind.DIRICHLET, dtype=np.int8),
+                scale=np.ones(n), node=row_node, partner=np.full(n, -1),
+                normal=np.zeros((n, gdim)), spec=np.full(n, -1, dtype=np.int32))

@@ -1,0 +1,141 @@
+"""Ready-made forms: linear elasticity (plane strain or 3D) and the scalar Poisson problem.
+
+Each helper is a callable ``forms(V, sub) -> (a, L)`` as :class:`~dolfinx_feti.ContactProblem`
+expects, with ``value_size`` and a ``check(mesh)`` that validates its data against the mesh.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+
+import numpy as np
+import ufl
+
+from ..errors import InputError
+
+Scalar = float | Mapping[str, float]
+
+
+def _per_body(value, mesh, what: str) -> dict[str, float]:
+    if isinstance(value, Mapping):
+        unknown = set(value) - set(mesh.body_names)
+        if unknown:
+            raise InputError(f"{what}: unknown bodies {sorted(unknown)}; the bodies are "
+                             f"{list(mesh.body_names)}")
+        missing = set(mesh.body_names) - set(value)
+        if missing:
+            raise InputError(f"{what}: no value for bodies {sorted(missing)}")
+        return {k: float(v) for k, v in value.items()}
+    return dict.fromkeys(mesh.body_names, float(value))
+
+
+def _check_groups(groups: Mapping, mesh, what: str) -> None:
+    for name, v in groups.items():
+        mesh.facets(name)
+        if not callable(v) and not np.all(np.isfinite(np.asarray(v, dtype=float))):
+            raise InputError(f"{what} on {name!r} is not finite: {v}")
+
+
+class Elasticity:
+    """Small-strain isotropic linear elasticity, plane strain in 2D.
+
+    Args:
+        E: Young's modulus: one number or body name → number.
+        nu: Poisson's ratio, in (−1, 0.5): one number or body name → number.
+        tractions: Boundary group → traction vector (force per area) applied there.
+        body_force: A constant vector, or ``body_force(x)`` of the UFL spatial coordinate.
+    """
+
+    value_size = "vector"
+
+    def __init__(self, E: Scalar, nu: Scalar, *, tractions: Mapping[str, Sequence[float]] | None = None,
+                 body_force: Sequence[float] | Callable | None = None) -> None:
+        self.E, self.nu = E, nu
+        self.tractions = dict(tractions or {})
+        self.body_force = body_force
+        self._E = self._nu = None
+
+    def check(self, mesh) -> None:
+        """Validate the material data and the named groups against ``mesh``."""
+        self._E = _per_body(self.E, mesh, "Young's modulus E")
+        self._nu = _per_body(self.nu, mesh, "Poisson's ratio nu")
+        for body, E in self._E.items():
+            if not np.isfinite(E) or E <= 0:
+                raise InputError(f"Young's modulus of body {body!r} must be positive and "
+                                 f"finite, got E = {E}")
+        for body, nu in self._nu.items():
+            if not np.isfinite(nu) or not -1.0 < nu < 0.5:
+                raise InputError(f"Poisson's ratio of body {body!r} must lie in (-1, 0.5), got "
+                                 f"nu = {nu}" + (" (incompressible)" if nu == 0.5 else ""))
+        _check_groups(self.tractions, mesh, "traction")
+        if self.body_force is not None and not callable(self.body_force):
+            if not np.all(np.isfinite(np.asarray(self.body_force, dtype=float))):
+                raise InputError(f"body force is not finite: {self.body_force}")
+
+    def __call__(self, V, sub):
+        """The forms on one subdomain."""
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        E = sub.cellwise(self._E)
+        nu = sub.cellwise(self._nu)
+        mu = E / (2 * (1 + nu))
+        lmbda = E * nu / ((1 + nu) * (1 - 2 * nu))  # plane strain in 2D
+
+        def eps(w):
+            return ufl.sym(ufl.grad(w))
+
+        def sigma(w):
+            return 2 * mu * eps(w) + lmbda * ufl.tr(eps(w)) * ufl.Identity(len(w))
+
+        a = ufl.inner(sigma(u), eps(v)) * sub.dx()
+        gdim = V.mesh.geometry.dim
+        L = ufl.inner(ufl.as_vector([0.0] * gdim), v) * sub.dx()
+        if self.body_force is not None:
+            x = ufl.SpatialCoordinate(V.mesh)
+            b = self.body_force(x) if callable(self.body_force) else ufl.as_vector(
+                [float(c) for c in self.body_force])
+            L += ufl.inner(b, v) * sub.dx()
+        for name, t in self.tractions.items():
+            if sub.has_facets(name):
+                x = ufl.SpatialCoordinate(V.mesh)
+                tv = t(x) if callable(t) else ufl.as_vector([float(c) for c in t])
+                L += ufl.inner(tv, v) * sub.ds(name)
+        return a, L
+
+
+class Poisson:
+    """The scalar problem −div(k ∇u) = f with fluxes k ∂u/∂n = g on boundary groups.
+
+    Args:
+        source: f: a number, or ``source(x)`` of the UFL spatial coordinate.
+        flux: Boundary group → g (a number or a function of x).
+        k: Conductivity: a number or body name → number (positive).
+    """
+
+    value_size = 1
+
+    def __init__(self, source: float | Callable = 0.0, *, flux: Mapping | None = None,
+                 k: Scalar = 1.0) -> None:
+        self.source, self.flux, self.k = source, dict(flux or {}), k
+        self._k = None
+
+    def check(self, mesh) -> None:
+        """Validate the data and the named groups against ``mesh``."""
+        self._k = _per_body(self.k, mesh, "conductivity k")
+        for body, k in self._k.items():
+            if not np.isfinite(k) or k <= 0:
+                raise InputError(f"conductivity of body {body!r} must be positive, got {k}")
+        _check_groups(self.flux, mesh, "flux")
+        if not callable(self.source) and not np.isfinite(self.source):
+            raise InputError(f"source is not finite: {self.source}")
+
+    def __call__(self, V, sub):
+        """The forms on one subdomain."""
+        u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+        x = ufl.SpatialCoordinate(V.mesh)
+        a = sub.cellwise(self._k) * ufl.inner(ufl.grad(u), ufl.grad(v)) * sub.dx()
+        f = self.source(x) if callable(self.source) else float(self.source)
+        L = f * v * sub.dx()
+        for name, g in self.flux.items():
+            if sub.has_facets(name):
+                L += (g(x) if callable(g) else float(g)) * v * sub.ds(name)
+        return a, L

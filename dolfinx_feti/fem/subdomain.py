@@ -1,0 +1,143 @@
+"""One subdomain as a serial DOLFINx mesh, its tagged measures, and its assembled K_i, f_i.
+
+The assembled matrix and vector are permuted into the canonical order of
+:class:`~dolfinx_feti.mesh.decompose.Decomposition` (sorted global node, then component), so
+nothing downstream depends on DOLFINx's dof numbering.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+import scipy.sparse as sp
+import ufl
+from mpi4py import MPI
+
+from .. import compat
+from ..errors import InputError
+from ..mesh.gmsh_input import MeshData
+from ..mesh.topology import _row_keys
+
+_NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
+
+
+class Subdomain:
+    """A subdomain's serial mesh with the parent's tags, as the user's form callback sees it.
+
+    Attributes:
+        index: Subdomain number (global).
+        mesh: The DOLFINx mesh on ``MPI.COMM_SELF``.
+        nodes: Sorted global node indices of the subdomain (the canonical local order).
+        bodies: Names of the bodies with cells in this subdomain.
+    """
+
+    def __init__(self, index: int, mesh: MeshData, cells: np.ndarray, nodes: np.ndarray,
+                 facets: Mapping[str, np.ndarray]) -> None:
+        """Build the serial mesh of the given cells (global indices) and tag it.
+
+        Args:
+            index: Subdomain number.
+            mesh: The global mesh data.
+            cells: Global indices of the subdomain's cells.
+            nodes: Sorted global nodes of those cells.
+            facets: Boundary group name → the group's facets (global nodes) in this subdomain.
+        """
+        self.index = index
+        self.nodes = nodes
+        self._mesh_data = mesh
+        local_cells = np.searchsorted(nodes, mesh.cells[cells])
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, mesh.x[nodes], mesh.cell_type)
+        self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → local node
+        cell_input = compat.cell_input_indices(self.mesh)
+        body = mesh.cell_body[cells][cell_input]
+        self.bodies = tuple(mesh.body_names[b] for b in np.unique(body))
+        self._cell_tags = compat.cell_tags(self.mesh, np.arange(body.size), body)
+        self._facet_tags, self._facet_ids = self._tag_facets(facets)
+
+    def _tag_facets(self, facets: Mapping[str, np.ndarray]):
+        # A facet may sit in several groups: tag each facet with the index of its set of
+        # groups, so every group is a union of tag values of one MeshTags (UFL allows only one
+        # subdomain_data per integral type in a form).
+        names = [n for n, f in facets.items() if f.shape[0] > 0]
+        if not names:
+            return None, {}
+        allf = np.concatenate([facets[n] for n in names])
+        group = np.concatenate([np.full(facets[n].shape[0], i) for i, n in enumerate(names)])
+        keys = _row_keys(allf)
+        ukeys, first, inv = np.unique(keys, return_index=True, return_inverse=True)
+        member = np.zeros((ukeys.size, len(names)), dtype=bool)
+        member[inv, group] = True
+        classes, cls = np.unique(member, axis=0, return_inverse=True)
+        local = np.searchsorted(self.nodes, allf[first])
+        geom_of_node = np.empty_like(self._node_of_geom)
+        geom_of_node[self._node_of_geom] = np.arange(self._node_of_geom.size)
+        tags = compat.facet_tags(self.mesh, geom_of_node[local], cls.ravel() + 1)
+        ids = {n: tuple(int(c) + 1 for c in np.flatnonzero(classes[:, i]))
+               for i, n in enumerate(names)}
+        return tags, ids
+
+    @property
+    def body(self) -> str:
+        """The body this subdomain belongs to (an error if it spans several)."""
+        if len(self.bodies) != 1:
+            raise InputError(f"subdomain {self.index} spans bodies {list(self.bodies)}: use "
+                             "sub.bodies, sub.dx(body) or sub.cellwise({...})")
+        return self.bodies[0]
+
+    def has_facets(self, group: str) -> bool:
+        """Whether the boundary group has facets in this subdomain."""
+        return group in self._facet_ids
+
+    def dx(self, *bodies: str) -> ufl.Measure:
+        """Cell measure over the whole subdomain, or over the cells of the named bodies."""
+        if not bodies:
+            return compat.measure("dx", self.mesh)
+        ids = tuple(self._mesh_data.body_index(b) for b in bodies)
+        return compat.measure("dx", self.mesh, self._cell_tags)(ids)
+
+    def ds(self, *groups: str) -> ufl.Measure:
+        """Exterior facet measure over the named boundary groups (zero if none is here)."""
+        for g in groups:
+            self._mesh_data.facets(g)
+        ids = tuple(sorted({i for g in groups for i in self._facet_ids.get(g, ())}))
+        return compat.measure("ds", self.mesh, self._facet_tags)(ids or (_NO_FACET,))
+
+    def cellwise(self, values: Mapping[str, float]):
+        """A coefficient that is constant on each body's cells (a DG0 Function if it varies)."""
+        vals = {values[b] for b in self.bodies}
+        if len(vals) == 1:
+            return float(vals.pop())
+        Q = compat.dg0_space(self.mesh)
+        q = compat.function(Q, "cellwise")
+        table = np.array([values.get(b, np.nan) for b in self._mesh_data.body_names])
+        body_of_cell = self._cell_tags.values[np.argsort(self._cell_tags.indices)]
+        dofs = Q.dofmap.list.array  # one dof per cell, in cell order
+        q.x.array[dofs] = table[body_of_cell]
+        return q
+
+    def assemble(self, forms, value_size: int) -> tuple[sp.csr_matrix, np.ndarray]:
+        """Assemble the user's forms and return (K, f) in the canonical dof order."""
+        V = compat.function_space(self.mesh, value_size)
+        a, L = forms(V, self)
+        A = compat.assemble_matrix(a)
+        b = compat.assemble_vector(L)
+        indptr, indices, data = A.getValuesCSR()
+        K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
+        f = b.array.copy()
+        A.destroy()
+        b.destroy()
+        # canonical dof bs*node + c  ←  DOLFINx dof bs*d + c
+        node_of_dof = self._node_of_geom[compat.vertex_dof_nodes(V)]
+        bs = value_size
+        perm = np.empty(bs * node_of_dof.size, dtype=np.int64)
+        for c in range(bs):
+            perm[bs * node_of_dof + c] = bs * np.arange(node_of_dof.size) + c
+        K = K[perm][:, perm].tocsr()
+        K.eliminate_zeros()  # P1 on structured grids leaves exact zeros: they cost in the factor
+        K.sort_indices()
+        f = f[perm]
+        if not (np.all(np.isfinite(K.data)) and np.all(np.isfinite(f))):
+            raise InputError(f"subdomain {self.index} (bodies {list(self.bodies)}): the assembled "
+                             "stiffness matrix or load has non-finite entries (NaN/Inf in the data)")
+        return K, f

@@ -1,0 +1,202 @@
+"""Decomposition of the bodies into subdomains, and the subdomain ↔ node ↔ primal dof maps.
+
+A decomposition is computed from global arrays on every rank and is therefore the same on
+every rank and for every number of ranks; only the assignment of subdomains to ranks depends on
+the communicator size.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import InputError
+from .gmsh_input import MeshData
+from .topology import facet_neighbours
+
+
+@dataclass(frozen=True)
+class ByTags:
+    """One subdomain per body (per connected piece of a physical volume/surface group)."""
+
+
+@dataclass(frozen=True)
+class Parts:
+    """Split every body into parts by recursive coordinate bisection of the cell midpoints.
+
+    Args:
+        n: Parts per body: one number for all bodies or a mapping body name → number.
+    """
+
+    n: int | Mapping[str, int]
+
+
+@dataclass(frozen=True)
+class ByFunction:
+    """Subdomains labelled by a function of the cell midpoints (e.g. a regular H×H grid).
+
+    Cells with equal labels form a subdomain; a label whose cells are not connected through
+    facets, or that spans two bodies not glued together, gives one subdomain per piece.
+
+    Args:
+        fn: ``fn(midpoints: (C, gdim) array) -> (C,) integer labels``.
+    """
+
+    fn: Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass
+class Decomposition:
+    """Subdomains, their owners, and the (subdomain, node) pairs that number the primal dofs.
+
+    The primal unknowns are ordered subdomain by subdomain, and inside a subdomain by global
+    node index then component: dof(s, node, c) = bs * pair_index(s, node) + c. This order does
+    not depend on DOLFINx's dof numbering nor on the number of ranks.
+
+    Attributes:
+        cell_sub: Subdomain of each cell.
+        sub_body: Body index of each subdomain (of its first cell).
+        sub_rank: Rank owning each subdomain (subdomains of a rank are contiguous).
+        pair_sub, pair_node: The (subdomain, node) pairs sorted by subdomain then node.
+        sub_ptr: Pairs of subdomain s are ``sub_ptr[s]:sub_ptr[s+1]``.
+    """
+
+    cell_sub: np.ndarray
+    sub_body: np.ndarray
+    sub_rank: np.ndarray
+    pair_sub: np.ndarray
+    pair_node: np.ndarray
+    sub_ptr: np.ndarray
+    num_nodes: int
+
+    @property
+    def num_subdomains(self) -> int:
+        """Number of subdomains."""
+        return self.sub_body.size
+
+    def local_subdomains(self, rank: int) -> np.ndarray:
+        """Subdomains owned by ``rank``."""
+        return np.flatnonzero(self.sub_rank == rank)
+
+    def nodes(self, s: int) -> np.ndarray:
+        """Sorted global nodes of subdomain ``s``."""
+        return self.pair_node[self.sub_ptr[s]:self.sub_ptr[s + 1]]
+
+    def pair_index(self, sub: np.ndarray, node: np.ndarray) -> np.ndarray:
+        """Index of each (subdomain, node) pair; raises if a node is not in the subdomain."""
+        keys = self.pair_sub.astype(np.int64) * self.num_nodes + self.pair_node
+        want = np.asarray(sub, dtype=np.int64) * self.num_nodes + np.asarray(node, dtype=np.int64)
+        pos = np.searchsorted(keys, want)
+        if np.any(pos >= keys.size) or np.any(keys[np.minimum(pos, keys.size - 1)] != want):
+            raise ValueError("node not in subdomain")
+        return pos
+
+    def node_subdomains(self) -> tuple[np.ndarray, np.ndarray]:
+        """CSR-like map node → subdomains containing it: ``(ptr, subs)``, subs sorted per node."""
+        order = np.lexsort((self.pair_sub, self.pair_node))
+        ptr = np.zeros(self.num_nodes + 1, dtype=np.int64)
+        np.add.at(ptr, self.pair_node + 1, 1)
+        return np.cumsum(ptr), self.pair_sub[order]
+
+
+def decompose(mesh: MeshData, how, comm_size: int) -> Decomposition:
+    """Split ``mesh`` into subdomains and assign them to ``comm_size`` ranks."""
+    midpoints = mesh.x[mesh.cells].mean(axis=1)
+    if isinstance(how, ByTags):
+        label = mesh.cell_body.astype(np.int64)
+    elif isinstance(how, Parts):
+        label = np.empty(mesh.cells.shape[0], dtype=np.int64)
+        for b, name in enumerate(mesh.body_names):
+            n = how.n.get(name, 1) if isinstance(how.n, Mapping) else how.n
+            if int(n) < 1:
+                raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, got {n}")
+            cells = np.flatnonzero(mesh.cell_body == b)
+            label[cells] = b * (1 << 32) + rcb(midpoints[cells], int(n))
+        if isinstance(how.n, Mapping):
+            unknown = set(how.n) - set(mesh.body_names)
+            if unknown:
+                raise InputError(f"Parts: unknown bodies {sorted(unknown)}; the bodies are "
+                                 f"{list(mesh.body_names)}")
+    elif isinstance(how, ByFunction):
+        label = np.asarray(how.fn(midpoints))
+        if label.shape != (mesh.cells.shape[0],) or not np.issubdtype(label.dtype, np.integer):
+            raise InputError("ByFunction: the function must return one integer label per cell "
+                             f"(shape ({mesh.cells.shape[0]},)), got {label.dtype} {label.shape}")
+    else:
+        raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
+                         "ByFunction(fn)")
+    cell_sub = _split_components(mesh.cells, label)
+    return _build(mesh, cell_sub, comm_size)
+
+
+def _split_components(cells: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """Subdomain id per cell: connected (through facets) pieces of equal label, ordered by
+    their first cell so the numbering is deterministic."""
+    pairs = facet_neighbours(cells)
+    same = label[pairs[:, 0]] == label[pairs[:, 1]]
+    pairs = pairs[same]
+    n = cells.shape[0]
+    graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, comp = connected_components(graph, directed=False)
+    first = np.full(comp.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, comp, np.arange(n))
+    order = np.argsort(first, kind="stable")
+    renumber = np.empty_like(order)
+    renumber[order] = np.arange(order.size)
+    return renumber[comp].astype(np.int32)
+
+
+def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int) -> Decomposition:
+    nsub = int(cell_sub.max()) + 1
+    N = mesh.num_nodes
+    keys = np.unique(np.repeat(cell_sub.astype(np.int64), mesh.cells.shape[1]) * N
+                     + mesh.cells.ravel())
+    pair_sub = (keys // N).astype(np.int32)
+    pair_node = keys % N
+    sub_ptr = np.searchsorted(pair_sub, np.arange(nsub + 1)).astype(np.int64)
+    first_cell = np.full(nsub, cell_sub.size, dtype=np.int64)
+    np.minimum.at(first_cell, cell_sub, np.arange(cell_sub.size))
+    sub_body = mesh.cell_body[first_cell]
+    return Decomposition(cell_sub=cell_sub, sub_body=sub_body,
+                         sub_rank=_assign_ranks(np.diff(sub_ptr), comm_size),
+                         pair_sub=pair_sub, pair_node=pair_node, sub_ptr=sub_ptr, num_nodes=N)
+
+
+def _assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
+    """Contiguous blocks of subdomains with balanced total weight (node count); no rank is left
+    without a subdomain when there are at least as many subdomains as ranks."""
+    nsub = weights.size
+    cum = np.cumsum(weights)
+    starts = [0]
+    for r in range(1, comm_size):
+        s = int(np.searchsorted(cum, cum[-1] * r / comm_size))
+        if nsub >= comm_size:
+            s = min(max(s, starts[-1] + 1), nsub - (comm_size - r))
+        starts.append(min(s, nsub))
+    rank = np.zeros(nsub, dtype=np.int32)
+    for r, s in enumerate(starts[1:], start=1):
+        rank[s:] = r
+    return rank
+
+
+def rcb(points: np.ndarray, n: int) -> np.ndarray:
+    """Recursive coordinate bisection of points into ``n`` parts of (nearly) equal size."""
+    labels = np.zeros(points.shape[0], dtype=np.int64)
+    work = [(np.arange(points.shape[0]), n, 0)]
+    while work:
+        idx, k, first = work.pop()
+        if k == 1 or idx.size == 0:
+            labels[idx] = first
+            continue
+        p = points[idx]
+        axis = int(np.argmax(p.max(axis=0) - p.min(axis=0)))
+        order = idx[np.argsort(p[:, axis], kind="stable")]
+        k1 = k // 2
+        cut = int(round(idx.size * k1 / k))
+        work.append((order[:cut], k1, first))
+        work.append((order[cut:], k - k1, first + k1))
+    return labels

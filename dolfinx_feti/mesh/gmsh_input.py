@@ -1,0 +1,224 @@
+"""Reading a gmsh model (in memory or a ``.msh`` file) into global NumPy arrays.
+
+Every rank holds the whole mesh as plain arrays: the decomposition, the constraint rows and the
+contact geometry are then computed identically everywhere, with no communication and no
+dependence on the number of ranks. Only rank 0 talks to gmsh; the arrays are broadcast.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from ..errors import InputError
+
+#: gmsh element type → (cell name, topological dimension, number of nodes), first order only.
+_GMSH_CELLS = {2: ("triangle", 2, 3), 4: ("tetrahedron", 3, 4)}
+_GMSH_FACETS = {2: 1, 3: 2}  # tdim → gmsh element type of its facets (line, triangle)
+_UNSUPPORTED = {3: "quadrangle", 5: "hexahedron", 6: "prism", 7: "pyramid",
+                9: "second-order triangle", 11: "second-order tetrahedron"}
+
+
+@dataclass
+class MeshData:
+    """A mesh with its named physical groups, as global arrays (identical on every rank).
+
+    Attributes:
+        x: Node coordinates, shape (N, gdim).
+        cells: Cell-to-node connectivity, shape (C, tdim + 1), node indices into ``x``.
+        cell_type: ``"triangle"`` or ``"tetrahedron"``.
+        cell_body: For each cell, the index of its body in ``body_names``.
+        body_names: The physical volume (surface in 2D) groups, in tag order.
+        facet_groups: Boundary physical groups: name → facets as (F, tdim) node indices.
+        node_tags: The gmsh tag of each node (for messages).
+        group_tags: name → gmsh physical tag, for every group (bodies and facet groups).
+    """
+
+    x: np.ndarray
+    cells: np.ndarray
+    cell_type: str
+    cell_body: np.ndarray
+    body_names: tuple[str, ...]
+    facet_groups: dict[str, np.ndarray]
+    node_tags: np.ndarray
+    group_tags: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def gdim(self) -> int:
+        """Geometric dimension."""
+        return self.x.shape[1]
+
+    @property
+    def tdim(self) -> int:
+        """Topological dimension of the cells."""
+        return self.cells.shape[1] - 1
+
+    @property
+    def num_nodes(self) -> int:
+        """Number of nodes."""
+        return self.x.shape[0]
+
+    def body_index(self, name: str) -> int:
+        """The index of a body by name, with an error that lists the known bodies."""
+        try:
+            return self.body_names.index(name)
+        except ValueError:
+            raise InputError(f"unknown body {name!r}: the mesh's bodies (physical groups of "
+                             f"dimension {self.tdim}) are {list(self.body_names)}") from None
+
+    def facets(self, name: str) -> np.ndarray:
+        """The facets of a boundary group, with an error that lists the known groups."""
+        if name not in self.facet_groups:
+            raise InputError(f"unknown boundary group {name!r}: the mesh's boundary physical "
+                             f"groups (dimension {self.tdim - 1}) are {sorted(self.facet_groups)}")
+        f = self.facet_groups[name]
+        if f.shape[0] == 0:
+            raise InputError(f"boundary group {name!r} is empty: it holds no mesh facet")
+        return f
+
+
+def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) -> MeshData:
+    """Read a gmsh model into :class:`MeshData`.
+
+    Args:
+        source: A path to a ``.msh`` file, or the ``gmsh.model`` module / ``None`` for the model
+            that is current in this process's gmsh session (it only needs to exist on rank 0).
+        comm: The ranks that will share the data (all of them receive the same arrays).
+        gdim: Geometric dimension; by default the cells' dimension (a 2D model has z = 0).
+
+    Returns:
+        The mesh data, identical on every rank of ``comm``.
+
+    Raises:
+        InputError: If the file is missing, the model has no physical groups of cells,
+            the cells are not first-order simplices, a cell is in two bodies, or the data is
+            not finite.
+    """
+    data, err = None, None
+    if comm.rank == 0:
+        try:
+            data = _extract(source, gdim)
+        except InputError as e:
+            err = e
+    err = comm.bcast(err, root=0)
+    if err is not None:
+        raise err
+    return comm.bcast(data, root=0)
+
+
+def _extract(source, gdim: int | None) -> MeshData:
+    import gmsh
+
+    if not isinstance(source, (str, Path)):
+        return _extract_current(gmsh, gdim)
+    path = Path(source)
+    if not path.is_file():
+        raise InputError(f"mesh file not found: {path}")
+    # gmsh 4.8 cannot tell whether it is initialized; initializing twice is harmless and keeps
+    # the caller's models, so the file is read into a model of its own, removed afterwards.
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    previous = gmsh.model.getCurrent()
+    try:
+        gmsh.open(str(path))
+    except Exception as e:
+        raise InputError(f"gmsh cannot read {path}: {e}") from None
+    try:
+        return _extract_current(gmsh, gdim)
+    finally:
+        if gmsh.model.getCurrent() != previous:
+            gmsh.model.remove()
+            if previous in gmsh.model.list():
+                gmsh.model.setCurrent(previous)
+
+
+def _group_name(gmsh, dim: int, tag: int) -> str:
+    return gmsh.model.getPhysicalName(dim, tag) or str(tag)
+
+
+def _extract_current(gmsh, gdim: int | None) -> MeshData:
+    groups = gmsh.model.getPhysicalGroups()
+    if not groups:
+        raise InputError("the gmsh model has no physical groups: name the bodies (volumes, or "
+                         "surfaces in 2D) and the boundary parts with physical groups")
+    tdim = max(d for d, _ in groups)
+    if tdim < 2:
+        raise InputError("the gmsh model has no physical group of surfaces or volumes")
+
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    coords = coords.reshape(-1, 3)
+    gdim = tdim if gdim is None else gdim
+    tag_to_row = np.full(int(node_tags.max()) + 1 if node_tags.size else 1, -1, dtype=np.int64)
+    tag_to_row[node_tags] = np.arange(node_tags.size)
+
+    body_names, group_tags, cell_blocks, body_blocks = [], {}, [], []
+    cell_type = None
+    for dim, tag in sorted(g for g in groups if g[0] == tdim):
+        name = _group_name(gmsh, dim, tag)
+        group_tags[name] = tag
+        body = len(body_names)
+        body_names.append(name)
+        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
+            for t, nd in zip(types, nodes):
+                if t not in _GMSH_CELLS:
+                    kind = _UNSUPPORTED.get(int(t), f"gmsh element type {t}")
+                    raise InputError(f"body {name!r} has {kind} cells: only first-order "
+                                     "triangles (2D) and tetrahedra (3D) are supported")
+                ct, _, nv = _GMSH_CELLS[int(t)]
+                cell_type = ct
+                block = tag_to_row[nd.astype(np.int64).reshape(-1, nv)]
+                cell_blocks.append(block)
+                body_blocks.append(np.full(block.shape[0], body, dtype=np.int32))
+    if not cell_blocks:
+        raise InputError(f"the physical groups of dimension {tdim} hold no cells")
+    cells_g = np.concatenate(cell_blocks)
+    cell_body = np.concatenate(body_blocks)
+
+    # A cell listed under two bodies means the bodies overlap: refuse rather than guess.
+    key = np.sort(cells_g, axis=1)
+    _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    if np.any(counts > 1):
+        dup = np.flatnonzero(counts > 1)[0]
+        same = np.flatnonzero((key == key[first[dup]]).all(axis=1))
+        names = sorted({body_names[cell_body[c]] for c in same})
+        raise InputError(f"bodies overlap: {int(np.sum(counts > 1))} cells belong to more than one "
+                         f"physical group of dimension {tdim} (e.g. {names})")
+
+    used = np.unique(cells_g)
+    new_index = np.full(node_tags.size, -1, dtype=np.int64)
+    new_index[used] = np.arange(used.size)
+    cells = new_index[cells_g]
+    x = coords[used, :gdim].copy()
+    if gdim < 3 and np.any(np.abs(coords[used, gdim:]) > 1e-12 * max(1.0, np.abs(x).max())):
+        raise InputError(f"the mesh is not planar: nodes have non-zero coordinates beyond "
+                         f"dimension {gdim}")
+    if not np.all(np.isfinite(x)):
+        raise InputError("the mesh has non-finite node coordinates (NaN or Inf)")
+
+    facet_groups = {}
+    ftype = _GMSH_FACETS[tdim]
+    for dim, tag in sorted(g for g in groups if g[0] == tdim - 1):
+        name = _group_name(gmsh, dim, tag)
+        if name in group_tags:
+            raise InputError(f"physical group name {name!r} is used twice")
+        group_tags[name] = tag
+        blocks = []
+        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
+            for t, nd in zip(types, nodes):
+                if t == ftype:
+                    blocks.append(nd.astype(np.int64).reshape(-1, tdim))
+        f = np.concatenate(blocks) if blocks else np.empty((0, tdim), dtype=np.int64)
+        f = new_index[tag_to_row[f]]
+        if np.any(f < 0):
+            raise InputError(f"boundary group {name!r} has facets whose nodes belong to no cell "
+                             "of any body")
+        facet_groups[name] = f
+
+    return MeshData(x=x, cells=cells, cell_type=cell_type, cell_body=cell_body,
+                    body_names=tuple(body_names), facet_groups=facet_groups,
+                    node_tags=node_tags[used].astype(np.int64), group_tags=group_tags)

@@ -1,0 +1,448 @@
+"""Benchmark geometries as gmsh models (see ``/work/shared/benchmarks/BENCHMARKS.md``).
+
+Each function adds a new model to the current gmsh session (the caller runs
+``gmsh.initialize()`` and ``gmsh.finalize()``), meshes it with first-order simplices, names its
+physical groups and leaves it current, ready for ``gmsh.write`` (format 4.1) or for reading into
+DOLFINx. Every function returns the physical groups as ``{name: (dim, tag)}``.
+
+Bodies that touch are separate entities with their own nodes on the contact interface: they
+are meant to be different bodies (or subdomains) coupled by contact constraints.
+
+Physical tags: bodies are numbered 1, 2, ... and boundary groups 11, 12, ... so that no two
+groups of a model share a tag, whatever their dimension.
+
+The structured meshes (:func:`membranes`, :func:`blocks3d`) are built directly as gmsh discrete
+entities, so their triangulation is exactly the documented one: the Kuhn (Freudenthal)
+subdivision of a grid of squares or cubes, every square (and every face of a cube) split along
+its diagonal from the corner with the smallest coordinates to the one with the largest, and every
+cube into six tetrahedra around that diagonal.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import gmsh
+import numpy as np
+
+#: gmsh element types of first-order simplices by topological dimension.
+_SIMPLEX_TYPE = {1: 1, 2: 2, 3: 4}
+
+
+def physical_groups() -> dict[str, tuple[int, int]]:
+    """The named physical groups of the current gmsh model.
+
+    Returns:
+        ``{name: (dim, tag)}`` for every physical group that has a name.
+    """
+    groups = {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag)
+        if name:
+            groups[name] = (dim, tag)
+    return groups
+
+
+def _add_group(dim: int, entities: list[int], tag: int, name: str) -> None:
+    gmsh.model.addPhysicalGroup(dim, entities, tag)
+    gmsh.model.setPhysicalName(dim, tag, name)
+
+
+def _set_output_options() -> None:
+    gmsh.option.setNumber("Mesh.ElementOrder", 1)
+    gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+
+
+# ------------------------------------------------------------------------------------------------
+# Structured boxes as discrete entities
+# ------------------------------------------------------------------------------------------------
+
+
+def _kuhn_simplices(cells: tuple[int, ...]) -> np.ndarray:
+    """Positively oriented Kuhn simplices of a structured grid, as lexicographic node indices.
+
+    Args:
+        cells: Number of cells along each axis (2 or 3 axes); node (i, j[, k]) has index
+            ``i + (nx + 1) * (j + (ny + 1) * k)``.
+
+    Returns:
+        Array (d! * prod(cells), d + 1) of node indices.
+    """
+    d = len(cells)
+    nodes_per_axis = np.array(cells) + 1
+    strides = np.concatenate(([1], np.cumprod(nodes_per_axis[:-1])))
+    origins = np.stack(np.meshgrid(*[np.arange(c) for c in cells], indexing="ij"), axis=-1)
+    origin_index = (origins.reshape(-1, d) * strides).sum(axis=1)
+    blocks = []
+    for perm in itertools.permutations(range(d)):
+        # Walk from the cell's lowest corner to its highest one, one axis at a time.
+        offsets = np.concatenate(([0], np.cumsum(strides[list(perm)])))
+        inversions = sum(perm[a] > perm[b] for a in range(d) for b in range(a + 1, d))
+        if inversions % 2:  # odd permutation: negatively oriented, swap the last two vertices
+            offsets[[-2, -1]] = offsets[[-1, -2]]
+        blocks.append(origin_index[:, None] + offsets[None, :])
+    return np.concatenate(blocks)
+
+
+def _boundary_facets(simplices: np.ndarray) -> np.ndarray:
+    """The facets that belong to one simplex only, oriented with outward normals."""
+    d = simplices.shape[1] - 1
+    facets = []
+    for m in range(d + 1):
+        f = np.delete(simplices, m, axis=1)
+        if m % 2:  # removing an odd-numbered vertex reverses the orientation
+            f[:, [0, 1]] = f[:, [1, 0]]
+        facets.append(f)
+    facets = np.concatenate(facets)
+    _, inverse, counts = np.unique(
+        np.sort(facets, axis=1), axis=0, return_inverse=True, return_counts=True
+    )
+    return facets[counts[inverse.ravel()] == 1]
+
+
+def _add_structured_box(
+    lo: tuple[float, ...], hi: tuple[float, ...], cells: tuple[int, ...], first_node_tag: int
+) -> tuple[int, dict[tuple[int, int], int], int]:
+    """Add a box meshed by Kuhn simplices as discrete gmsh entities.
+
+    The box becomes one discrete entity of dimension d = len(lo) (2 or 3) with one boundary
+    entity of dimension d - 1 per side. Nodes on the boundary are classified on the first side
+    (in the order x-low, x-high, y-low, ...) that holds them, all others on the box.
+
+    Args:
+        lo: The lowest corner.
+        hi: The highest corner.
+        cells: Number of cells along each axis.
+        first_node_tag: The tag of the box's first node; its nodes are numbered consecutively.
+
+    Returns:
+        The box's entity tag, its sides as ``{(axis, 0 or 1): entity tag}`` (0 for the low side,
+        1 for the high one), and the next free node tag.
+    """
+    d = len(lo)
+    nodes_per_axis = np.array(cells) + 1
+    # Multi-index of every node, lexicographic with x running fastest.
+    index = np.indices(nodes_per_axis[::-1]).reshape(d, -1)[::-1].T
+    coords = np.zeros((index.shape[0], 3))
+    for a in range(d):
+        coords[:, a] = lo[a] + (hi[a] - lo[a]) * index[:, a] / cells[a]
+        coords[index[:, a] == cells[a], a] = hi[a]  # exact end coordinates
+    tags = first_node_tag + np.arange(index.shape[0])
+
+    simplices = _kuhn_simplices(tuple(cells))
+    facets = _boundary_facets(simplices)
+
+    # Nodes first (each on one entity), then the elements that refer to them.
+    sides, side_facets = {}, {}
+    unclassified = np.ones(index.shape[0], dtype=bool)
+    for a in range(d):
+        for s, value in ((0, 0), (1, cells[a])):
+            on_side = index[:, a] == value
+            nodes = np.flatnonzero(on_side & unclassified)
+            unclassified &= ~on_side
+            sides[a, s] = gmsh.model.addDiscreteEntity(d - 1)
+            gmsh.model.mesh.addNodes(
+                d - 1, sides[a, s], tags[nodes].tolist(), coords[nodes].ravel().tolist()
+            )
+            side_facets[a, s] = facets[on_side[facets].all(axis=1)]
+    body = gmsh.model.addDiscreteEntity(d, -1, list(sides.values()))
+    gmsh.model.mesh.addNodes(
+        d, body, tags[unclassified].tolist(), coords[unclassified].ravel().tolist()
+    )
+    gmsh.model.mesh.addElementsByType(body, _SIMPLEX_TYPE[d], [], tags[simplices].ravel().tolist())
+    for key, entity in sides.items():
+        gmsh.model.mesh.addElementsByType(
+            entity, _SIMPLEX_TYPE[d - 1], [], tags[side_facets[key]].ravel().tolist()
+        )
+    return body, sides, int(tags[-1]) + 1
+
+
+def membranes(n: int) -> dict[str, tuple[int, int]]:
+    """Two unit squares side by side: Dostál's two-membrane problem (benchmark B1).
+
+    "left" = (0,1)² and "right" = (1,2)×(0,1), each an n×n grid of squares, every square split
+    into two triangles along its diagonal from (i, j) to (i+1, j+1). Each square has its own nodes
+    on x = 1, at the same positions.
+
+    Physical groups (dim, tag): "left" (2, 1), "right" (2, 2), "dirichlet" (1, 11) = {0}×[0,1],
+    "contact_left" (1, 12) = the x = 1 side of left, "contact_right" (1, 13) = the x = 1 side of
+    right.
+
+    Args:
+        n: Number of squares along each side of each membrane.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If n < 1.
+    """
+    if n < 1:
+        raise ValueError(f"membranes: n must be >= 1, got {n}")
+    gmsh.model.add(f"membranes_{n}")
+    _set_output_options()
+    left, left_sides, next_tag = _add_structured_box((0.0, 0.0), (1.0, 1.0), (n, n), 1)
+    right, right_sides, _ = _add_structured_box((1.0, 0.0), (2.0, 1.0), (n, n), next_tag)
+    _add_group(2, [left], 1, "left")
+    _add_group(2, [right], 2, "right")
+    _add_group(1, [left_sides[0, 0]], 11, "dirichlet")
+    _add_group(1, [left_sides[0, 1]], 12, "contact_left")
+    _add_group(1, [right_sides[0, 0]], 13, "contact_right")
+    return physical_groups()
+
+
+def blocks3d(
+    n: int = 4,
+    top_size: tuple[float, float, float] = (1.0, 1.0, 0.5),
+    bottom_size: tuple[float, float, float] = (1.0, 1.0, 0.5),
+) -> dict[str, tuple[int, int]]:
+    """Two stacked boxes meshed by structured tetrahedra (the 3D contact patch test).
+
+    "lower" = [0,Lx]×[0,Ly]×[0,Hb] and "upper" = [0,Lx]×[0,Ly]×[Hb,Hb+Ht] with (Lx, Ly, Hb) =
+    bottom_size and (Lx, Ly, Ht) = top_size (defaults: [0,1]²×[0,0.5] and [0,1]²×[0.5,1]). Each
+    box has max(1, round(n·L)) cells along an edge of length L, every cube split into six Kuhn
+    tetrahedra; both contact faces z = Hb therefore carry the same triangulation, with separate
+    nodes at the same positions.
+
+    Physical groups (dim, tag): "lower" (3, 1), "upper" (3, 2), "bottom" (2, 11) = z = 0,
+    "top" (2, 12) = z = Hb + Ht, "contact_lower" (2, 13) = the z = Hb face of lower,
+    "contact_upper" (2, 14) = the z = Hb face of upper, "sides_upper" (2, 15) and
+    "sides_lower" (2, 16) = the four lateral faces of each box.
+
+    Args:
+        n: Number of cells per unit length.
+        top_size: (Lx, Ly, height) of the upper box.
+        bottom_size: (Lx, Ly, height) of the lower box.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If n < 1, a size is not positive, or the boxes' footprints differ (the
+            contact faces would not match).
+    """
+    if n < 1:
+        raise ValueError(f"blocks3d: n must be >= 1, got {n}")
+    if min(*top_size, *bottom_size) <= 0:
+        raise ValueError(f"blocks3d: sizes must be positive, got {top_size}, {bottom_size}")
+    if tuple(top_size[:2]) != tuple(bottom_size[:2]):
+        raise ValueError(
+            "blocks3d: the boxes must have the same footprint (Lx, Ly) for matching contact "
+            f"faces, got {top_size[:2]} and {bottom_size[:2]}"
+        )
+    lx, ly, hb = (float(s) for s in bottom_size)
+    ht = float(top_size[2])
+
+    def cells(length: float) -> int:
+        return max(1, round(n * length))
+
+    gmsh.model.add("blocks3d")
+    _set_output_options()
+    lower, lower_sides, next_tag = _add_structured_box(
+        (0.0, 0.0, 0.0), (lx, ly, hb), (cells(lx), cells(ly), cells(hb)), 1
+    )
+    upper, upper_sides, _ = _add_structured_box(
+        (0.0, 0.0, hb), (lx, ly, hb + ht), (cells(lx), cells(ly), cells(ht)), next_tag
+    )
+    lateral = [(0, 0), (0, 1), (1, 0), (1, 1)]
+    _add_group(3, [lower], 1, "lower")
+    _add_group(3, [upper], 2, "upper")
+    _add_group(2, [lower_sides[2, 0]], 11, "bottom")
+    _add_group(2, [upper_sides[2, 1]], 12, "top")
+    _add_group(2, [lower_sides[2, 1]], 13, "contact_lower")
+    _add_group(2, [upper_sides[2, 0]], 14, "contact_upper")
+    _add_group(2, [upper_sides[k] for k in lateral], 15, "sides_upper")
+    _add_group(2, [lower_sides[k] for k in lateral], 16, "sides_lower")
+    return physical_groups()
+
+
+# ------------------------------------------------------------------------------------------------
+# CAD-based, unstructured meshes
+# ------------------------------------------------------------------------------------------------
+
+
+def _threshold_field(
+    points: list[int], size_min: float, size_max: float, dist_min: float, dist_max: float
+) -> int:
+    """A mesh size field: size_min within dist_min of the points, growing to size_max."""
+    field = gmsh.model.mesh.field
+    distance = field.add("Distance")
+    field.setNumbers(distance, "PointsList", points)
+    threshold = field.add("Threshold")
+    field.setNumber(threshold, "InField", distance)
+    field.setNumber(threshold, "SizeMin", size_min)
+    field.setNumber(threshold, "SizeMax", size_max)
+    field.setNumber(threshold, "DistMin", dist_min)
+    field.setNumber(threshold, "DistMax", dist_max)
+    field.setAsBackgroundMesh(threshold)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", size_max)
+    return threshold
+
+
+def _contact_abscissae(h_contact: float, contact_width: float) -> np.ndarray:
+    """x_k = k·h_contact for x_k <= contact_width, then contact_width itself if not yet there."""
+    k = math.floor(contact_width / h_contact + 1e-9)
+    x = h_contact * np.arange(k + 1)
+    if contact_width - x[-1] > 1e-9 * h_contact:
+        x = np.append(x, contact_width)
+    else:
+        x[-1] = contact_width
+    return x
+
+
+def hertz2d(
+    h_contact: float = 0.05,
+    h_far: float = 1.0,
+    R: float = 8.0,
+    width: float = 20.0,
+    height: float = 20.0,
+    contact_width: float = 2.5,
+) -> dict[str, tuple[int, int]]:
+    """A disk on a block, half model by symmetry about x = 0 (2D Hertz contact, benchmark B2).
+
+    "disk" is the quarter disk {x >= 0, y <= R} of the disk with centre (0, R), which touches
+    the block's top y = 0 at the origin; "block" = [0, width/2] × [-height, 0]. In the contact
+    zone 0 <= x <= contact_width both bodies have nodes at the same abscissae x_k = k·h_contact
+    (and at x = contact_width): on the block's top at (x_k, 0), on the disk's arc exactly on the
+    circle, (x_k, R - sqrt(R² - x_k²)). Each body has its own nodes. Away from the contact zone
+    the arc and the block's top are meshed more coarsely; the element size grows from h_contact
+    near the contact zone to h_far.
+
+    Physical groups (dim, tag): "disk" (2, 1), "block" (2, 2), "disk_contact" (1, 11) = the arc
+    with 0 <= x <= contact_width, "block_contact" (1, 12) = the block's top with
+    0 <= x <= contact_width, "load" (1, 13) = the disk's flat top y = R, "symmetry" (1, 14) = the
+    x = 0 edges of both bodies, "bottom" (1, 15) = y = -height.
+
+    Args:
+        h_contact: Node spacing (in x) in the contact zone.
+        h_far: Largest element size.
+        R: Disk radius.
+        width: Width of the full block (the model has half of it).
+        height: Height of the block.
+        contact_width: Extent in x of the contact zone with matching nodes.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If the sizes are inconsistent.
+    """
+    if not 0 < h_contact <= contact_width < min(R, width / 2):
+        raise ValueError(
+            "hertz2d: need 0 < h_contact <= contact_width < min(R, width/2), got "
+            f"h_contact={h_contact}, contact_width={contact_width}, R={R}, width={width}"
+        )
+    if h_far < h_contact or height <= 0:
+        raise ValueError(f"hertz2d: need h_far >= h_contact and height > 0, got {h_far}, {height}")
+    gmsh.model.add("hertz2d")
+    _set_output_options()
+    geo = gmsh.model.geo
+    xs = _contact_abscissae(h_contact, contact_width)
+    half = width / 2
+
+    # Disk, counter-clockwise: contact arcs, outer arc, flat top, symmetry line.
+    centre = geo.addPoint(0.0, R, 0.0)  # also the corner between the flat top and x = 0
+    arc_points = [geo.addPoint(x, R - math.sqrt(R * R - x * x), 0.0) for x in xs]
+    disk_far = geo.addPoint(R, R, 0.0)
+    disk_contact = [
+        geo.addCircleArc(a, centre, b) for a, b in zip(arc_points[:-1], arc_points[1:], strict=True)
+    ]
+    disk_arc = geo.addCircleArc(arc_points[-1], centre, disk_far)
+    load = geo.addLine(disk_far, centre)
+    disk_symmetry = geo.addLine(centre, arc_points[0])
+    disk_loop = geo.addCurveLoop([*disk_contact, disk_arc, load, disk_symmetry])
+    disk = geo.addPlaneSurface([disk_loop])
+
+    # Block, counter-clockwise: top (right to left), symmetry line, bottom, right side.
+    top_points = [geo.addPoint(x, 0.0, 0.0) for x in xs]
+    top_far = geo.addPoint(half, 0.0, 0.0)
+    bottom_left = geo.addPoint(0.0, -height, 0.0)
+    bottom_right = geo.addPoint(half, -height, 0.0)
+    block_top = geo.addLine(top_far, top_points[-1])
+    block_contact = [
+        geo.addLine(top_points[k + 1], top_points[k]) for k in reversed(range(len(xs) - 1))
+    ]
+    block_symmetry = geo.addLine(top_points[0], bottom_left)
+    bottom = geo.addLine(bottom_left, bottom_right)
+    block_side = geo.addLine(bottom_right, top_far)
+    block_loop = geo.addCurveLoop([block_top, *block_contact, block_symmetry, bottom, block_side])
+    block = geo.addPlaneSurface([block_loop])
+    geo.synchronize()
+
+    # One element per contact segment: the nodes are exactly the points above.
+    for curve in disk_contact + block_contact:
+        gmsh.model.mesh.setTransfiniteCurve(curve, 2)
+    # Size h_contact within 0.2 contact_width of the contact zone, then growing with the
+    # distance to it (slope 0.2) up to h_far.
+    _threshold_field(
+        arc_points + top_points,
+        size_min=h_contact,
+        size_max=h_far,
+        dist_min=0.2 * contact_width,
+        dist_max=0.2 * contact_width + 5 * (h_far - h_contact),
+    )
+
+    _add_group(2, [disk], 1, "disk")
+    _add_group(2, [block], 2, "block")
+    _add_group(1, disk_contact, 11, "disk_contact")
+    _add_group(1, block_contact, 12, "block_contact")
+    _add_group(1, [load], 13, "load")
+    _add_group(1, [disk_symmetry, block_symmetry], 14, "symmetry")
+    _add_group(1, [bottom], 15, "bottom")
+    gmsh.model.mesh.generate(2)
+    return physical_groups()
+
+
+def rigid_sphere_cube(
+    h: float = 0.05, h_far: float = 0.25, refine_radius: float = 0.2
+) -> dict[str, tuple[int, int]]:
+    """The quarter cube [0,1]²×[-1,0] of the rigid-sphere indentation case of benchmark B2.
+
+    Unstructured tetrahedra of size h within refine_radius of the origin (the centre of the
+    contact on the top face), growing to h_far.
+
+    Physical groups (dim, tag): "cube" (3, 1), "bottom" (2, 11) = z = -1, "symmetry_x" (2, 12)
+    = x = 0, "symmetry_y" (2, 13) = y = 0, "top" (2, 14) = z = 0 (the contact surface).
+
+    Args:
+        h: Element size near the origin.
+        h_far: Largest element size.
+        refine_radius: Radius of the refined zone around the origin.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If the sizes are not positive or h > h_far.
+    """
+    if not 0 < h <= h_far or refine_radius <= 0:
+        raise ValueError(
+            f"rigid_sphere_cube: need 0 < h <= h_far, refine_radius > 0, got "
+            f"{h}, {h_far}, {refine_radius}"
+        )
+    gmsh.model.add("rigid_sphere_cube")
+    _set_output_options()
+    occ = gmsh.model.occ
+    cube = occ.addBox(0.0, 0.0, -1.0, 1.0, 1.0, 1.0)
+    occ.synchronize()
+
+    eps = 1e-6
+
+    def entities_in(dim: int, lo: tuple[float, ...], hi: tuple[float, ...]) -> list[int]:
+        box = (lo[0] - eps, lo[1] - eps, lo[2] - eps, hi[0] + eps, hi[1] + eps, hi[2] + eps)
+        return [tag for _, tag in gmsh.model.getEntitiesInBoundingBox(*box, dim)]
+
+    origin = entities_in(0, (0, 0, 0), (0, 0, 0))
+    _threshold_field(origin, h, h_far, refine_radius, refine_radius + 4 * (h_far - h))
+
+    _add_group(3, [cube], 1, "cube")
+    _add_group(2, entities_in(2, (0, 0, -1), (1, 1, -1)), 11, "bottom")
+    _add_group(2, entities_in(2, (0, 0, -1), (0, 1, 0)), 12, "symmetry_x")
+    _add_group(2, entities_in(2, (0, 0, -1), (1, 0, 0)), 13, "symmetry_y")
+    _add_group(2, entities_in(2, (0, 0, 0), (1, 1, 0)), 14, "top")
+    gmsh.model.mesh.generate(3)
+    return physical_groups()

@@ -1,0 +1,93 @@
+"""Solver options: explicit keyword arguments, overridable from the PETSc options database.
+
+Every field ``name`` can be set on the command line as ``-feti_<name> value`` (e.g.
+``-feti_rtol 1e-8 -feti_mprgp_gamma 1``); command-line values win over the Python defaults but
+not over keyword arguments given explicitly to :func:`dolfinx_feti.solve`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+from petsc4py import PETSc
+
+from .errors import InputError
+
+
+@dataclass
+class SolverOptions:
+    """Parameters of the FETI solve.
+
+    Attributes:
+        rtol: Stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term).
+        eq_rtol: Stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; default ``rtol``.
+        max_it: Budget of inner iterations (all outer iterations together).
+        max_outer: Budget of SMALBE outer iterations.
+        factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc").
+        mprgp_gamma: MPRGP's proportioning parameter Γ.
+        mprgp_expansion: "fixed", "optimal" or "projcg".
+        smalbe_rho: SMALBE's penalty ρ relative to ||PFP|| (None: the solver's default).
+        smalbe_M: SMALBE's initial M relative to ||PFP|| (None: the solver's default).
+        smalbe_eta: SMALBE's η relative to ||b|| (None: the solver's default).
+        smalbe_beta: SMALBE's divisor of M.
+        norm_rtol: Relative tolerance of the Lanczos estimate of ||PFP||.
+    """
+
+    rtol: float = 1e-6
+    eq_rtol: float | None = None
+    max_it: int = 5000
+    max_outer: int = 100
+    factor: str = "cholmod"
+    mprgp_gamma: float = 1.0
+    mprgp_expansion: str = "fixed"
+    smalbe_rho: float | None = None
+    smalbe_M: float | None = None
+    smalbe_eta: float | None = None
+    smalbe_beta: float = 2.0
+    norm_rtol: float = 1e-4
+
+    @classmethod
+    def create(cls, prefix: str = "feti_", **kwargs) -> SolverOptions:
+        """Defaults, then the PETSc options database under ``prefix``, then ``kwargs``."""
+        names = {f.name for f in fields(cls)}
+        unknown = set(kwargs) - names
+        if unknown:
+            raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(names)}")
+        opts = PETSc.Options(prefix)
+        values = {}
+        for f in fields(cls):
+            if not opts.hasName(f.name):
+                continue
+            kind = str(f.type)
+            if "int" in kind:
+                values[f.name] = opts.getInt(f.name)
+            elif "float" in kind:
+                values[f.name] = opts.getReal(f.name)
+            else:
+                values[f.name] = opts.getString(f.name)
+        values.update({k: v for k, v in kwargs.items() if v is not None})
+        out = cls(**values)
+        out.validate()
+        return out
+
+    def validate(self) -> None:
+        """Raise InputError for impossible values."""
+        for name in ("rtol", "norm_rtol", "mprgp_gamma"):
+            v = getattr(self, name)
+            if not v > 0:
+                raise InputError(f"solver option {name} must be positive, got {v}")
+        if self.eq_rtol is not None and not self.eq_rtol > 0:
+            raise InputError(f"solver option eq_rtol must be positive, got {self.eq_rtol}")
+        if self.max_it < 1 or self.max_outer < 1:
+            raise InputError("solver options max_it and max_outer must be >= 1")
+        if self.factor not in ("cholmod", "mumps", "petsc"):
+            raise InputError(f"factor must be 'cholmod', 'mumps' or 'petsc', got {self.factor!r}")
+        if self.mprgp_expansion not in ("fixed", "optimal", "projcg"):
+            raise InputError("mprgp_expansion must be 'fixed', 'optimal' or 'projcg', got "
+                             f"{self.mprgp_expansion!r}")
+        if self.smalbe_beta <= 1:
+            raise InputError(f"smalbe_beta must be > 1, got {self.smalbe_beta}")
+
+    def to_dict(self) -> dict:
+        """Plain dict (for the JSON report)."""
+        return asdict(self)

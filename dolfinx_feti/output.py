@@ -1,0 +1,58 @@
+"""Output on the whole (undecomposed) mesh: merged Functions and XDMF files."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from . import compat
+from .mesh.gmsh_input import MeshData
+
+_PARENT_CACHE: dict[tuple[int, int], object] = {}
+
+
+def parent_mesh(mesh: MeshData, comm: MPI.Comm):
+    """The whole mesh as a DOLFINx mesh distributed over ``comm`` (built once per MeshData)."""
+    key = (id(mesh), comm.py2f())
+    if key not in _PARENT_CACHE:
+        if comm.rank == 0:
+            cells, x = mesh.cells, mesh.x
+        else:
+            cells = np.empty((0, mesh.cells.shape[1]), dtype=np.int64)
+            x = np.empty((0, mesh.gdim))
+        _PARENT_CACHE.clear()  # keep at most one parent mesh alive
+        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type)
+    return _PARENT_CACHE[key]
+
+
+def parent_function(mesh: MeshData, nodal: np.ndarray, comm: MPI.Comm, name: str, msh=None):
+    """A P1 Function on the parent mesh with the given values at the global nodes."""
+    msh = msh if msh is not None else parent_mesh(mesh, comm)
+    bs = nodal.shape[1]
+    V = compat.function_space(msh, bs)
+    u = compat.function(V, name)
+    node = compat.node_input_indices(msh)[compat.vertex_dof_nodes(V)]
+    u.x.array[:] = nodal[node].ravel()
+    return u
+
+
+def write_xdmf(path: str | os.PathLike, u, functions) -> None:
+    """Write Functions on one mesh to XDMF; the files appear under their names only when done."""
+    path = Path(path)
+    comm = u.function_space.mesh.comm
+    if comm.rank == 0:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    comm.barrier()
+    tmp = path.with_name(f".tmp-{path.name}")
+    compat.write_xdmf(tmp, u.function_space.mesh, functions)
+    comm.barrier()
+    if comm.rank == 0:
+        h5_tmp, h5 = tmp.with_suffix(".h5"), path.with_suffix(".h5")
+        text = tmp.read_text().replace(h5_tmp.name, h5.name)
+        os.replace(h5_tmp, h5)
+        tmp.write_text(text)
+        os.replace(tmp, path)
+    comm.barrier()

@@ -1,0 +1,190 @@
+"""What a user describes: the mesh, the forms, Dirichlet conditions, contact, the decomposition."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from .errors import InputError
+from .mesh.decompose import ByFunction, ByTags, Parts
+from .mesh.gmsh_input import MeshData
+
+
+@dataclass(frozen=True)
+class Dirichlet:
+    """Prescribed values on a boundary group.
+
+    Args:
+        group: Name of the boundary physical group.
+        value: A number, one number per component, or ``value(x) -> (n, ncomp)`` of the node
+            coordinates ``x`` (n, gdim).
+        components: The constrained components (e.g. ``(0,)`` for a symmetry plane normal to x);
+            all components when ``None``.
+    """
+
+    group: str
+    value: float | Sequence[float] | Callable[[np.ndarray], np.ndarray] = 0.0
+    components: Sequence[int] | None = None
+
+
+@dataclass(frozen=True)
+class NodeToNode:
+    """Frictionless contact of two surfaces of different bodies with matching nodes.
+
+    Each node of the ``slave`` surface is paired with the master node at the same position
+    along the master surface (up to the initial gap along the master's normal). The normal is
+    the master's outward normal n; the condition at a pair is (u_slave − u_master)·n >= −gap,
+    with gap = (x_slave − x_master)·n from the geometry unless ``gap`` is given. For a scalar
+    problem the condition is u_slave − u_master <= gap (gap 0 by default).
+
+    Args:
+        slave: Boundary group of the slave side.
+        master: Boundary group of the master side.
+        gap: Override of the initial gap (a number for every pair).
+        match_tol: Pairing tolerance relative to the mean edge length of the slave surface.
+    """
+
+    slave: str
+    master: str
+    gap: float | None = None
+    match_tol: float = 1e-4
+
+
+class Obstacle(Protocol):
+    """A rigid obstacle as a signed distance: positive outside the obstacle."""
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Signed distance φ(x) and its gradient at the points ``x`` (n, gdim)."""
+
+
+@dataclass(frozen=True)
+class Plane:
+    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle."""
+
+    point: Sequence[float]
+    normal: Sequence[float]
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+        n = np.asarray(self.normal, dtype=float)[: x.shape[1]]
+        n = n / np.linalg.norm(n)
+        p = np.asarray(self.point, dtype=float)[: x.shape[1]]
+        return (x - p) @ n, np.broadcast_to(n, x.shape).copy()
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """A rigid ball (a disc in 2D) of radius ``radius`` centred at ``center``."""
+
+    center: Sequence[float]
+    radius: float
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+        d = x - np.asarray(self.center, dtype=float)[: x.shape[1]]
+        r = np.linalg.norm(d, axis=1)
+        return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A rigid infinite cylinder (3D) with an axis through ``point`` along ``axis``."""
+
+    point: Sequence[float]
+    axis: Sequence[float]
+    radius: float
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+        a = np.asarray(self.axis, dtype=float)
+        a = a / np.linalg.norm(a)
+        d = x - np.asarray(self.point, dtype=float)
+        d = d - np.outer(d @ a, a)
+        r = np.linalg.norm(d, axis=1)
+        return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
+
+
+@dataclass(frozen=True)
+class SignedDistance:
+    """A rigid obstacle given by a user signed distance ``fn(x) -> (phi, grad)``."""
+
+    fn: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
+        return self.fn(x)
+
+
+@dataclass(frozen=True)
+class RigidObstacle:
+    """Frictionless contact of a body's boundary group with a rigid obstacle.
+
+    The condition at each node is φ(x + u) >= 0, linearized: ∇φ(x)·u >= −φ(x). Nodes that
+    start inside the obstacle (φ < 0) are pushed out: an initial penetration is honoured.
+    """
+
+    group: str
+    obstacle: Obstacle
+
+
+@dataclass
+class ContactProblem:
+    """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
+
+    Args:
+        mesh: The mesh (see :func:`dolfinx_feti.read_gmsh`).
+        forms: ``forms(V, sub) -> (a, L)``: the bilinear and linear UFL forms on a subdomain's
+            function space ``V``; ``sub`` (:class:`dolfinx_feti.fem.Subdomain`) tells which
+            body it belongs to and gives the tagged measures ``sub.dx(...)``, ``sub.ds(...)``.
+        value_size: 1 for a scalar problem, the geometric dimension for elasticity; taken from
+            ``forms.value_size`` when the helpers are used.
+        dirichlet: Dirichlet conditions.
+        contact: Contact conditions (:class:`NodeToNode`, :class:`RigidObstacle`).
+        decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
+        gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
+            orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
+    """
+
+    mesh: MeshData
+    forms: Callable
+    value_size: int | None = None
+    dirichlet: Sequence[Dirichlet] = field(default_factory=list)
+    contact: Sequence[NodeToNode | RigidObstacle] = field(default_factory=list)
+    decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
+    gluing: str = "orthonormal"
+
+    def __post_init__(self) -> None:
+        """Fill defaults and check what can be checked before any heavy work."""
+        if self.value_size is None:
+            vs = getattr(self.forms, "value_size", None)
+            self.value_size = self.mesh.gdim if vs == "vector" else vs
+        if self.value_size is None:
+            raise InputError("value_size is needed (1 for a scalar problem, the geometric "
+                             "dimension for elasticity) when the forms are a plain function")
+        if self.value_size not in (1, self.mesh.gdim):
+            raise InputError(f"value_size must be 1 or {self.mesh.gdim}, got {self.value_size}")
+        if self.gluing not in ("orthonormal", "redundant", "nonredundant"):
+            raise InputError(f"gluing must be 'orthonormal', 'redundant' or 'nonredundant', "
+                             f"got {self.gluing!r}")
+        check = getattr(self.forms, "check", None)
+        if check is not None:
+            check(self.mesh)
+        for bc in self.dirichlet:
+            self.mesh.facets(bc.group)
+            comps = range(self.value_size) if bc.components is None else bc.components
+            if any(int(c) < 0 or int(c) >= self.value_size for c in comps):
+                raise InputError(f"Dirichlet on {bc.group!r}: components {list(comps)} out of "
+                                 f"range for a problem with {self.value_size} component(s)")
+        for c in self.contact:
+            if isinstance(c, NodeToNode):
+                self.mesh.facets(c.slave)
+                self.mesh.facets(c.master)
+                if c.slave == c.master:
+                    raise InputError(f"contact pair {c.slave!r} with itself")
+                if c.gap is not None and not np.isfinite(c.gap):
+                    raise InputError(f"contact pair {c.slave!r}/{c.master!r}: gap is not finite")
+            elif isinstance(c, RigidObstacle):
+                self.mesh.facets(c.group)
+                if self.value_size == 1:
+                    raise InputError("rigid obstacles need a vector (elasticity) problem")
+            else:
+                raise InputError(f"unknown contact condition {c!r}")

@@ -1,0 +1,38 @@
+"""QP solvers for FETI: CG, MPRGP (box constraints) and SMALBE-M (box + equality constraints).
+
+Only NumPy, SciPy, petsc4py and mpi4py are used: vectors are PETSc Vecs (possibly distributed),
+operators PETSc Mats (AIJ or python shells), equality constraints small and replicated.
+"""
+
+from .cg import cg
+from .equality import (
+    EqualityConstraint,
+    OrthonormalConstraint,
+    Projector,
+    RowBlockConstraint,
+    homogenize,
+    orthonormalize,
+    penalized_operator,
+    projected_operator,
+)
+from .mprgp import mprgp
+from .norm import NormEstimate, estimate_norm
+from .result import QPResult
+from .smalbe import smalbe
+
+__all__ = [
+    "EqualityConstraint",
+    "NormEstimate",
+    "OrthonormalConstraint",
+    "Projector",
+    "QPResult",
+    "RowBlockConstraint",
+    "cg",
+    "estimate_norm",
+    "homogenize",
+    "mprgp",
+    "orthonormalize",
+    "penalized_operator",
+    "projected_operator",
+    "smalbe",
+]

@@ -1,0 +1,314 @@
+"""Equality constraints ``D x = 0`` with a small replicated range, and projectors built on them.
+
+``x`` is a distributed PETSc Vec; ``D x`` is a short NumPy array that every rank holds in full
+(in FETI, ``D = G = R^T B^T`` has a few rows per floating subdomain). ``D`` itself is stored by
+the local rows of ``D^T``, so ``D x`` is one local sparse product and one ``Allreduce``.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+# Below this reciprocal condition number of D D^T the Cholesky route is abandoned for an
+# eigendecomposition: L^{-1} would amplify rounding in D~ D~^T = I by about 1/rcond.
+_CHOLESKY_RCOND = 1e-8
+
+
+def _mpi_comm(comm) -> MPI.Comm:
+    """Accept either an mpi4py or a petsc4py communicator."""
+    return comm.tompi4py() if isinstance(comm, PETSc.Comm) else comm
+
+
+@runtime_checkable
+class EqualityConstraint(Protocol):
+    """What the solvers need from ``D``: products with ``D`` and ``D^T``.
+
+    Attributes:
+        m: Number of rows of ``D`` (the length of the replicated array ``D x``).
+    """
+
+    m: int
+
+    def mult(self, x: PETSc.Vec) -> np.ndarray:
+        """Return ``D x``, the same array on every rank (collective)."""
+        ...
+
+    def mult_transpose(self, y: np.ndarray, out: PETSc.Vec) -> None:
+        """Set ``out = D^T y`` for a replicated ``y`` (local work only)."""
+        ...
+
+
+class RowBlockConstraint:
+    """``D`` given by the locally owned rows of ``D^T``.
+
+    Args:
+        Dt_local: ``n_local x m`` sparse (or dense) matrix: row ``i`` is row ``i`` of ``D^T`` for
+            the ``i``-th locally owned entry of ``x``.
+        comm: Communicator of the Vecs it will act on (mpi4py or petsc4py).
+    """
+
+    def __init__(self, Dt_local, comm) -> None:
+        self.Dt_local = sp.csr_matrix(Dt_local, dtype=np.float64)
+        # D x = (D^T)^T x: keep the transpose in CSR too so both products are row-oriented.
+        self._D_local = self.Dt_local.T.tocsr()
+        self.comm = _mpi_comm(comm)
+        self.m = int(self.Dt_local.shape[1])
+        if self.comm.allreduce(self.m, op=MPI.MAX) != self.comm.allreduce(self.m, op=MPI.MIN):
+            raise ValueError("RowBlockConstraint: the number of columns of Dt_local (m) differs "
+                             "between ranks")
+
+    def _check(self, v: PETSc.Vec) -> None:
+        if v.getLocalSize() != self.Dt_local.shape[0]:
+            raise ValueError(f"RowBlockConstraint: the Vec has {v.getLocalSize()} local entries "
+                             f"but Dt_local has {self.Dt_local.shape[0]} rows")
+
+    def mult(self, x: PETSc.Vec) -> np.ndarray:
+        """Return ``D x`` (collective)."""
+        self._check(x)
+        local = np.ascontiguousarray(self._D_local @ x.array_r, dtype=np.float64)
+        out = np.empty(self.m)
+        self.comm.Allreduce(local, out, op=MPI.SUM)
+        return out
+
+    def mult_transpose(self, y: np.ndarray, out: PETSc.Vec) -> None:
+        """Set ``out = D^T y``."""
+        self._check(out)
+        out.array[:] = self.Dt_local @ np.asarray(y, dtype=np.float64)
+
+    def gram(self) -> np.ndarray:
+        """Return the dense ``m x m`` matrix ``D D^T``, replicated (collective)."""
+        local = np.ascontiguousarray((self._D_local @ self.Dt_local).toarray())
+        out = np.empty_like(local)
+        self.comm.Allreduce(local, out, op=MPI.SUM)
+        return out
+
+
+class OrthonormalConstraint:
+    """``D~ = T D`` with ``T`` chosen so that ``D~ D~^T = I`` (``T`` is never applied to ``D``).
+
+    Built by :func:`orthonormalize`. ``T = L^{-1}`` (``L L^T = D D^T``) when ``D`` has full row
+    rank and is well conditioned; otherwise ``T = S^{-1/2} V^T`` from the eigenpairs of ``D D^T``
+    that are kept, so redundant rows disappear and ``m`` is the rank.
+
+    Attributes:
+        base: The original constraint.
+        m: Number of rows of ``D~`` (the rank of ``D``).
+        rank: Same as ``m``.
+        method: ``'cholesky'`` or ``'eigen'``.
+        null_space: ``m_original x k`` orthonormal basis of the null space of ``D^T`` (the row
+            combinations that vanish); ``k = 0`` for full row rank.
+        rhs_tilde: Transformed right-hand side ``T e`` (when a right-hand side was given).
+        inconsistency: ``||N^T e|| / ||e||`` for the null basis ``N``: nonzero means that
+            ``D x = e`` has no solution (0 when ``e`` is zero or not given).
+    """
+
+    def __init__(self, base: RowBlockConstraint, *, L: np.ndarray | None = None,
+                 T: np.ndarray | None = None, null_space: np.ndarray | None = None) -> None:
+        self.base = base
+        self._L = L
+        self._T = T
+        self.method = "cholesky" if L is not None else "eigen"
+        self.m = int(L.shape[0] if L is not None else T.shape[0])
+        self.rank = self.m
+        self.null_space = (null_space if null_space is not None
+                           else np.zeros((base.m, 0)))
+        self.rhs_tilde: np.ndarray | None = None
+        self.inconsistency: float = 0.0
+
+    def transform(self, z: np.ndarray) -> np.ndarray:
+        """Return ``T z`` for ``z`` in the range of the original ``D``."""
+        if self._L is not None:
+            return sla.solve_triangular(self._L, z, lower=True)
+        return self._T @ z
+
+    def transform_transpose(self, y: np.ndarray) -> np.ndarray:
+        """Return ``T^T y``."""
+        if self._L is not None:
+            return sla.solve_triangular(self._L, y, lower=True, trans="T")
+        return self._T.T @ y
+
+    def mult(self, x: PETSc.Vec) -> np.ndarray:
+        """Return ``D~ x`` (collective)."""
+        return self.transform(self.base.mult(x))
+
+    def mult_transpose(self, y: np.ndarray, out: PETSc.Vec) -> None:
+        """Set ``out = D~^T y``."""
+        self.base.mult_transpose(self.transform_transpose(np.asarray(y, dtype=np.float64)), out)
+
+
+def orthonormalize(con: RowBlockConstraint, rhs: np.ndarray | None = None,
+                   rtol: float = 1e-12) -> OrthonormalConstraint:
+    """Orthonormalize the rows of ``D`` (collective; the dense work is replicated).
+
+    Args:
+        con: The constraint ``D``.
+        rhs: Optional right-hand side ``e`` of ``D x = e`` to transform alongside.
+        rtol: Eigenvalues of ``D D^T`` at or below ``rtol * max eigenvalue`` count as zero (i.e.
+            singular values of ``D`` below ``sqrt(rtol) * ||D||``). Used only when the Cholesky
+            factor is singular or its reciprocal condition number is below 1e-8.
+
+    Returns:
+        The orthonormal constraint, with ``rank``, ``null_space`` and, if ``rhs`` was given,
+        ``rhs_tilde`` and ``inconsistency`` set.
+    """
+    gram = con.gram()
+    gram = 0.5 * (gram + gram.T)
+    m = gram.shape[0]
+    result = None
+    if m > 0 and np.all(np.isfinite(gram)):
+        try:
+            L = sla.cholesky(gram, lower=True)
+            anorm = np.abs(gram).sum(axis=0).max()
+            rcond, info = sla.lapack.dpocon(L, anorm, uplo="L")
+            if info == 0 and rcond >= _CHOLESKY_RCOND:
+                result = OrthonormalConstraint(con, L=L)
+        except sla.LinAlgError:
+            pass
+    if result is None:
+        if not np.all(np.isfinite(gram)):
+            raise ValueError("orthonormalize: D D^T has non-finite entries")
+        w, V = np.linalg.eigh(gram) if m > 0 else (np.zeros(0), np.zeros((0, 0)))
+        keep = w > rtol * (w.max() if m > 0 else 0.0)
+        if m > 0 and w.max() <= 0.0:
+            keep[:] = False
+        T = (V[:, keep] / np.sqrt(w[keep])).T
+        result = OrthonormalConstraint(con, T=T, null_space=V[:, ~keep])
+    if rhs is not None:
+        e = np.asarray(rhs, dtype=np.float64)
+        if e.shape != (m,):
+            raise ValueError(f"orthonormalize: rhs has shape {e.shape}, expected ({m},)")
+        e_norm = float(np.linalg.norm(e))
+        N = result.null_space
+        result.inconsistency = (float(np.linalg.norm(N.T @ e)) / e_norm
+                                if e_norm > 0 and N.shape[1] else 0.0)
+        result.rhs_tilde = result.transform(e)
+    return result
+
+
+def homogenize(con: OrthonormalConstraint, out: PETSc.Vec) -> None:
+    """Set ``out = D~^T e~``: the minimum-norm solution of ``D x = e`` (if ``e`` is consistent).
+
+    Raises:
+        ValueError: if ``con`` was built without a right-hand side.
+    """
+    if con.rhs_tilde is None:
+        raise ValueError("homogenize: the constraint has no right-hand side; "
+                         "pass rhs= to orthonormalize")
+    con.mult_transpose(con.rhs_tilde, out)
+
+
+class Projector:
+    """``P = I - D~^T D~``: the orthogonal projector onto ``ker D`` (for orthonormal ``D~``)."""
+
+    def __init__(self, con: EqualityConstraint) -> None:
+        self.con = con
+        self._work: PETSc.Vec | None = None
+
+    def _tmp(self, like: PETSc.Vec) -> PETSc.Vec:
+        if self._work is None or self._work.getSizes() != like.getSizes():
+            self._work = like.duplicate()
+        return self._work
+
+    def apply(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """Set ``out = P x`` (``out`` may be ``x``)."""
+        z = self.con.mult(x)
+        tmp = self._tmp(x)
+        self.con.mult_transpose(z, tmp)
+        if out.handle != x.handle:
+            x.copy(out)
+        out.axpy(-1.0, tmp)
+
+    def apply_complement(self, x: PETSc.Vec, out: PETSc.Vec) -> None:
+        """Set ``out = Q x = D~^T D~ x``."""
+        self.con.mult_transpose(self.con.mult(x), out)
+
+    def as_mat(self, template_vec: PETSc.Vec) -> PETSc.Mat:
+        """Return ``P`` as a PETSc Mat of type python shaped like ``template_vec``."""
+        return _shell(_ProjectorCtx(self), template_vec)
+
+
+class _ProjectorCtx:
+    def __init__(self, projector: Projector) -> None:
+        self.projector = projector
+
+    def mult(self, mat, x, y) -> None:
+        self.projector.apply(x, y)
+
+    multTranspose = mult  # noqa: N815 (PETSc's name); P is symmetric
+
+
+class _ProjectedOperatorCtx:
+    """``y = P A P x + rho Q x`` with one multiplication by ``A`` (counted in ``mults``)."""
+
+    def __init__(self, A: PETSc.Mat, con: EqualityConstraint, rho: float) -> None:
+        self.A, self.con, self.rho = A, con, float(rho)
+        self.mults = 0
+        self._w: PETSc.Vec | None = None
+        self._v: PETSc.Vec | None = None
+
+    def mult(self, mat, x, y) -> None:
+        if self._w is None:
+            self._w, self._v = x.duplicate(), x.duplicate()
+        w, v = self._w, self._v
+        z = self.con.mult(x)
+        self.con.mult_transpose(z, w)
+        w.aypx(-1.0, x)  # w = P x
+        self.A.mult(w, v)
+        self.mults += 1
+        # P v + rho Q x = v + D~^T (rho D~ x - D~ v): one transpose product for both terms.
+        self.con.mult_transpose(self.rho * z - self.con.mult(v), y)
+        y.axpy(1.0, v)
+
+    multTranspose = mult  # noqa: N815
+
+
+class _PenalizedOperatorCtx:
+    """``y = A x + rho D^T D x`` with one multiplication by ``A`` (counted in ``mults``)."""
+
+    def __init__(self, A: PETSc.Mat, con: EqualityConstraint, rho: float) -> None:
+        self.A, self.con, self.rho = A, con, float(rho)
+        self.mults = 0
+        self._w: PETSc.Vec | None = None
+
+    def mult(self, mat, x, y) -> None:
+        if self._w is None:
+            self._w = x.duplicate()
+        self.A.mult(x, y)
+        self.mults += 1
+        if self.rho != 0.0:
+            self.con.mult_transpose(self.rho * self.con.mult(x), self._w)
+            y.axpy(1.0, self._w)
+
+    multTranspose = mult  # noqa: N815
+
+
+def _shell(ctx, template: PETSc.Vec) -> PETSc.Mat:
+    sizes = template.getSizes()
+    mat = PETSc.Mat().createPython((sizes, sizes), context=ctx, comm=template.getComm())
+    mat.setUp()
+    return mat
+
+
+def projected_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float = 0.0) -> PETSc.Mat:
+    """Return the shell ``P A P + rho Q`` (``Q = D~^T D~``) for an orthonormal ``con``.
+
+    The number of multiplications by ``A`` made through it is
+    ``mat.getPythonContext().mults``.
+    """
+    vec = A.createVecRight()
+    return _shell(_ProjectedOperatorCtx(A, con, rho), vec)
+
+
+def penalized_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float) -> PETSc.Mat:
+    """Return the shell ``A + rho D^T D`` (SMALBE's inner Hessian).
+
+    Counts its multiplications by ``A`` like :func:`projected_operator`.
+    """
+    vec = A.createVecRight()
+    return _shell(_PenalizedOperatorCtx(A, con, rho), vec)

@@ -1,0 +1,247 @@
+"""MPRGP: modified proportioning with reduced gradient projections (Dostál) for box constraints.
+
+Minimizes ``f(x) = 1/2 x^T A x - b^T x`` subject to ``l <= x <= u`` (infinite bounds allowed) for
+a symmetric positive (semi)definite ``A``. See ALGORITHMS.md section 4 and Dostál, *Optimal
+Quadratic Programming Algorithms* (2009), chapter 5.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from petsc4py import PETSc
+
+from .box import Box, check_finite
+from .norm import estimate_norm
+from .result import QPResult
+
+EXPANSIONS = ("fixed", "optimal")
+# p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
+# curvature of a PSD operator along a null direction tiny but positive, not zero.
+_CURVATURE_RTOL = 1e-14
+
+
+class _Counter:
+    """Multiplies by ``A`` and counts it: the count is the solver's figure of merit."""
+
+    def __init__(self, A: PETSc.Mat) -> None:
+        self.A = A
+        self.n = 0
+
+    def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.A.mult(x, y)
+        self.n += 1
+
+
+def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: float = 1e-6,
+          atol: float = 0.0, gamma: float = 1.0, alpha_bar: float | None = None,
+          norm_A: float | None = None, expansion: str = "fixed", max_it: int = 10000,
+          stop: Callable[[float, PETSc.Vec, PETSc.Vec], bool | None] | None = None,
+          monitor: Callable[[int, float, str], None] | None = None,
+          b_norm: float | None = None, g: PETSc.Vec | None = None,
+          g_valid: bool = False) -> QPResult:
+    """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` by MPRGP (collective).
+
+    Each iteration splits the gradient ``g = A x - b`` into the free gradient ``phi`` and the
+    chopped gradient ``beta`` (``g^P = phi + beta``) and, with the reduced free gradient
+    ``phi~`` (the part of ``phi`` that keeps ``x - alpha_bar phi~`` feasible):
+
+    - if ``||beta||^2 <= gamma^2 phi~^T phi`` (proportional): a CG step along ``p`` if the full
+      step is feasible; otherwise an *expansion*: the largest feasible step along ``p``, then a
+      projected gradient step from that point, and ``p`` restarts from ``phi``;
+    - otherwise a *proportioning* step along ``beta`` with the exact line search (cut at the
+      opposite bound of a box), and ``p`` restarts.
+
+    Expansion variants (``expansion``):
+
+    - ``'fixed'``: ``x <- P(x_h - alpha_bar phi(x_h))`` and a fresh ``g = A x - b``.
+    - ``'optimal'``: exact line search along ``d = phi~(x_h)`` over its whole feasible segment
+      ``[0, t_max]`` (``t_max >= alpha_bar``; ``x_h - alpha_bar d`` is the fixed step), so the
+      energy decreases at least as much as with ``'fixed'``; ``g`` is updated with ``A d``.
+
+    Hessian multiplications: 1 for the initial gradient (0 when ``g_valid``), 1 per CG step,
+    2 per expansion (``A p`` for the trial CG step, then the projected step), 1 per
+    proportioning, plus the norm estimate when neither ``alpha_bar`` nor ``norm_A`` is given.
+
+    Args:
+        A: Symmetric positive semidefinite operator (PETSc Mat).
+        b: Linear term.
+        x: Start; projected onto the box, then overwritten with the iterates (a monitor may
+            read it).
+        lb: Lower bound (Vec laid out like ``x``, scalar, or None for ``-inf``).
+        ub: Upper bound (Vec, scalar, or None for ``+inf``).
+        rtol: Default stopping test ``||g^P|| <= max(rtol * b_norm, atol)``.
+        atol: See ``rtol``.
+        gamma: Proportioning parameter ``Gamma > 0``.
+        alpha_bar: Projected step length in ``(0, 2/||A||)``; default ``1.95 / norm_A``.
+        norm_A: ``||A||``; default :func:`estimate_norm` (Lanczos, rtol 1e-4).
+        expansion: ``'fixed'`` or ``'optimal'``.
+        max_it: Maximum number of iterations (steps of any kind).
+        stop: Extra test ``stop(gP_norm, x, g)``, collective; a true value ends the solve as
+            converged (reason ``'stop'``). Used by SMALBE.
+        monitor: Called as ``monitor(it, gP_norm, kind)`` at every iterate, ``kind`` being the
+            step that produced it (``'init'``, ``'cg'``, ``'expansion'``, ``'proportioning'``).
+        b_norm: Reference norm of the relative test; default ``||b||``.
+        g: Optional Vec for the gradient: the final gradient ``A x - b`` is left in it.
+        g_valid: ``g`` already holds ``A x - b`` for the given ``x``; saves the initial
+            multiplication unless the projection of ``x`` onto the box moves it.
+
+    Returns:
+        The result; never raises for non-convergence: ``reason`` ``'max_it'`` (with the last
+        iterate), ``'unbounded'`` (non-positive curvature along a descent direction that no
+        bound stops) or ``'breakdown'`` (non-finite values appeared).
+
+    Raises:
+        ValueError: For infeasible/invalid bounds, non-finite data, or invalid parameters.
+    """
+    comm = x.getComm().tompi4py()
+    if expansion not in EXPANSIONS:
+        raise ValueError(f"mprgp: expansion must be one of {EXPANSIONS}, got {expansion!r}")
+    if not gamma > 0 or rtol < 0 or atol < 0 or max_it < 0:
+        raise ValueError("mprgp: need gamma > 0 and non-negative rtol, atol, max_it")
+    box = Box(lb, ub, x)
+    check_finite(comm, "mprgp: b", b.array_r)
+    check_finite(comm, "mprgp: the start x", x.array_r)
+    mult = _Counter(A)
+    counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
+    if alpha_bar is None:
+        if norm_A is None:
+            est = estimate_norm(A, x)
+            counts["norm"] = est.iterations
+            mult.n += est.iterations
+            norm_A = est.value
+        if not (math.isfinite(norm_A) and norm_A > 0):
+            raise ValueError(f"mprgp: ||A|| must be positive and finite, got {norm_A}")
+        alpha_bar = 1.95 / norm_A
+    if not (math.isfinite(alpha_bar) and alpha_bar > 0):
+        raise ValueError(f"mprgp: alpha_bar must be positive and finite, got {alpha_bar}")
+    scale_A = norm_A if norm_A is not None else 1.95 / alpha_bar
+    if b_norm is None:
+        b_norm = b.norm()
+
+    # Project the start; a supplied gradient survives only if nothing moved.
+    xa = x.array_r
+    xp = box.project(xa)
+    moved = comm.allreduce(bool(np.any(xp != xa)))
+    if moved:
+        x.array[:] = xp
+    if g is None:
+        g, g_valid = x.duplicate(), False
+    if not g_valid or moved:
+        mult(x, g)
+        g.axpy(-1.0, b)
+    check_finite(comm, "mprgp: the initial gradient A x - b", g.array_r)
+
+    phi, beta, p, Ap = x.duplicate(), x.duplicate(), x.duplicate(), x.duplicate()
+    history: list[dict] = []
+    it, kind, reason = 0, "init", "max_it"
+    cg_pending = False  # p holds a CG direction to be continued (else restart from phi)
+    pAp = 1.0
+    while True:
+        phi_a, beta_a, active = box.split(x.array_r, g.array_r)
+        phi.array[:] = phi_a
+        beta.array[:] = beta_a
+        phi2, beta2 = phi.dot(phi), beta.dot(beta)
+        gP = math.sqrt(phi2 + beta2)
+        history.append({"it": it, "kind": kind, "gP": gP})
+        if monitor is not None:
+            monitor(it, gP, kind)
+        if not math.isfinite(gP):
+            reason = "breakdown"
+            break
+        if gP <= max(rtol * b_norm, atol):
+            reason = "rtol" if rtol * b_norm >= atol else "atol"
+            break
+        if stop is not None and stop(gP, x, g):
+            reason = "stop"
+            break
+        if it >= max_it:
+            reason = "max_it"
+            break
+        it += 1
+        phit_a = box.reduced_free(x.array_r, phi_a, alpha_bar)
+        phit_phi = comm.allreduce(float(np.dot(phit_a, phi_a)))
+        if beta2 <= gamma * gamma * phit_phi:
+            if cg_pending:
+                # Continue the conjugate direction: p = phi - (phi^T A p / p^T A p) p.
+                p.aypx(-phi.dot(Ap) / pAp, phi)
+                if not g.dot(p) > 0.0:
+                    phi.copy(p)  # lost descent (face changed under rounding): restart
+            else:
+                phi.copy(p)
+            mult(p, Ap)
+            pAp, gp = p.dot(Ap), g.dot(p)
+            t_f = box.max_step(x.array_r, p.array_r)
+            positive = pAp > _CURVATURE_RTOL * scale_A * p.dot(p)
+            t_cg = gp / pAp if positive else math.inf
+            if t_cg <= t_f and math.isfinite(t_cg):
+                x.array[:] = box.step(x.array_r, p.array_r, t_cg)
+                g.axpy(-t_cg, Ap)
+                kind, cg_pending = "cg", True
+                counts["cg"] += 1
+                continue
+            if not math.isfinite(t_f):
+                reason = "unbounded"
+                break
+            # Expansion: go to the boundary along p, then a projected step from there.
+            x.array[:] = box.step(x.array_r, p.array_r, t_f)
+            g.axpy(-t_f, Ap)
+            if not _expand(box, x, g, b, phi, p, Ap, mult, alpha_bar, expansion, scale_A):
+                reason = "unbounded"
+                break
+            kind, cg_pending = "expansion", False
+            counts["expansion"] += 1
+        else:
+            mult(beta, Ap)
+            bAb = beta.dot(Ap)
+            t_f = box.max_step(x.array_r, beta.array_r)
+            positive = bAb > _CURVATURE_RTOL * scale_A * beta2
+            t = min(beta2 / bAb if positive else math.inf, t_f)
+            if not math.isfinite(t):
+                reason = "unbounded"
+                break
+            x.array[:] = box.step(x.array_r, beta.array_r, t)
+            g.axpy(-t, Ap)
+            kind, cg_pending = "proportioning", False
+            counts["proportioning"] += 1
+
+    active_count = comm.allreduce(int(np.count_nonzero(active)))
+    objective = 0.5 * (x.dot(g) - x.dot(b))  # f = 1/2 x^T (A x - b) - 1/2 b^T x
+    return QPResult(x=x, converged=reason in ("rtol", "atol", "stop"), reason=reason,
+                    iterations=it, hessian_mults=mult.n, counts=counts, gP_norm=gP,
+                    b_norm=b_norm, active=active, active_count=active_count, history=history,
+                    objective=objective)
+
+
+def _expand(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, d: PETSc.Vec,
+            Ad: PETSc.Vec, mult: _Counter, alpha_bar: float, expansion: str,
+            scale_A: float) -> bool:
+    """Projected gradient step from the half-step ``x`` (updates ``x`` and ``g``).
+
+    ``phi``, ``d`` and ``Ad`` are scratch. Returns False if the energy is unbounded below.
+    """
+    xa = x.array_r
+    phi_a = box.split(xa, g.array_r)[0]
+    if expansion == "fixed":
+        x.array[:] = box.project(xa - alpha_bar * phi_a)
+        mult(x, g)
+        g.axpy(-1.0, b)
+        return True
+    # 'optimal': exact line search on the feasible segment along the reduced free gradient.
+    d.array[:] = box.reduced_free(xa, phi_a, alpha_bar)
+    phi.array[:] = phi_a
+    gd = phi.dot(d)  # = g^T d: d vanishes where phi does
+    if gd <= 0.0:
+        return True  # phi(x_h) = 0: x_h minimizes the face, nothing to expand
+    mult(d, Ad)
+    dAd = d.dot(Ad)
+    t_max = box.max_step(xa, d.array_r)
+    positive = dAd > _CURVATURE_RTOL * scale_A * d.dot(d)
+    t = min(gd / dAd if positive else math.inf, t_max)
+    if not math.isfinite(t):
+        return False
+    x.array[:] = box.step(xa, d.array_r, t)
+    g.axpy(-t, Ad)
+    return True

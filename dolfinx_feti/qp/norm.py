@@ -1,0 +1,109 @@
+"""Estimate ``||A||`` of a symmetric positive semidefinite operator by Lanczos."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+from petsc4py import PETSc
+
+
+@dataclass(frozen=True)
+class NormEstimate:
+    """Result of :func:`estimate_norm`.
+
+    Attributes:
+        value: Largest Ritz value: a lower bound on ``||A||`` (up to rounding).
+        iterations: Multiplications by ``A`` spent.
+        residual: ``||A y - value y||`` for the Ritz vector ``y``: some eigenvalue of ``A`` lies
+            within this distance of ``value``, which tells how settled the estimate is.
+    """
+
+    value: float
+    iterations: int
+    residual: float = math.nan
+
+
+def _largest_ritz(alphas: list[float], betas: list[float]) -> tuple[float, float]:
+    """Largest eigenvalue of the Lanczos tridiagonal and the last entry of its eigenvector."""
+    if len(alphas) == 1:
+        return alphas[0], 1.0
+    k = len(alphas)
+    w, s = sla.eigh_tridiagonal(np.array(alphas), np.array(betas), select="i",
+                                select_range=(k - 1, k - 1))
+    return float(w[0]), float(s[-1, 0])
+
+
+def estimate_norm(A: PETSc.Mat, template: PETSc.Vec, *, rtol: float = 1e-4, max_it: int = 100,
+                  seed: int = 0) -> NormEstimate:
+    """Estimate ``||A|| = lambda_max(A)`` for symmetric positive semidefinite ``A`` (collective).
+
+    Lanczos without reorthogonalization: loss of orthogonality only duplicates converged Ritz
+    values, it does not move the largest one outside the spectrum, and the three-term
+    recurrence keeps the memory at three vectors. The start vector is drawn from
+    ``numpy.random.default_rng(seed)`` over the *global* length and sliced by the ownership
+    range, so the estimate does not depend on the number of ranks (up to rounding).
+
+    The iteration stops when the largest Ritz value changes by at most ``rtol`` relative between
+    two iterations, when an invariant subspace is found (the value is then exact for the start
+    vector), or after ``max_it`` multiplications. The Ritz value never exceeds ``||A||``; from a
+    random start its relative shortfall at stop is typically well below ``rtol`` (the change
+    test lags the error), but that is not a guarantee: give MPRGP a safety margin
+    (``alpha_bar = 1.95 / value``) or use ``value + residual`` when an upper bound is needed.
+
+    Args:
+        A: The operator (any PETSc Mat with ``mult``).
+        template: A Vec with the layout of ``A``'s columns.
+        rtol: Relative change of the largest Ritz value that ends the iteration.
+        max_it: Maximum number of multiplications.
+        seed: Seed of the random start vector.
+
+    Returns:
+        The estimate and its cost.
+    """
+    if max_it < 1:
+        raise ValueError("estimate_norm: max_it must be at least 1")
+    n = template.getSize()
+    if n == 0:
+        return NormEstimate(0.0, 0, 0.0)
+    lo, hi = template.getOwnershipRange()
+    start = np.random.default_rng(seed).standard_normal(n)[lo:hi]
+    v = template.duplicate()
+    v.array[:] = start
+    v.scale(1.0 / v.norm())
+    v_old = template.duplicate()
+    v_old.set(0.0)
+    w = template.duplicate()
+    alphas: list[float] = []
+    betas: list[float] = []
+    theta_old = -math.inf
+    theta, residual = 0.0, math.inf
+    beta_old = 0.0
+    it = 0
+    while it < max_it:
+        it += 1
+        A.mult(v, w)
+        alpha = w.dot(v)
+        w.axpy(-alpha, v)
+        w.axpy(-beta_old, v_old)
+        beta = w.norm()
+        alphas.append(alpha)
+        theta, s_last = _largest_ritz(alphas, betas)
+        residual = abs(beta * s_last)
+        if not math.isfinite(theta):
+            raise ValueError("estimate_norm: A produced non-finite values")
+        scale = max(abs(theta), abs(alpha), 1e-300)
+        if beta <= 1e-14 * scale:
+            # Invariant subspace: the Ritz values are eigenvalues, nothing more to learn.
+            break
+        if abs(theta - theta_old) <= rtol * abs(theta):
+            break
+        theta_old = theta
+        betas.append(beta)
+        beta_old = beta
+        # Rotate the three vectors: v_old <- v, v <- w / beta, w reused as scratch.
+        v_old, v, w = v, w, v_old
+        v.scale(1.0 / beta)
+    return NormEstimate(max(theta, 0.0), it, residual)

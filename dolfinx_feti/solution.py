@@ -1,0 +1,180 @@
+"""The solution of a contact problem: displacement, multipliers, contact pressure, report."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .constraints.contact import surface
+from .constraints.rows import Kind, Rows
+from .feti import TotalFETI
+from .mesh.decompose import Decomposition
+from .problem import ContactProblem, NodeToNode, RigidObstacle
+from .report import Report
+
+
+@dataclass
+class ContactData:
+    """Contact results per contact node (one entry per inequality row), on every rank.
+
+    Attributes:
+        spec: Index of the contact condition in ``problem.contact``.
+        node: Slave node (global index); ``x`` its coordinates.
+        partner: Master node of a node-to-node pair, -1 for an obstacle.
+        normal: Contact normal (master's / obstacle's outward normal).
+        force: Nodal contact force (the physical multiplier, >= 0).
+        pressure: Force divided by the node's lumped area on its surface.
+        gap: Gap after deformation (>= 0 up to the tolerance; < 0 is penetration).
+    """
+
+    spec: np.ndarray
+    node: np.ndarray
+    x: np.ndarray
+    partner: np.ndarray
+    normal: np.ndarray
+    force: np.ndarray
+    pressure: np.ndarray
+    gap: np.ndarray
+
+    def of(self, spec: int) -> ContactData:
+        """The entries of one contact condition."""
+        m = self.spec == spec
+        return ContactData(**{k: v[m] for k, v in self.__dict__.items()})
+
+
+class Solution:
+    """What :func:`dolfinx_feti.solve` returns.
+
+    Attributes:
+        report: The :class:`~dolfinx_feti.report.Report`.
+        contact: :class:`ContactData` for all contact nodes.
+        lam: The multipliers λ (a distributed PETSc Vec, rows in the order of ``rows``).
+        u_vec: The primal solution, subdomain by subdomain (a distributed PETSc Vec).
+        alpha: Rigid-body amplitudes (the same on every rank).
+    """
+
+    def __init__(self, problem: ContactProblem, feti: TotalFETI, dec: Decomposition, rows: Rows,
+                 u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
+                 comm: MPI.Comm) -> None:
+        """Collect results (collective)."""
+        self.problem, self.feti, self.dec, self.rows = problem, feti, dec, rows
+        self.u_vec, self.lam, self.alpha, self.report, self.comm = u, lam, alpha, report, comm
+        self._Bu = feti.B.createVecLeft()
+        feti.B.mult(u, self._Bu)
+        self._nodal = None
+        self._function = None
+        self.contact = self._contact_data()
+
+    # --- residuals -------------------------------------------------------------------------
+    def check_kkt(self, ineq: np.ndarray) -> None:
+        """Fill ``report.kkt`` and ``report.max_penetration`` from u and λ (collective)."""
+        comm, rows, feti = self.comm, self.rows, self.feti
+        sl = feti.rows_local
+        scale = rows.scale[sl]
+        viol = (self._Bu.array_r - feti.c.array_r) / scale  # B u − c, physical units
+        lam_phys = self.lam.array_r * scale
+
+        def gmax(a, default=0.0):
+            return comm.allreduce(float(a.max()) if a.size else default, op=MPI.MAX)
+
+        lam_max = gmax(np.abs(lam_phys))
+        u_max = max(self.u_vec.norm(PETSc.NormType.INFINITY), 1e-300)
+        pen = gmax(viol[ineq], -np.inf)
+        kkt = {
+            "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
+            "primal_feasibility": max(pen, 0.0) / u_max,
+            "equality": gmax(np.abs(viol[~ineq])) / u_max,
+            "complementarity": gmax(np.abs(lam_phys[ineq] * viol[ineq]))
+            / max(lam_max * u_max, 1e-300),
+        }
+        kkt.update(feti.residuals(self.u_vec, self.lam))
+        self.report.kkt = kkt
+        self.report.max_penetration = max(pen, 0.0) if np.isfinite(pen) else 0.0
+
+    # --- contact ---------------------------------------------------------------------------
+    def _contact_data(self) -> ContactData:
+        rows, feti, mesh = self.rows, self.feti, self.problem.mesh
+        sl = feti.rows_local
+        ineq = rows.inequality[sl]
+        lam = self.comm.allgather(self.lam.array_r[ineq] * rows.scale[sl][ineq])
+        gap = self.comm.allgather(((feti.c.array_r - self._Bu.array_r) / rows.scale[sl])[ineq])
+        lam, gap = np.concatenate(lam), np.concatenate(gap)
+        sel = rows.inequality
+        spec, node = rows.spec[sel], rows.node[sel]
+        area = np.ones(node.size)
+        for i, c in enumerate(self.problem.contact):
+            group = c.slave if isinstance(c, NodeToNode) else c.group
+            nodes, _, a = surface(mesh, group)
+            m = spec == i
+            area[m] = a[np.searchsorted(nodes, node[m])]
+        return ContactData(spec=spec, node=node, x=mesh.x[node], partner=rows.partner[sel],
+                           normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap)
+
+    @property
+    def total_contact_force(self) -> np.ndarray:
+        """Sum of the nodal contact force vectors Σ λ n (a scalar sum for scalar problems)."""
+        if self.problem.value_size == 1:
+            return np.array([self.contact.force.sum()])
+        return (self.contact.force[:, None] * self.contact.normal).sum(axis=0)
+
+    # --- displacement ----------------------------------------------------------------------
+    def nodal_values(self) -> np.ndarray:
+        """The solution at every mesh node, shape (N, value_size), on every rank.
+
+        Where subdomains share a node their values agree to the solver tolerance; the mean is
+        returned.
+        """
+        if self._nodal is None:
+            dec, bs, feti = self.dec, self.problem.value_size, self.feti
+            acc = np.zeros((dec.num_nodes, bs))
+            cnt = np.zeros(dec.num_nodes)
+            ua = self.u_vec.array_r
+            for s, seg in feti._segments():
+                nodes = dec.nodes(s)
+                acc[nodes] += ua[seg].reshape(-1, bs)
+                cnt[nodes] += 1
+            acc = self.comm.allreduce(acc, op=MPI.SUM)
+            cnt = self.comm.allreduce(cnt, op=MPI.SUM)
+            self._nodal = acc / np.maximum(cnt, 1)[:, None]
+        return self._nodal
+
+    @property
+    def energy(self) -> float:
+        """The energy ½ uᵀ K u − fᵀ u of the (decomposed) solution."""
+        return self.feti.energy(self.u_vec)
+
+    @property
+    def u(self):
+        """The solution as a DOLFINx Function (P1) on the whole mesh (distributed on comm)."""
+        if self._function is None:
+            from .output import parent_function
+            self._function = parent_function(self.problem.mesh, self.nodal_values(), self.comm,
+                                             "displacement" if self.problem.value_size > 1
+                                             else "u")
+        return self._function
+
+    def pressure_function(self):
+        """The contact pressure as a P1 scalar Function on the whole mesh (zero off contact)."""
+        from .output import parent_function
+        p = np.zeros((self.dec.num_nodes, 1))
+        np.add.at(p[:, 0], self.contact.node, self.contact.pressure)
+        return parent_function(self.problem.mesh, p, self.comm, "contact_pressure",
+                               msh=self.u.function_space.mesh)
+
+    def write_xdmf(self, path: str | Path) -> None:
+        """Write the displacement and the contact pressure to XDMF (for ParaView)."""
+        from .output import write_xdmf
+        write_xdmf(path, self.u, [self.u, self.pressure_function()])
+
+    def multipliers(self, kind: Kind | None = None) -> np.ndarray:
+        """Physical multipliers (nodal forces) of all rows, or of one kind, on every rank."""
+        sl = self.feti.rows_local
+        lam = np.concatenate(self.comm.allgather(self.lam.array_r * self.rows.scale[sl]))
+        return lam if kind is None else lam[self.rows.kind == kind]
+
+
+__all__ = ["ContactData", "RigidObstacle", "Solution"]

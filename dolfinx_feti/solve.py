@@ -1,0 +1,161 @@
+"""The solve: decompose, dualize, homogenize, project, run the QP solver a problem needs, recover.
+
+Solver choice (the least machinery the problem needs):
+- no inequality rows: projected CG on P F P;
+- inequalities and a coarse space (always in Total FETI): SMALBE-M with inner MPRGP on P F P;
+- inequalities and no coarse space: MPRGP alone on F.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from .constraints import build_rows
+from .errors import InputError
+from .feti import TotalFETI
+from .mesh.decompose import decompose
+from .options import SolverOptions
+from .problem import ContactProblem
+from .qp import (Projector, RowBlockConstraint, cg, estimate_norm, homogenize, mprgp,
+                 orthonormalize, projected_operator, smalbe)
+from .report import Report
+from .solution import Solution
+from .timing import Timer
+
+#: ||N^T e|| / ||e|| above this means the load cannot be balanced (e ∉ Im G).
+BALANCE_TOL = 1e-8
+
+
+def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+          options: SolverOptions | None = None, **kwargs) -> Solution:
+    """Solve a contact problem by Total FETI.
+
+    Args:
+        problem: The problem.
+        comm: The ranks to spread the subdomains over.
+        options: Solver options; or give them as keyword arguments (``rtol=1e-8``, ...), which
+            override the ``-feti_*`` PETSc command-line options.
+        **kwargs: Fields of :class:`SolverOptions`.
+
+    Returns:
+        The solution (displacement, multipliers, contact pressure, report). A solve that does
+        not converge is returned with ``report.converged == False`` and its residuals.
+
+    Raises:
+        InputError: For a problem that is ill-posed as described (e.g. a floating body with a
+            load its constraints cannot balance).
+    """
+    opts = options if options is not None else SolverOptions.create(**kwargs)
+    timer = Timer()
+    report = Report()
+    with timer.phase("decomposition"):
+        dec = decompose(problem.mesh, problem.decomposition, comm.size)
+        rows = build_rows(problem, dec)
+    feti = TotalFETI(problem, dec, rows, comm, timer, opts.factor)
+    ineq = rows.inequality[feti.rows_local]
+    n_ineq = int(rows.inequality.sum())
+
+    with timer.phase("coarse problem"):
+        ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
+        _check_balance(ocon, feti, report)
+        lam_hat = feti.d.duplicate()
+        homogenize(ocon, lam_hat)
+        b = feti.d.duplicate()
+        feti.F.mult(lam_hat, b)
+        b.aypx(-1.0, feti.d)  # b = d − F λ̂
+        projector = Projector(ocon)
+        Pb = b.duplicate()
+        projector.apply(b, Pb)
+        A = projected_operator(feti.F, ocon)
+        norm = estimate_norm(A, Pb, rtol=opts.norm_rtol)
+
+    x = b.duplicate()
+    x.set(0.0)
+    mults0 = feti.hessian_mults
+    with timer.phase("iterations"):
+        if n_ineq == 0:
+            report.solver = "cg"
+            res = cg(A, Pb, x, projector=projector, rtol=opts.rtol, max_it=opts.max_it)
+        else:
+            lb = x.duplicate()
+            lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
+            x.array[:] = np.maximum(0.0, lb.array_r)
+            inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion}
+            if ocon.m > 0:
+                report.solver = "smalbe"
+                eq_rtol = (opts.eq_rtol or opts.rtol) / norm.value
+                res = smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol, eq_rtol=eq_rtol,
+                             rho=None if opts.smalbe_rho is None else opts.smalbe_rho * norm.value,
+                             M=None if opts.smalbe_M is None else opts.smalbe_M * norm.value,
+                             eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
+                             beta=opts.smalbe_beta, norm_A=norm.value, inner_options=inner,
+                             max_outer=opts.max_outer, max_it=opts.max_it)
+            else:
+                report.solver = "mprgp"
+                res = mprgp(feti.F, feti.d, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
+                            norm_A=norm.value, **inner)
+    report.hessian_mults = feti.hessian_mults - mults0
+
+    with timer.phase("recovery"):
+        lam = x.copy()
+        lam.axpy(1.0, lam_hat)
+        at_bound = res.active if res.active is not None else np.zeros(ineq.size, dtype=bool)
+        lam.array[ineq & at_bound] = 0.0  # exactly on the bound: λ = 0, not λ̂ − λ̂ rounded
+        g = feti.d.duplicate()
+        feti.F.mult(lam, g)
+        g.axpy(-1.0, feti.d)  # the dual gradient F λ − d
+        alpha = feti.rigid_amplitudes(g, ~ineq | ~at_bound)
+        u = feti.primal(lam, alpha)
+
+    report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
+    report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"
+    report.outer_iterations = res.outer_iterations
+    report.iterations = res.iterations
+    report.counts = dict(res.counts)
+    report.gP_rel = float(res.gP_norm / res.b_norm) if res.b_norm > 0 else float(res.gP_norm)
+    Glam = ocon.base.mult(lam)
+    e_norm = float(np.linalg.norm(feti.e))
+    report.G_lambda = float(np.linalg.norm(Glam - feti.e) / (e_norm if e_norm > 0 else 1.0))
+    report.norm_F = float(norm.value)
+    report.hessian_mults_total = feti.hessian_mults
+    report.sizes = {"primal": feti.primal_size[1], "dual": rows.size, "inequality": n_ineq,
+                    "equality": rows.size - n_ineq, "subdomains": dec.num_subdomains,
+                    "coarse": int(feti.coarse_size[1]), "coarse_rank": int(ocon.m),
+                    "ranks": comm.size}
+    if not report.converged:
+        report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
+                               f"{opts.max_it} iterations / {opts.max_outer} outer iterations")
+    sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm)
+    sol.check_kkt(ineq)
+    report.timings = timer.reduced(comm)
+    report.timings["total"] = float(sum(report.timings.values()))
+    report.extra["options"] = opts.to_dict()
+    report.extra["history"] = res.history[-50:] if comm.rank == 0 else []
+    for v in (b, Pb, g, x, lam_hat):
+        v.destroy()
+    return sol
+
+
+def _check_balance(ocon, feti: TotalFETI, report: Report) -> None:
+    """Refuse a load that the constraints cannot balance; warn about undetermined motions."""
+    N = ocon.null_space
+    if N.shape[1] == 0:
+        return
+    mesh, dec, k = feti.problem.mesh, feti.dec, feti.k
+    weight = np.sqrt(np.add.reduceat(N**2, np.arange(0, N.shape[0], k), axis=0)).max(axis=1)
+    subs = np.flatnonzero(weight > 1e-6 * weight.max())
+    bodies = sorted({mesh.body_names[b] for b in dec.sub_body[subs]})
+    if ocon.inconsistency > BALANCE_TOL:
+        raise InputError(
+            f"the load cannot be balanced: bodies {bodies} can move rigidly without meeting any "
+            "Dirichlet or contact condition, and the load has a component along that motion "
+            f"(relative size {ocon.inconsistency:.2e}), so the problem has no solution (e is "
+            "not in Im G). Add a Dirichlet condition or a contact surface that stops it, or "
+            "remove that load component")
+    report.warnings.append(
+        f"{N.shape[1]} rigid motion(s) of bodies {bodies} are not fixed by any condition (and "
+        "not loaded); the displacement returned has no component along them")
+
+
+__all__ = ["solve"]

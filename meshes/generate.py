@@ -1,0 +1,47 @@
+"""Write the benchmark meshes of dolfinx_feti.meshes as gmsh 4.1 files.
+
+Usage: python meshes/generate.py [--out DIR]   (DIR defaults to this script's directory)
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from pathlib import Path
+
+import gmsh
+
+from dolfinx_feti import meshes
+
+#: file name → function that builds the model in the current gmsh session.
+MESHES: dict[str, Callable[[], object]] = {
+    "membranes_8.msh": lambda: meshes.membranes(8),
+    "membranes_16.msh": lambda: meshes.membranes(16),
+    "hertz2d.msh": meshes.hertz2d,
+    "blocks3d.msh": meshes.blocks3d,
+}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent)
+    args = parser.parse_args(argv)
+    args.out.mkdir(parents=True, exist_ok=True)
+    gmsh.initialize()
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        for name, build in MESHES.items():
+            build()
+            path = args.out / name
+            gmsh.write(str(path))
+            nodes = gmsh.model.mesh.getNodes()[0].size
+            dim = gmsh.model.getDimension()
+            cells = sum(e.size for e in gmsh.model.mesh.getElements(dim)[1])
+            print(f"{path}: {nodes} nodes, {cells} cells, {path.stat().st_size / 1024:.0f} kB")
+            gmsh.model.remove()
+    finally:
+        gmsh.finalize()
+
+
+if __name__ == "__main__":
+    main()
