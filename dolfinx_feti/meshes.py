@@ -162,7 +162,7 @@ def membranes(n: int) -> dict[str, tuple[int, int]]:
     """Two unit squares side by side: Dostál's two-membrane problem (benchmark B1).
 
     "left" = (0,1)² and "right" = (1,2)×(0,1), each an n×n grid of squares, every square split
-    into two triangles along its diagonal from (i, j) to (i+1, j+1). Each square has its own nodes
+    into two triangles along its diagonal from (i, j) to (i+1, j+1). Each membrane has its own nodes
     on x = 1, at the same positions.
 
     Physical groups (dim, tag): "left" (2, 1), "right" (2, 2), "dirichlet" (1, 11) = {0}×[0,1],

@@ -86,8 +86,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                 report.solver = "smalbe"
                 eq_rtol = (opts.eq_rtol or opts.rtol) / norm.value
                 res = smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol, eq_rtol=eq_rtol,
-                             rho=None if opts.smalbe_rho is None else opts.smalbe_rho * norm.value,
-                             M=None if opts.smalbe_M is None else opts.smalbe_M * norm.value,
+                             rho=opts.smalbe_rho * norm.value, M=opts.smalbe_M * norm.value,
                              eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
                              beta=opts.smalbe_beta, norm_A=norm.value, inner_options=inner,
                              max_outer=opts.max_outer, max_it=opts.max_it)

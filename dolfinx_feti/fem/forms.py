@@ -87,8 +87,7 @@ class Elasticity:
             return 2 * mu * eps(w) + lmbda * ufl.tr(eps(w)) * ufl.Identity(len(w))
 
         a = ufl.inner(sigma(u), eps(v)) * sub.dx()
-        gdim = V.mesh.geometry.dim
-        L = ufl.inner(ufl.as_vector([0.0] * gdim), v) * sub.dx()
+        L = 0
         if self.body_force is not None:
             x = ufl.SpatialCoordinate(V.mesh)
             b = self.body_force(x) if callable(self.body_force) else ufl.as_vector(
@@ -99,7 +98,7 @@ class Elasticity:
                 x = ufl.SpatialCoordinate(V.mesh)
                 tv = t(x) if callable(t) else ufl.as_vector([float(c) for c in t])
                 L += ufl.inner(tv, v) * sub.ds(name)
-        return a, L
+        return a, L or None
 
 
 class Poisson:

@@ -117,16 +117,22 @@ class Subdomain:
         return q
 
     def assemble(self, forms, value_size: int) -> tuple[sp.csr_matrix, np.ndarray]:
-        """Assemble the user's forms and return (K, f) in the canonical dof order."""
+        """Assemble the user's forms and return (K, f) in the canonical dof order.
+
+        ``forms`` may return ``L = None`` (or an empty form) for an unloaded subdomain.
+        """
         V = compat.function_space(self.mesh, value_size)
         a, L = forms(V, self)
         A = compat.assemble_matrix(a)
-        b = compat.assemble_vector(L)
         indptr, indices, data = A.getValuesCSR()
         K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
-        f = b.array.copy()
         A.destroy()
-        b.destroy()
+        if L is None or (isinstance(L, ufl.Form) and L.empty()):  # no load on this subdomain
+            f = np.zeros(K.shape[0])
+        else:
+            b = compat.assemble_vector(L)
+            f = b.array.copy()
+            b.destroy()
         # canonical dof bs*node + c  ←  DOLFINx dof bs*d + c
         node_of_dof = self._node_of_geom[compat.vertex_dof_nodes(V)]
         bs = value_size

@@ -78,7 +78,7 @@ def counting(A: PETSc.Mat) -> tuple[PETSc.Mat, Counting]:
     """Wrap A in a counting python shell."""
     ctx = Counting(A)
     sizes = A.getSizes()
-    M = PETSc.Mat().createPython(sizes, context=ctx, comm=COMM)
+    M = PETSc.Mat().createPython(sizes, context=ctx, comm=A.getComm())
     M.setUp()
     return M, ctx
 
@@ -101,11 +101,19 @@ def laplacian_2d(k: int, shift: float = 0.05) -> sp.csr_matrix:
 # ---------------------------------------------------------------------------- references
 
 def ref_box(A: np.ndarray, b: np.ndarray, l: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """Box QP by SciPy's BVLS: with A = L L^T, min ||L^T x - L^{-1} b|| has the same solution."""
-    L = np.linalg.cholesky(np.asarray(A))
-    res = lsq_linear(L.T, sla.solve_triangular(L, b, lower=True), bounds=(l, u),
+    """Box QP by SciPy's BVLS: with A = L L^T, min ||L^T x - L^{-1} b|| has the same solution.
+
+    Entries with ``l = u`` are eliminated first (BVLS wants ``l < u``).
+    """
+    A = np.asarray(A)
+    x = np.where(l == u, l, 0.0)
+    F = l < u
+    L = np.linalg.cholesky(A[np.ix_(F, F)])
+    c = b[F] - A[np.ix_(F, ~F)] @ x[~F]
+    res = lsq_linear(L.T, sla.solve_triangular(L, c, lower=True), bounds=(l[F], u[F]),
                      method="bvls", tol=1e-15, max_iter=10 * len(b))
-    return res.x
+    x[F] = res.x
+    return x
 
 
 def ref_active_set(A: np.ndarray, b: np.ndarray, l: np.ndarray, u: np.ndarray,
