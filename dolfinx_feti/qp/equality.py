@@ -15,6 +15,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .shell import python_shell
+
 # Below this reciprocal condition number of D D^T the Cholesky route is abandoned for an
 # eigendecomposition: L^{-1} would amplify rounding in D~ D~^T = I by about 1/rcond.
 _CHOLESKY_RCOND = 1e-8
@@ -230,7 +232,7 @@ class Projector:
 
     def as_mat(self, template_vec: PETSc.Vec) -> PETSc.Mat:
         """Return ``P`` as a PETSc Mat of type python shaped like ``template_vec``."""
-        return _shell(_ProjectorCtx(self), template_vec)
+        return python_shell(_ProjectorCtx(self), template_vec)
 
 
 class _ProjectorCtx:
@@ -288,13 +290,6 @@ class _PenalizedOperatorCtx:
     multTranspose = mult  # noqa: N815
 
 
-def _shell(ctx, template: PETSc.Vec) -> PETSc.Mat:
-    sizes = template.getSizes()
-    mat = PETSc.Mat().createPython((sizes, sizes), context=ctx, comm=template.getComm())
-    mat.setUp()
-    return mat
-
-
 def projected_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float = 0.0) -> PETSc.Mat:
     """Return the shell ``P A P + rho Q`` (``Q = D~^T D~``) for an orthonormal ``con``.
 
@@ -302,7 +297,7 @@ def projected_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float = 0.0) 
     ``mat.getPythonContext().mults``.
     """
     vec = A.createVecRight()
-    return _shell(_ProjectedOperatorCtx(A, con, rho), vec)
+    return python_shell(_ProjectedOperatorCtx(A, con, rho), vec)
 
 
 def penalized_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float) -> PETSc.Mat:
@@ -311,4 +306,4 @@ def penalized_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float) -> PET
     Counts its multiplications by ``A`` like :func:`projected_operator`.
     """
     vec = A.createVecRight()
-    return _shell(_PenalizedOperatorCtx(A, con, rho), vec)
+    return python_shell(_PenalizedOperatorCtx(A, con, rho), vec)

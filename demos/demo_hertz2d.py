@@ -1,0 +1,134 @@
+# # Hertz contact of a disk on a block (2D, plane strain)
+#
+# An elastic disk of radius $R = 8$ is pressed by a line load $P = 10$ (per unit thickness)
+# onto an elastic block, both with $E = 200$, $\nu = 0.3$. Hertz's theory predicts a contact
+# half-width and a peak pressure
+#
+# $$ a = 2\sqrt{\frac{R P}{\pi E^*}}, \qquad p_0 = \sqrt{\frac{P E^*}{\pi R}}, \qquad
+#    \frac{1}{E^*} = \frac{1-\nu_1^2}{E_1} + \frac{1-\nu_2^2}{E_2}, $$
+#
+# and the pressure profile $p(x) = p_0 \sqrt{1 - x^2/a^2}$. We solve the half model (symmetry
+# about $x = 0$) with Total FETI and SMALBE/MPRGP, compare with Hertz, write the displacement
+# and the contact pressure to XDMF and plot the pressure.
+#
+# Run it with `python demos/demo_hertz2d.py` (or under `mpirun -n 2`); `--help` lists options.
+
+# +
+import argparse
+import time
+from pathlib import Path
+
+import gmsh
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx_feti as df
+from dolfinx_feti import meshes
+
+parser = argparse.ArgumentParser(description=__doc__)
+parser.add_argument("--h", type=float, default=0.05, help="element size in the contact zone")
+parser.add_argument("--parts", type=int, default=2, help="subdomains per body")
+parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance of the solver")
+parser.add_argument("--out", type=Path, default=Path("output/hertz2d"), help="output folder")
+parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
+args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+comm = MPI.COMM_WORLD
+# -
+
+# ## The geometry
+#
+# `dolfinx_feti.meshes.hertz2d` builds the quarter disk and the half block in gmsh, with
+# matching node abscissae $x_k = k h$ on the two contact surfaces, as node-to-node contact
+# requires. Physical groups name the bodies (`disk`, `block`) and the boundary parts
+# (`disk_contact`, `block_contact`, `load`, `symmetry`, `bottom`). Only rank 0 builds the model;
+# `read_gmsh` broadcasts it.
+
+# +
+R, P, E, nu = 8.0, 10.0, 200.0, 0.3
+t0 = time.perf_counter()
+if comm.rank == 0:
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    meshes.hertz2d(h_contact=args.h, R=R)
+mesh = df.read_gmsh(None, comm)
+if comm.rank == 0:
+    gmsh.finalize()
+t_mesh = time.perf_counter() - t0
+# -
+
+# ## The problem
+#
+# The load acts on the flat top of the quarter disk: half of $P$ on the half model, spread over
+# its length $R$. The block is clamped at the bottom; both bodies are symmetric about $x = 0$
+# ($u_x = 0$ there). The disk's contact surface is the slave side: each of its nodes may not
+# cross the block's surface along the block's normal, with the initial gap from the geometry.
+
+problem = df.ContactProblem(
+    mesh,
+    df.Elasticity(E, nu, tractions={"load": (0.0, -P / 2 / R)}),
+    dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+    contact=[df.NodeToNode(slave="disk_contact", master="block_contact")],
+    decomposition=df.Parts(args.parts),
+)
+
+# ## The solve
+#
+# Every subdomain floats (Total FETI); the dual problem has bound constraints (contact) and
+# equality constraints (the natural coarse space), so SMALBE-M with inner MPRGP is used.
+
+solution = df.solve(problem, comm=comm, rtol=args.rtol)
+report = solution.report
+
+# ## Comparison with Hertz
+#
+# The nodal contact forces divided by the nodes' lumped lengths give the pressure. The computed
+# half-width is taken between the last node in contact and the first one out of contact.
+
+# +
+E_star = 1.0 / (2 * (1 - nu**2) / E)
+a = 2 * np.sqrt(R * P / (np.pi * E_star))
+p0 = np.sqrt(P * E_star / (np.pi * R))
+c = solution.contact
+order = np.argsort(c.x[:, 0])
+x, p = c.x[order, 0], c.pressure[order]
+in_contact = p > 1e-8 * p.max()
+a_h = 0.5 * (x[in_contact].max() + x[~in_contact & (x > x[in_contact].max())].min())
+peak_err = (p.max() - p0) / p0
+force_err = abs(solution.total_contact_force[1] - P / 2) / (P / 2)
+# -
+
+# ## Output: XDMF for ParaView, a plot, a JSON report
+
+# +
+args.out.mkdir(parents=True, exist_ok=True) if comm.rank == 0 else None
+solution.write_xdmf(args.out / "hertz2d.xdmf")
+if comm.rank == 0:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xs = np.linspace(0, a, 200)
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    ax.plot(xs, p0 * np.sqrt(1 - xs**2 / a**2), "k-", label="Hertz")
+    ax.plot(x, p, "o", ms=3, label=f"TFETI, h = {args.h}")
+    ax.set_xlim(0, min(2 * a, x.max()))
+    ax.set_xlabel("x")
+    ax.set_ylabel("contact pressure")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(args.out / "hertz2d_pressure.png", dpi=120)
+if args.json:
+    report.save_json(args.json)
+# -
+
+# ## Summary
+
+if comm.rank == 0:
+    print(report.summary())
+    print(f"Hertz: a = {a:.4f}, p0 = {p0:.4f}")
+    print(f"computed: a_h = {a_h:.4f} (error {a_h - a:+.4f}, element {args.h}), "
+          f"peak = {p.max():.4f} (error {100 * peak_err:+.2f} %)")
+    print(f"total contact force error: {force_err:.1e} (relative)")
+    print(f"time: mesh {t_mesh:.2f} s, solve {report.timings['total']:.2f} s; "
+          f"output in {args.out}/")
