@@ -14,8 +14,16 @@ from .errors import InputError, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
 from .options import SolverOptions
-from .problem import (ContactProblem, Cylinder, Dirichlet, NodeToNode, Plane, RigidObstacle,
-                      SignedDistance, Sphere)
+from .problem import (
+                      ContactProblem,
+                      Cylinder,
+                      Dirichlet,
+                      NodeToNode,
+                      Plane,
+                      RigidObstacle,
+                      SignedDistance,
+                      Sphere,
+)
 from .report import Report
 from .solution import ContactData, Solution
 from .solve import solve

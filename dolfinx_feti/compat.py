@@ -8,23 +8,23 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-import ufl
-from mpi4py import MPI
-from petsc4py import PETSc
-
 import dolfinx
 import dolfinx.fem
 import dolfinx.fem.petsc
 import dolfinx.io
 import dolfinx.mesh
+import numpy as np
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
 
 DOLFINX_VERSION = dolfinx.__version__
 
 _UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron}
 
 
-def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str) -> dolfinx.mesh.Mesh:
+def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
+                cell_type: str) -> dolfinx.mesh.Mesh:
     """A first-order simplex mesh from a cell-to-node array and node coordinates.
 
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;

@@ -17,8 +17,17 @@ from .feti import TotalFETI
 from .mesh.decompose import decompose
 from .options import SolverOptions
 from .problem import ContactProblem
-from .qp import (Projector, RowBlockConstraint, cg, estimate_norm, homogenize, mprgp,
-                 orthonormalize, projected_operator, smalbe)
+from .qp import (
+    Projector,
+    RowBlockConstraint,
+    cg,
+    estimate_norm,
+    homogenize,
+    mprgp,
+    orthonormalize,
+    projected_operator,
+    smalbe,
+)
 from .report import Report
 from .solution import Solution
 from .timing import Timer

@@ -40,7 +40,8 @@ def gluing_rows(node_ptr: np.ndarray, node_subs: np.ndarray, fixed: np.ndarray, 
     the node already make the copies equal.
 
     Args:
-        node_ptr, node_subs: Node → subdomains containing it (CSR).
+        node_ptr: Node → subdomains containing it (CSR pointer) ...
+        node_subs: ... and the subdomains, sorted per node.
         fixed: (N, bs) mask of Dirichlet-constrained components.
         bs: Components per node.
         gdim: Geometric dimension (shape of the normal field).

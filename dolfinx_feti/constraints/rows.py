@@ -1,4 +1,4 @@
-"""A block of constraint rows B u (=|<=) c, with entries addressed by (subdomain, node, component)."""
+"""A block of constraint rows B u (=|<=) c; entries addressed by (subdomain, node, component)."""
 
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ class Rows:
         for f in fields(Rows):
             parts = [getattr(b, f.name) for b in blocks]
             if f.name == "e_row":
-                parts = [p + s for p, s in zip(parts, shift)]
+                parts = [p + s for p, s in zip(parts, shift, strict=True)]
             out[f.name] = np.concatenate(parts)
         return Rows(**out)
 

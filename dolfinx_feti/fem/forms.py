@@ -48,7 +48,8 @@ class Elasticity:
 
     value_size = "vector"
 
-    def __init__(self, E: Scalar, nu: Scalar, *, tractions: Mapping[str, Sequence[float]] | None = None,
+    def __init__(self, E: Scalar, nu: Scalar, *,
+                 tractions: Mapping[str, Sequence[float]] | None = None,
                  body_force: Sequence[float] | Callable | None = None) -> None:
         self.E, self.nu = E, nu
         self.tractions = dict(tractions or {})

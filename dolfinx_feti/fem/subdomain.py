@@ -145,5 +145,6 @@ class Subdomain:
         f = f[perm]
         if not (np.all(np.isfinite(K.data)) and np.all(np.isfinite(f))):
             raise InputError(f"subdomain {self.index} (bodies {list(self.bodies)}): the assembled "
-                             "stiffness matrix or load has non-finite entries (NaN/Inf in the data)")
+                             "stiffness matrix or load has non-finite entries (NaN/Inf in the "
+                             "data)")
         return K, f

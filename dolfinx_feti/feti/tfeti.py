@@ -136,7 +136,7 @@ class TotalFETI:
             Gt.destroy()
             Rmat.destroy()
             e = np.zeros(self.coarse_size[1])
-            for s, fs in zip(self.K, f_parts):
+            for s, fs in zip(self.K, f_parts, strict=True):
                 e[self.k * s:self.k * (s + 1)] = self.R[s].T @ fs
             self.e = comm.allreduce(e, op=MPI.SUM)
             self.d = self.B.createVecLeft()
@@ -203,7 +203,7 @@ class TotalFETI:
         return np.linalg.lstsq(M, r, rcond=1e-12)[0]
 
     def residuals(self, u: PETSc.Vec, lam: PETSc.Vec) -> dict[str, float]:
-        """Primal checks: ||K u − f + Bᵀλ|| / ||f|| (or / ||Bᵀλ|| when f = 0), ||B u − c|| pieces."""
+        """Equilibrium residual ||K u − f + Bᵀλ|| / max(||f||, ||Bᵀλ||)."""
         w = self.B.createVecRight()
         self.B.multTranspose(lam, w)
         ua, wa, fa = u.array_r, w.array_r, self.f.array_r

@@ -113,7 +113,8 @@ def decompose(mesh: MeshData, how, comm_size: int) -> Decomposition:
         for b, name in enumerate(mesh.body_names):
             n = how.n.get(name, 1) if isinstance(how.n, Mapping) else how.n
             if int(n) < 1:
-                raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, got {n}")
+                raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, "
+                                 f"got {n}")
             cells = np.flatnonzero(mesh.cell_body == b)
             label[cells] = b * (1 << 32) + rcb(midpoints[cells], int(n))
         if isinstance(how.n, Mapping):
@@ -134,8 +135,10 @@ def decompose(mesh: MeshData, how, comm_size: int) -> Decomposition:
 
 
 def _split_components(cells: np.ndarray, label: np.ndarray) -> np.ndarray:
-    """Subdomain id per cell: connected (through facets) pieces of equal label, ordered by
-    their first cell so the numbering is deterministic."""
+    """Subdomain id per cell: connected (through facets) pieces of equal label.
+
+    Pieces are numbered in the order of their first cell, so the numbering is deterministic.
+    """
     pairs = facet_neighbours(cells)
     same = label[pairs[:, 0]] == label[pairs[:, 1]]
     pairs = pairs[same]
@@ -167,8 +170,10 @@ def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int) -> Decompositio
 
 
 def _assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
-    """Contiguous blocks of subdomains with balanced total weight (node count); no rank is left
-    without a subdomain when there are at least as many subdomains as ranks."""
+    """Contiguous blocks of subdomains with balanced total weight (node count).
+
+    No rank is left without a subdomain when there are at least as many subdomains as ranks.
+    """
     nsub = weights.size
     cum = np.cumsum(weights)
     starts = [0]

@@ -163,7 +163,7 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
         body_names.append(name)
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
-            for t, nd in zip(types, nodes):
+            for t, nd in zip(types, nodes, strict=True):
                 if t not in _GMSH_CELLS:
                     kind = _UNSUPPORTED.get(int(t), f"gmsh element type {t}")
                     raise InputError(f"body {name!r} has {kind} cells: only first-order "
@@ -209,7 +209,7 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
         blocks = []
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
-            for t, nd in zip(types, nodes):
+            for t, nd in zip(types, nodes, strict=True):
                 if t == ftype:
                     blocks.append(nd.astype(np.int64).reshape(-1, tdim))
         f = np.concatenate(blocks) if blocks else np.empty((0, tdim), dtype=np.int64)

@@ -50,7 +50,8 @@ def locate_facets(cells: np.ndarray, facets: np.ndarray) -> tuple[np.ndarray, np
     return np.where(hit, flat // (tdim + 1), -1), np.where(hit, flat % (tdim + 1), -1)
 
 
-def facet_normals(x: np.ndarray, cells: np.ndarray, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def facet_normals(x: np.ndarray, cells: np.ndarray,
+                  facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Outward unit normals and measures (length/area) of boundary facets.
 
     The outward side is the side away from the cell that holds the facet; with a facet of two

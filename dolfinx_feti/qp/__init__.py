@@ -18,6 +18,7 @@ from .equality import (
 from .mprgp import mprgp
 from .norm import NormEstimate, estimate_norm
 from .result import QPResult
+from .shell import python_shell
 from .smalbe import smalbe
 
 __all__ = [
@@ -34,5 +35,6 @@ __all__ = [
     "orthonormalize",
     "penalized_operator",
     "projected_operator",
+    "python_shell",
     "smalbe",
 ]

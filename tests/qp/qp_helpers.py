@@ -14,7 +14,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.optimize import lsq_linear
 
-from dolfinx_feti.qp import RowBlockConstraint
+from dolfinx_feti.qp import RowBlockConstraint, python_shell
 
 COMM = PETSc.COMM_WORLD
 MPI_COMM: MPI.Comm = COMM.tompi4py()
@@ -77,10 +77,7 @@ class Counting:
 def counting(A: PETSc.Mat) -> tuple[PETSc.Mat, Counting]:
     """Wrap A in a counting python shell."""
     ctx = Counting(A)
-    sizes = A.getSizes()
-    M = PETSc.Mat().createPython(sizes, context=ctx, comm=A.getComm())
-    M.setUp()
-    return M, ctx
+    return python_shell(ctx, A.createVecRight()), ctx
 
 
 # ---------------------------------------------------------------------------- problem makers
