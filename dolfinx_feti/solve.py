@@ -59,7 +59,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     timer = Timer()
     report = Report()
     with timer.phase("decomposition"):
-        dec = decompose(problem.mesh, problem.decomposition, comm.size)
+        dec = decompose(problem.mesh, problem.decomposition, comm)
         rows = build_rows(problem, dec)
     feti = TotalFETI(problem, dec, rows, comm, timer, opts.factor)
     ineq = rows.inequality[feti.rows_local]

@@ -82,7 +82,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     Returns:
         The result, with ``multiplier``, ``outer_iterations`` and one history record per outer
         iteration: ``k``, ``inner_iterations``, ``hessian_mults``, ``gP``, ``Dx``, ``M`` (used
-        in this inner solve), ``M_next``, ``L`` (``L(x_k, mu_k, rho)``), ``L_prev``,
+        in this inner solve), ``M_next``, ``rho``, ``L`` (``L(x_k, mu_k, rho)``), ``L_prev``,
         ``L_increase_ok`` (the step-4 test held; None at ``k = 0``), ``M_decreased``,
         ``inner_reason``. ``reason`` is ``'converged'``, ``'max_it'``, ``'max_outer'`` or the
         inner failure (``'unbounded'``, ``'breakdown'``).
@@ -148,7 +148,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             M /= beta
         record = {"k": k, "inner_iterations": res.iterations,
                   "hessian_mults": res.hessian_mults, "gP": res.gP_norm, "Dx": dx, "M": M_k,
-                  "M_next": M, "L": L, "L_prev": L_prev, "L_increase_ok": increase_ok,
+                  "M_next": M, "rho": rho, "L": L, "L_prev": L_prev, "L_increase_ok": increase_ok,
                   "M_decreased": increase_ok is False, "inner_reason": res.reason}
         history.append(record)
         if monitor is not None:
