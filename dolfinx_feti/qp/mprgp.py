@@ -17,7 +17,7 @@ from .box import Box, check_finite
 from .norm import estimate_norm
 from .result import QPResult
 
-EXPANSIONS = ("fixed", "optimal")
+EXPANSIONS = ("fixed", "optimal", "projcg")
 # p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
 # curvature of a PSD operator along a null direction tiny but positive, not zero.
 _CURVATURE_RTOL = 1e-14
@@ -60,9 +60,13 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
     - ``'optimal'``: exact line search along ``d = phi~(x_h)`` over its whole feasible segment
       ``[0, t_max]`` (``t_max >= alpha_bar``; ``x_h - alpha_bar d`` is the fixed step), so the
       energy decreases at least as much as with ``'fixed'``; ``g`` is updated with ``A d``.
+    - ``'projcg'``: the projected full CG step ``P(x - t_cg p)`` with a fresh gradient, kept if
+      its energy is not above that of the half-step ``x_h``; otherwise (counted in
+      ``counts['rejected']``) the ``'fixed'`` expansion is done from ``x_h``.
 
     Hessian multiplications: 1 for the initial gradient (0 when ``g_valid``), 1 per CG step,
-    2 per expansion (``A p`` for the trial CG step, then the projected step), 1 per
+    2 per expansion (``A p`` for the trial CG step, then the projected step; ``'optimal'``
+    skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` step costs a third), 1 per
     proportioning, plus the norm estimate when neither ``alpha_bar`` nor ``norm_A`` is given.
 
     Args:
@@ -77,7 +81,7 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
         gamma: Proportioning parameter ``Gamma > 0``.
         alpha_bar: Projected step length in ``(0, 2/||A||)``; default ``1.95 / norm_A``.
         norm_A: ``||A||``; default :func:`estimate_norm` (Lanczos, rtol 1e-4).
-        expansion: ``'fixed'`` or ``'optimal'``.
+        expansion: ``'fixed'``, ``'optimal'`` or ``'projcg'``.
         max_it: Maximum number of iterations (steps of any kind).
         stop: Extra test ``stop(gP_norm, x, g)``, collective; a true value ends the solve as
             converged (reason ``'stop'``). Used by SMALBE.
@@ -106,6 +110,8 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
     check_finite(comm, "mprgp: the start x", x.array_r)
     mult = _Counter(A)
     counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
+    if expansion == "projcg":
+        counts["rejected"] = 0
     if alpha_bar is None:
         if norm_A is None:
             est = estimate_norm(A, x)
@@ -185,6 +191,20 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
             if not math.isfinite(t_f):
                 reason = "unbounded"
                 break
+            if expansion == "projcg" and math.isfinite(t_cg):
+                # Projected full CG step, kept only if it beats the half-step's energy.
+                f_half = 0.5 * (x.dot(g) - x.dot(b)) - t_f * gp + 0.5 * t_f * t_f * pAp
+                x_old, g_old = x.array_r.copy(), g.copy()
+                x.array[:] = box.project(x_old - t_cg * p.array_r)
+                mult(x, g)
+                g.axpy(-1.0, b)
+                if 0.5 * (x.dot(g) - x.dot(b)) <= f_half:
+                    kind, cg_pending = "expansion", False
+                    counts["expansion"] += 1
+                    continue
+                x.array[:] = x_old
+                g_old.copy(g)
+                counts["rejected"] += 1
             # Expansion: go to the boundary along p, then a projected step from there.
             x.array[:] = box.step(x.array_r, p.array_r, t_f)
             g.axpy(-t_f, Ap)

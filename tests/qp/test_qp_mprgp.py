@@ -19,7 +19,7 @@ from qp_helpers import (
 
 from dolfinx_feti.qp import mprgp
 
-EXPANSIONS = ["fixed", "optimal"]
+EXPANSIONS = ["fixed", "optimal", "projcg"]
 
 
 def box_problem(kind: str, seed: int = 0, n: int = 60):
@@ -144,6 +144,8 @@ def test_hessian_mult_count(expansion):
     steps = 1 + c["norm"] + c["cg"] + c["proportioning"]
     if expansion == "fixed":
         assert res.hessian_mults == steps + 2 * c["expansion"]
+    elif expansion == "projcg":  # a rejected projected CG step costs one more product
+        assert res.hessian_mults == steps + 2 * c["expansion"] + c["rejected"]
     else:  # an expansion from a point with zero free gradient skips the second product
         assert steps + c["expansion"] <= res.hessian_mults <= steps + 2 * c["expansion"]
     # A supplied valid gradient saves the first multiplication.

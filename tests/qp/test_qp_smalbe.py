@@ -17,7 +17,6 @@ from qp_helpers import (
 
 from dolfinx_feti.qp import (
     Projector,
-    estimate_norm,
     homogenize,
     orthonormalize,
     projected_operator,
@@ -71,7 +70,7 @@ def check_M_rule(res, beta=2.0):
         assert h["M_decreased"] == failed
         assert h["M_next"] == (h["M"] / beta if failed else h["M"])
         decreases += failed
-    for h0, h1 in zip(res.history, res.history[1:]):
+    for h0, h1 in zip(res.history, res.history[1:], strict=False):
         assert h1["M"] == h0["M_next"]
     return decreases
 
