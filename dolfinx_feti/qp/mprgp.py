@@ -2,7 +2,9 @@
 
 Minimizes ``f(x) = 1/2 x^T A x - b^T x`` subject to ``l <= x <= u`` (infinite bounds allowed) for
 a symmetric positive (semi)definite ``A``. See ALGORITHMS.md section 4 and Dostál, *Optimal
-Quadratic Programming Algorithms* (2009), chapter 5.
+Quadratic Programming Algorithms* (2009), chapter 5. Three expansion steps are available:
+the standard fixed-length one and two variants measured against it (``'optimal'``,
+``'projcg'``), see :func:`mprgp`.
 """
 
 from __future__ import annotations
@@ -11,6 +13,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .box import Box, check_finite
@@ -130,7 +133,7 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
     # Project the start; a supplied gradient survives only if nothing moved.
     xa = x.array_r
     xp = box.project(xa)
-    moved = comm.allreduce(bool(np.any(xp != xa)))
+    moved = comm.allreduce(bool(np.any(xp != xa)), op=MPI.LOR)
     if moved:
         x.array[:] = xp
     if g is None:
@@ -192,18 +195,10 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
                 reason = "unbounded"
                 break
             if expansion == "projcg" and math.isfinite(t_cg):
-                # Projected full CG step, kept only if it beats the half-step's energy.
-                f_half = 0.5 * (x.dot(g) - x.dot(b)) - t_f * gp + 0.5 * t_f * t_f * pAp
-                x_old, g_old = x.array_r.copy(), g.copy()
-                x.array[:] = box.project(x_old - t_cg * p.array_r)
-                mult(x, g)
-                g.axpy(-1.0, b)
-                if 0.5 * (x.dot(g) - x.dot(b)) <= f_half:
+                if _projected_cg_step(box, x, g, b, p, mult, t_cg, t_f, gp, pAp):
                     kind, cg_pending = "expansion", False
                     counts["expansion"] += 1
                     continue
-                x.array[:] = x_old
-                g_old.copy(g)
                 counts["rejected"] += 1
             # Expansion: go to the boundary along p, then a projected step from there.
             x.array[:] = box.step(x.array_r, p.array_r, t_f)
@@ -244,7 +239,7 @@ def _expand(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, 
     """
     xa = x.array_r
     phi_a = box.split(xa, g.array_r)[0]
-    if expansion == "fixed":
+    if expansion != "optimal":  # 'fixed', and the fallback of a rejected 'projcg' step
         x.array[:] = box.project(xa - alpha_bar * phi_a)
         mult(x, g)
         g.axpy(-1.0, b)
@@ -265,3 +260,22 @@ def _expand(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, 
     x.array[:] = box.step(xa, d.array_r, t)
     g.axpy(-t, Ad)
     return True
+
+
+def _projected_cg_step(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, p: PETSc.Vec,
+                       mult: _Counter, t_cg: float, t_f: float, gp: float, pAp: float) -> bool:
+    """Try the projected full CG step ``x <- P(x - t_cg p)`` with a fresh gradient.
+
+    It is kept if its energy is not above that of the half-step ``x - t_f p`` (known from
+    scalars); otherwise ``x`` and ``g`` are restored and False is returned.
+    """
+    f_half = 0.5 * (x.dot(g) - x.dot(b)) - t_f * gp + 0.5 * t_f * t_f * pAp
+    x_old, g_old = x.array_r.copy(), g.copy()
+    x.array[:] = box.project(x_old - t_cg * p.array_r)
+    mult(x, g)
+    g.axpy(-1.0, b)
+    if 0.5 * (x.dot(g) - x.dot(b)) <= f_half:
+        return True
+    x.array[:] = x_old
+    g_old.copy(g)
+    return False

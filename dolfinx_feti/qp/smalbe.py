@@ -138,8 +138,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         g_valid = True
         total_it += res.iterations
         mults += res.hessian_mults
-        for key in counts:
-            counts[key] += res.counts.get(key, 0)
+        for key, value in res.counts.items():
+            counts[key] = counts.get(key, 0) + value
         Dx = D.mult(x)
         dx = float(np.linalg.norm(Dx))
         L = res.objective

@@ -75,7 +75,7 @@ def check_M_rule(res, beta=2.0):
     return decreases
 
 
-@pytest.mark.parametrize("expansion", ["fixed", "optimal"])
+@pytest.mark.parametrize("expansion", ["fixed", "optimal", "projcg"])
 def test_feti_like_against_reference(expansion):
     F, G, e, d, lower, feasible = feti_like()
     ref = ref_active_set(F, d, lower, np.full(len(d), np.inf), G, e, x0=feasible)
