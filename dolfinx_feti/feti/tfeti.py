@@ -16,6 +16,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..constraints.rows import Rows
+from ..errors import collective
 from ..fem.rigid import rigid_modes
 from ..fem.subdomain import Subdomain
 from ..mesh.decompose import Decomposition
@@ -81,7 +82,7 @@ class TotalFETI:
         n_loc = int(sub_dofs[self.local_subs].sum())
         self.primal_size = (n_loc, int(self.sub_offset[-1]))
 
-        with timer.phase("assembly"):
+        with timer.phase("assembly"), collective(comm):
             facets = self._subdomain_facets(mesh, dec)
             self.K, f_parts, self.R = {}, [], {}
             for s in self.local_subs:
@@ -92,7 +93,7 @@ class TotalFETI:
                 f_parts.append(f)
                 self.R[int(s)] = rigid_modes(mesh.x[dec.nodes(s)], bs)
             self.k = 1 if bs == 1 else (3 if mesh.gdim == 2 else 6)
-        with timer.phase("factorization"):
+        with timer.phase("factorization"), collective(comm):
             self.Kplus = {s: FixingNodesInverse(
                 self.K[s], self.R[s], factor,
                 label=f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}")

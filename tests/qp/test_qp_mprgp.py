@@ -243,3 +243,23 @@ def test_to_dict_is_json():
     d = json.loads(json.dumps(res.to_dict()))
     assert d["converged"] and d["hessian_mults"] == res.hessian_mults
     assert "x" not in d and d["active_count"] == res.active_count
+
+
+def test_projcg_rejected_step_falls_back():
+    """An ill-conditioned box QP where some projected CG steps raise the energy."""
+    rng = np.random.default_rng(0)
+    n = 60
+    A = random_spd(n, rng, cond=1e3)
+    b = 3.0 * rng.standard_normal(n)
+    l, u = np.full(n, -0.5), np.full(n, 0.5)
+    Ac, ctx = counting(make_mat(A))
+    x = make_vec(np.zeros(n))
+    mon = Feasibility(x, l, u)
+    res = mprgp(Ac, make_vec(b), x, lb=make_vec(l), ub=make_vec(u), rtol=1e-11,
+                expansion="projcg", norm_A=float(np.linalg.eigvalsh(A).max()), monitor=mon)
+    c = res.counts
+    assert res.converged and c["rejected"] >= 1 and mon.violation() == 0.0
+    assert res.hessian_mults == ctx.calls == (1 + c["cg"] + c["proportioning"]
+                                              + 2 * c["expansion"] + c["rejected"])
+    ref = ref_box(A, b, l, u)
+    assert np.linalg.norm(gather(x) - ref) <= 1e-8 * np.linalg.norm(ref)
