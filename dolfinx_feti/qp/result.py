@@ -18,12 +18,15 @@ class QPResult:
         x: The final iterate (the Vec the caller passed in, modified in place).
         converged: Whether the stopping test was met.
         reason: Why the solver stopped: ``'rtol'``, ``'atol'``, ``'stop'`` (the user test),
-            ``'max_it'``, ``'unbounded'``, ``'indefinite'``, ``'breakdown'``.
+            ``'converged'`` (SMALBE), ``'max_it'``, ``'max_outer'``, ``'unbounded'``,
+            ``'breakdown'``.
         iterations: Inner iterations in total (CG steps, expansions and proportionings).
         outer_iterations: Outer iterations (SMALBE); 0 for single-level solvers.
         hessian_mults: Multiplications by the Hessian ``A`` performed inside the call, including
             the norm estimate when the solver had to make one (see ``counts['norm']``).
-        counts: Step counts: ``'cg'``, ``'expansion'``, ``'proportioning'`` and ``'norm'``.
+        counts: Step counts: ``'cg'``, ``'expansion'``, ``'proportioning'``, ``'norm'`` (the
+            multiplications of the norm estimate) and, for MPRGP's ``'projcg'`` expansion,
+            ``'rejected'``.
         gP_norm: Final projected gradient norm (for SMALBE the projected gradient of the
             Lagrangian with the returned multiplier).
         Dx_norm: ``||D x||`` at the end, or None without equality constraints.

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 from petsc4py import PETSc
 from qp_helpers import (
     COMM,
@@ -58,7 +59,7 @@ class Feasibility:
         self.kinds.append(kind)
 
     def violation(self) -> float:
-        return MPI_COMM.allreduce(self.worst, op=max)
+        return MPI_COMM.allreduce(self.worst, op=MPI.MAX)
 
 
 @pytest.mark.parametrize("expansion", EXPANSIONS)
