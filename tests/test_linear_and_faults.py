@@ -1,7 +1,9 @@
-"""Problems without contact (projected CG), against a monolithic DOLFINx solve; collective faults."""
+"""Problems without contact (projected CG) against a monolithic DOLFINx solve; faults."""
 
 from __future__ import annotations
 
+import dolfinx
+import dolfinx.fem.petsc
 import gmsh
 import numpy as np
 import pytest
@@ -9,8 +11,6 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import dolfinx
-import dolfinx.fem.petsc
 import dolfinx_feti as df
 
 
