@@ -93,8 +93,9 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
             inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion}
             if ocon.m > 0:
                 report.solver = "smalbe"
-                eq_rtol = (opts.eq_rtol or opts.rtol) / norm.value
-                res = smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol, eq_rtol=eq_rtol,
+                # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
+                res = smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol,
+                             eq_rtol=opts.eq_rtol or opts.rtol, eq_scale=norm.value,
                              rho=opts.smalbe_rho * norm.value, M=opts.smalbe_M * norm.value,
                              eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
                              beta=opts.smalbe_beta, norm_A=norm.value, inner_options=inner,

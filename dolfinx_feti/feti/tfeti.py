@@ -22,6 +22,7 @@ from ..fem.subdomain import Subdomain
 from ..mesh.decompose import Decomposition
 from ..mesh.topology import locate_facets
 from ..problem import ContactProblem
+from ..qp.shell import python_shell
 from ..timing import Timer
 from .kplus import FixingNodesInverse
 
@@ -116,9 +117,7 @@ class TotalFETI:
             if f_parts:
                 self.f.array[:] = np.concatenate(f_parts)
             self._shell = _DualShell(self)
-            self.F = PETSc.Mat().createPython((self.dual_size, self.dual_size), self._shell,
-                                              comm=comm)
-            self.F.setUp()
+            self.F = python_shell(self._shell, self.c)
 
         with timer.phase("coarse problem"):
             m_loc = self.k * self.local_subs.size
