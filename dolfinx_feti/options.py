@@ -7,6 +7,7 @@ not over keyword arguments given explicitly to :func:`dolfinx_feti.solve`.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass, fields
 
 from petsc4py import PETSc
@@ -62,14 +63,29 @@ class SolverOptions:
             if not opts.hasName(f.name):
                 continue
             kind = str(f.type)
-            if "int" in kind:
-                values[f.name] = opts.getInt(f.name)
-            elif "float" in kind:
-                values[f.name] = opts.getReal(f.name)
-            else:
-                values[f.name] = opts.getString(f.name)
+            try:
+                if "int" in kind:
+                    values[f.name] = opts.getInt(f.name)
+                elif "float" in kind:
+                    values[f.name] = opts.getReal(f.name)
+                else:
+                    values[f.name] = opts.getString(f.name)
+            except PETSc.Error:
+                raise InputError(f"PETSc option -{prefix}{f.name} {opts.getString(f.name)!r}: "
+                                 f"expected {'an integer' if 'int' in kind else 'a number'}"
+                                 ) from None
         values.update({k: v for k, v in kwargs.items() if v is not None})
         out = cls(**values)
+        out.validate()
+        return out
+
+    def replace(self, **kwargs) -> SolverOptions:
+        """A validated copy with some fields changed (unknown names are an InputError)."""
+        names = {f.name for f in fields(self)}
+        unknown = set(kwargs) - names
+        if unknown:
+            raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(names)}")
+        out = dataclasses.replace(self, **{k: v for k, v in kwargs.items() if v is not None})
         out.validate()
         return out
 

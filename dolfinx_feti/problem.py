@@ -69,6 +69,8 @@ class Plane:
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         n = np.asarray(self.normal, dtype=float)[: x.shape[1]]
+        if not np.linalg.norm(n) > 0:
+            raise InputError(f"Plane: the normal {tuple(self.normal)} is zero or not finite")
         n = n / np.linalg.norm(n)
         p = np.asarray(self.point, dtype=float)[: x.shape[1]]
         return (x - p) @ n, np.broadcast_to(n, x.shape).copy()

@@ -45,7 +45,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         comm: The ranks to spread the subdomains over.
         options: Solver options; or give them as keyword arguments (``rtol=1e-8``, ...), which
             override the ``-feti_*`` PETSc command-line options.
-        **kwargs: Fields of :class:`SolverOptions`.
+        **kwargs: Fields of :class:`SolverOptions`; with ``options`` given, they override its
+            fields.
 
     Returns:
         The solution (displacement, multipliers, contact pressure, report). A solve that does
@@ -55,7 +56,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         InputError: For a problem that is ill-posed as described (e.g. a floating body with a
             load its constraints cannot balance).
     """
-    opts = options if options is not None else SolverOptions.create(**kwargs)
+    opts = SolverOptions.create(**kwargs) if options is None else options.replace(**kwargs)
     timer = Timer()
     report = Report()
     with timer.phase("decomposition"):
@@ -72,6 +73,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         homogenize(ocon, lam_hat)
         b = feti.d.duplicate()
         feti.F.mult(lam_hat, b)
+        b_noise = 1e3 * np.finfo(float).eps * (feti.d.norm() + b.norm())  # round-off in b
         b.aypx(-1.0, feti.d)  # b = d − F λ̂
         projector = Projector(ocon)
         Pb = b.duplicate()
@@ -85,7 +87,10 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     with timer.phase("iterations"):
         if n_ineq == 0:
             report.solver = "cg"
-            res = cg(A, Pb, x, projector=projector, rtol=opts.rtol, max_it=opts.max_it)
+            # When only prescribed values drive the problem, P b can be pure round-off: the
+            # floor b_noise keeps CG from chasing it.
+            res = cg(A, Pb, x, projector=projector, rtol=opts.rtol, atol=b_noise,
+                     max_it=opts.max_it)
         else:
             lb = x.duplicate()
             lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
@@ -114,7 +119,10 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         g = feti.d.duplicate()
         feti.F.mult(lam, g)
         g.axpy(-1.0, feti.d)  # the dual gradient F λ − d
-        alpha = feti.rigid_amplitudes(g, ~ineq | ~at_bound)
+        hint = None
+        if res.multiplier is not None:  # SMALBE: α = −T̃ᵀ(μ − G̃ g) from the dual KKT conditions
+            hint = -ocon.transform_transpose(res.multiplier - ocon.mult(g))
+        alpha = feti.rigid_amplitudes(g, ~ineq | ~at_bound, hint)
         u = feti.primal(lam, alpha)
 
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
@@ -135,6 +143,11 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     if not report.converged:
         report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
                                f"{opts.max_it} iterations / {opts.max_outer} outer iterations")
+        if n_ineq and report.G_lambda > 1e3 * opts.rtol:
+            report.warnings.append(
+                f"the contact forces do not balance the load (||G lambda - e|| / ||e|| = "
+                f"{report.G_lambda:.1e}): a body may be pulled away from its only support; "
+                "contact can push but not pull")
     sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm)
     sol.check_kkt(ineq)
     report.timings = timer.reduced(comm)

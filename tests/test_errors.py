@@ -192,9 +192,6 @@ def test_unreadable_file(gmsh_reset):
     assert os.listdir(Path.cwd()) == (["garbage.msh"] if MPI.COMM_WORLD.rank == 0 else [])
 
 
-@pytest.mark.xfail(strict=True, reason="mesh/gmsh_input.py _extract(): after gmsh.open fails, "
-                   "gmsh 4.8 stays locked and the broken model stays current; every later "
-                   "read_gmsh of a good file fails with 'no physical groups'")
 def test_read_after_an_unreadable_file(gmsh_reset):
     with pytest.raises(df.InputError):
         df.read_gmsh(_garbage_file())
@@ -387,17 +384,11 @@ def test_dirichlet_component_out_of_range(membranes):
         elastic(membranes, dirichlet=[df.Dirichlet("dirichlet", components=(2,))])
 
 
-@pytest.mark.xfail(strict=True, reason="constraints/dirichlet.py dirichlet_mask(): a value with "
-                   "the wrong number of components ends in NumPy's broadcast ValueError, which "
-                   "names neither the group nor the count")
 def test_dirichlet_value_with_wrong_length(membranes):
     with input_error("'dirichlet'", "3 values", "2 components"):
         df.solve(elastic(membranes, dirichlet=[df.Dirichlet("dirichlet", value=(1.0, 2.0, 3.0))]))
 
 
-@pytest.mark.xfail(strict=True, reason="fem/forms.py Elasticity.check(): the length of a "
-                   "traction/body force vector is not checked; UFL raises 'Shapes do not match' "
-                   "during assembly")
 @pytest.mark.parametrize("kind", ["traction", "body_force"])
 def test_load_vector_with_wrong_length(membranes, kind):
     load = (0.0, -1.0, 0.0)
@@ -410,8 +401,6 @@ def test_load_vector_with_wrong_length(membranes, kind):
 # Serial: under mpirun the ranks compile the same (failing) form, and the rank that does not hold
 # the FFCx cache lock waits for its 10 s timeout.
 @pytest.mark.serial
-@pytest.mark.xfail(strict=True, reason="a NaN constant inside a UFL expression is not detected; "
-                   "FFCx emits 'nan' into C and the C compiler fails (cffi VerificationError)")
 def test_nan_inside_a_ufl_source(membranes):
     with input_error("not finite"):
         df.solve(b1(membranes, source=lambda x: math.nan * x[0]))
@@ -450,8 +439,6 @@ def test_bad_parts(membranes, parts, words):
         df.solve(b1(membranes, decomposition=parts))
 
 
-@pytest.mark.xfail(strict=True, reason="mesh/decompose.py decompose(): Parts(n) is cast with "
-                   "int(n): 2.5 is silently truncated to 2, NaN gives a bare ValueError")
 @pytest.mark.parametrize("n", [2.5, math.nan])
 def test_non_integer_parts(membranes, n):
     with input_error("Parts"):
@@ -520,9 +507,6 @@ def test_unloaded_floating_body_is_only_a_warning(membranes):
     assert any("'right'" in w and "not fixed" in w for w in sol.report.warnings)
 
 
-@pytest.mark.xfail(strict=True, reason="fem/subdomain.py assemble(): a linear form whose "
-                   "integrand is UFL Zero (Poisson(source=0.0), or a zero body force) is not "
-                   "empty() but has no arguments; dolfinx then fails with IndexError")
 def test_zero_source_with_prescribed_values(membranes):
     """Only Dirichlet data drives the problem: not an error."""
     sol = df.solve(b1(membranes, source=0.0, contact=[],
@@ -546,10 +530,6 @@ def test_non_converging_solve_returns(membranes):
 # ------------------------------------------------------------------------------------------
 
 
-@pytest.mark.xfail(strict=True, reason="solve.py recovery: rigid_amplitudes() only uses the "
-                   "inequality rows with lambda > 0; a floating body held by a contact with zero "
-                   "force keeps alpha = 0 and penetrates by the full push (0.1) while the report "
-                   "says converged (primal_feasibility 1.0)")
 def test_push_on_an_unloaded_floating_body_does_not_penetrate(membranes):
     """Ω1 pushed by 0.1 into the unloaded, free Ω2: Ω2 must move along (not unique, solvable)."""
     sol = df.solve(elastic(membranes, dirichlet=[df.Dirichlet("dirichlet", (0.1, 0.0))]),
@@ -563,9 +543,6 @@ def test_push_on_an_unloaded_floating_body_does_not_penetrate(membranes):
     assert sol.contact.gap.min() >= -1e-6
 
 
-@pytest.mark.xfail(strict=True, reason="feti/tfeti.py residuals(): equilibrium is "
-                   "||Ku - f + B^T lambda|| / max(||f||, ||B^T lambda||); without load both are "
-                   "~0 and an exact solution reports 1e+01")
 def test_equilibrium_residual_of_an_exact_rigid_translation(membranes):
     prob = elastic(membranes, contact=[], dirichlet=[df.Dirichlet("dirichlet", (0.1, 0.0)),
                                                      df.Dirichlet("contact_right")])

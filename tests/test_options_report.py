@@ -115,8 +115,6 @@ def test_petsc_options_are_validated():
             df.SolverOptions.create()
 
 
-@pytest.mark.xfail(strict=True, reason="options.py create(): opts.getReal/getInt raise a bare "
-                   "petsc4py.PETSc.Error (error code 63) on a non-numeric -feti_* value")
 @pytest.mark.parametrize("name, value", [("feti_rtol", "abc"), ("feti_max_it", "1e3")])
 def test_bad_petsc_option_value_is_input_error(name, value):
     with petsc_options(**{name: value}):
@@ -151,15 +149,11 @@ def test_solve_records_options(b1_solution):
     assert opts["rtol"] == 1e-8
 
 
-@pytest.mark.xfail(strict=True, reason="solve.py solve(): an explicit SolverOptions is never "
-                   "validated; rtol=-1 ends in smalbe's bare ValueError that names no option")
 def test_solve_validates_explicit_options(b1_problem):
     with pytest.raises(df.InputError, match="rtol"):
         df.solve(b1_problem, options=df.SolverOptions(rtol=-1.0))
 
 
-@pytest.mark.xfail(strict=True, reason="solve.py solve(): keyword options given together with "
-                   "options= are silently ignored")
 def test_solve_options_and_keywords_not_silently_ignored(b1_problem):
     try:
         sol = df.solve(b1_problem, options=df.SolverOptions(), rtol=1e-3)

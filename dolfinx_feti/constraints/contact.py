@@ -114,7 +114,10 @@ def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.
                   node_subs: np.ndarray) -> Rows:
     """Rows −n·u <= φ/|∇φ| at the nodes of a boundary group, n = ∇φ/|∇φ|."""
     nodes, normals, _ = surface(mesh, spec.group)
-    phi, grad = spec.obstacle.distance(mesh.x[nodes])
+    try:
+        phi, grad = spec.obstacle.distance(mesh.x[nodes])
+    except InputError as e:
+        raise InputError(f"obstacle on {spec.group!r}: {e}") from None
     phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
     if phi.shape != (nodes.size,) or grad.shape != (nodes.size, mesh.gdim):
         raise InputError(f"obstacle on {spec.group!r}: distance() must return arrays of shape "

@@ -23,7 +23,10 @@ def dirichlet_mask(problem: ContactProblem, mesh: MeshData) -> tuple[np.ndarray,
             if v.shape[1] == 1:
                 v = np.repeat(v, len(comps), axis=1)
         else:
-            v = np.broadcast_to(np.asarray(bc.value, dtype=float).ravel(), (len(comps),))
+            v = np.asarray(bc.value, dtype=float).ravel()
+            if v.size not in (1, len(comps)):
+                raise InputError(f"Dirichlet on {bc.group!r}: {v.size} values for "
+                                 f"{len(comps)} components")
             v = np.broadcast_to(v, (nodes.size, len(comps)))
         if v.shape[1] != len(comps):
             raise InputError(f"Dirichlet on {bc.group!r}: {v.shape[1]} values for "

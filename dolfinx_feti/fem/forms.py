@@ -69,9 +69,17 @@ class Elasticity:
                 raise InputError(f"Poisson's ratio of body {body!r} must lie in (-1, 0.5), got "
                                  f"nu = {nu}" + (" (incompressible)" if nu == 0.5 else ""))
         _check_groups(self.tractions, mesh, "traction")
+        for name, t in self.tractions.items():
+            if not callable(t) and np.asarray(t, dtype=float).size != mesh.gdim:
+                raise InputError(f"traction on {name!r} has {np.asarray(t).size} components; "
+                                 f"the mesh is {mesh.gdim}D")
         if self.body_force is not None and not callable(self.body_force):
-            if not np.all(np.isfinite(np.asarray(self.body_force, dtype=float))):
+            b = np.asarray(self.body_force, dtype=float)
+            if not np.all(np.isfinite(b)):
                 raise InputError(f"body force is not finite: {self.body_force}")
+            if b.size != mesh.gdim:
+                raise InputError(f"body force has {b.size} components; the mesh is "
+                                 f"{mesh.gdim}D")
 
     def __call__(self, V, sub):
         """The forms on one subdomain."""

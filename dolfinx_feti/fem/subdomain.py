@@ -13,6 +13,7 @@ import numpy as np
 import scipy.sparse as sp
 import ufl
 from mpi4py import MPI
+from ufl.corealg.traversal import unique_pre_traversal
 
 from .. import compat
 from ..errors import InputError
@@ -20,6 +21,24 @@ from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import _row_keys
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
+
+
+def _is_zero(L) -> bool:
+    """Whether a linear form is absent or identically zero (UFL folds a zero load to Zero)."""
+    if L is None or (isinstance(L, (int, float)) and L == 0):
+        return True
+    return isinstance(L, ufl.Form) and (L.empty() or all(
+        isinstance(i.integrand(), ufl.constantvalue.Zero) for i in L.integrals()))
+
+
+def _check_finite_literals(form, what: str) -> None:
+    """Refuse NaN/Inf literals in a form: FFCx would write them into C code that fails to build."""
+    if not isinstance(form, ufl.Form):
+        return
+    for integral in form.integrals():
+        for node in unique_pre_traversal(integral.integrand()):
+            if isinstance(node, ufl.constantvalue.ScalarValue) and not np.isfinite(node.value()):
+                raise InputError(f"{what} is not finite: it contains the number {node.value()}")
 
 
 class Subdomain:
@@ -123,11 +142,14 @@ class Subdomain:
         """
         V = compat.function_space(self.mesh, value_size)
         a, L = forms(V, self)
+        for form, what in ((a, "bilinear"), (L, "linear")):
+            _check_finite_literals(form, f"subdomain {self.index} ({', '.join(self.bodies)}): "
+                                   f"the {what} form")
         A = compat.assemble_matrix(a)
         indptr, indices, data = A.getValuesCSR()
         K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
         A.destroy()
-        if L is None or (isinstance(L, ufl.Form) and L.empty()):  # no load on this subdomain
+        if _is_zero(L):  # no load on this subdomain
             f = np.zeros(K.shape[0])
         else:
             b = compat.assemble_vector(L)

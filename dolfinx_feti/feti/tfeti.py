@@ -189,29 +189,44 @@ class TotalFETI:
         w.destroy()
         return u
 
-    def rigid_amplitudes(self, gradient: PETSc.Vec, active: np.ndarray) -> np.ndarray:
-        """α = (G_A G_Aᵀ)⁺ G_A g_A from the dual gradient g = Fλ − d on the active rows.
+    def rigid_amplitudes(self, gradient: PETSc.Vec, active: np.ndarray,
+                         hint: np.ndarray | None = None) -> np.ndarray:
+        """α with G_Aᵀ α = g_A on the active rows, g = Fλ − d the dual gradient.
 
-        On the active rows B_A u = c_A, which with u = K⁺(f − Bᵀλ) + Rα reads G_Aᵀ α = g_A.
-        The least-squares solution of minimal norm is taken: when a body can move rigidly
-        without violating any active constraint, that motion is left out.
+        On the active rows B_A u = c_A, which with u = K⁺(f − Bᵀλ) + Rα reads G_Aᵀ α = g_A;
+        that is solved by least squares. A rigid motion that no active row sees (a body that
+        touches nothing with a positive force) is not fixed by it: its amplitude is taken
+        from ``hint`` (the QP solver's equality multiplier, which the dual KKT conditions
+        tie to α so that the inactive contact rows hold too), or zero without a hint.
         """
         GA = self.Gt_local[np.flatnonzero(active)]
         gA = gradient.array_r[active]
         M = self.comm.allreduce((GA.T @ GA).toarray(), op=MPI.SUM)
         r = self.comm.allreduce(GA.T @ gA, op=MPI.SUM)
-        return np.linalg.lstsq(M, r, rcond=1e-12)[0]
+        w, V = np.linalg.eigh(M)
+        keep = w > 1e-12 * max(w.max(initial=0.0), 1e-300)
+        alpha = V[:, keep] @ ((V[:, keep].T @ r) / w[keep])
+        if hint is not None and not np.all(keep):
+            N = V[:, ~keep]
+            alpha += N @ (N.T @ hint)
+        return alpha
 
     def residuals(self, u: PETSc.Vec, lam: PETSc.Vec) -> dict[str, float]:
-        """Equilibrium residual ||K u − f + Bᵀλ|| / max(||f||, ||Bᵀλ||)."""
+        """Equilibrium residual ||K u − f + Bᵀλ|| / max(||f||, ||Bᵀλ||, κ ||u||).
+
+        κ = max_i ||K_i||_∞ keeps the measure meaningful when no load acts (a problem driven
+        by prescribed displacements only, where f and Bᵀλ may both vanish).
+        """
         w = self.B.createVecRight()
         self.B.multTranspose(lam, w)
         ua, wa, fa = u.array_r, w.array_r, self.f.array_r
-        r2 = 0.0
+        r2, kappa = 0.0, 0.0
         for s, seg in self._segments():
             r2 += float(np.sum((self.K[s] @ ua[seg] - fa[seg] + wa[seg]) ** 2))
+            kappa = max(kappa, float(abs(self.K[s]).sum(axis=1).max()))
         r2 = self.comm.allreduce(r2, op=MPI.SUM)
-        ref = max(self.f.norm(), w.norm(), 1e-300)
+        kappa = self.comm.allreduce(kappa, op=MPI.MAX)
+        ref = max(self.f.norm(), w.norm(), kappa * u.norm(), 1e-300)
         w.destroy()
         return {"equilibrium": float(np.sqrt(r2) / ref)}
 

@@ -126,6 +126,9 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
         label = np.empty(mesh.cells.shape[0], dtype=np.int64)
         for b, name in enumerate(mesh.body_names):
             n = how.n.get(name, 1) if isinstance(how.n, Mapping) else how.n
+            if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+                raise InputError(f"Parts: the number of parts of body {name!r} must be an "
+                                 f"integer >= 1, got {n!r}")
             if int(n) < 1:
                 raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, "
                                  f"got {n}")

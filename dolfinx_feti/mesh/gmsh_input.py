@@ -118,21 +118,24 @@ def _extract(source, gdim: int | None) -> MeshData:
     if not path.is_file():
         raise InputError(f"mesh file not found: {path}")
     # gmsh 4.8 cannot tell whether it is initialized; initializing twice is harmless and keeps
-    # the caller's models, so the file is read into a model of its own, removed afterwards.
+    # the caller's models. The file is merged into a fresh model of its own (gmsh.open on a bad
+    # file leaves gmsh locked and the broken model current), removed afterwards.
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     previous = gmsh.model.getCurrent()
+    name = f"dolfinx_feti_read_{path.stem}"
+    gmsh.model.add(name)
     try:
-        gmsh.open(str(path))
-    except Exception as e:
-        raise InputError(f"gmsh cannot read {path}: {e}") from None
-    try:
+        try:
+            gmsh.merge(str(path))
+        except Exception as e:
+            raise InputError(f"gmsh cannot read {path}: {e}") from None
         return _extract_current(gmsh, gdim)
     finally:
-        if gmsh.model.getCurrent() != previous:
-            gmsh.model.remove()
-            if previous in gmsh.model.list():
-                gmsh.model.setCurrent(previous)
+        gmsh.model.setCurrent(name)
+        gmsh.model.remove()
+        if previous in gmsh.model.list():
+            gmsh.model.setCurrent(previous)
 
 
 def _group_name(gmsh, dim: int, tag: int) -> str:
