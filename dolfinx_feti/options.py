@@ -8,11 +8,34 @@ not over keyword arguments given explicitly to :func:`dolfinx_feti.solve`.
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import asdict, dataclass, fields
 
 from petsc4py import PETSc
 
 from .errors import InputError
+
+
+def insert_command_line(argv: list[str] | None = None, prefix: str = "-feti_") -> None:
+    """Put ``-feti_*`` command-line options into PETSc's options database.
+
+    DOLFINx initializes petsc4py without ``sys.argv``, so PETSc never sees them otherwise.
+    Values already in the database are kept. A flag with no value is stored as "1".
+    """
+    argv = sys.argv[1:] if argv is None else argv
+    opts = PETSc.Options()
+    for i, token in enumerate(argv):
+        if not token.startswith(prefix):
+            continue
+        value = argv[i + 1] if i + 1 < len(argv) else None
+        if value is not None and value.startswith("-"):
+            try:
+                float(value)
+            except ValueError:
+                value = None
+        name = token[1:]
+        if not opts.hasName(name):
+            opts.setValue(name, "1" if value is None else value)
 
 
 @dataclass
@@ -35,6 +58,7 @@ class SolverOptions:
         smalbe_eta: SMALBE's η relative to ||b|| (None: the solver's default).
         smalbe_beta: SMALBE's divisor of M.
         norm_rtol: Relative tolerance of the Lanczos estimate of ||PFP||.
+        verbose: 0 quiet, 1 one line per phase, 2 also every iteration (rank 0 only).
     """
 
     rtol: float = 1e-6
@@ -49,6 +73,7 @@ class SolverOptions:
     smalbe_eta: float | None = None
     smalbe_beta: float = 2.0
     norm_rtol: float = 1e-4
+    verbose: int = 0
 
     @classmethod
     def create(cls, prefix: str = "feti_", **kwargs) -> SolverOptions:
@@ -57,6 +82,7 @@ class SolverOptions:
         unknown = set(kwargs) - names
         if unknown:
             raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(names)}")
+        insert_command_line(prefix=f"-{prefix}")
         opts = PETSc.Options(prefix)
         values = {}
         for f in fields(cls):

@@ -30,6 +30,7 @@ from .qp import (
 )
 from .report import Report
 from .solution import Solution
+from .log import Progress
 from .timing import Timer
 
 #: ||N^T e|| / ||e|| above this means the load cannot be balanced (e ∉ Im G).
@@ -57,7 +58,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
             load its constraints cannot balance).
     """
     opts = SolverOptions.create(**kwargs) if options is None else options.replace(**kwargs)
-    timer = Timer()
+    progress = Progress(comm, opts.verbose)
+    timer = Timer(progress.phase)
     report = Report()
     with timer.phase("decomposition"):
         dec = decompose(problem.mesh, problem.decomposition, comm)
@@ -90,7 +92,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
             # When only prescribed values drive the problem, P b can be pure round-off: the
             # floor b_noise keeps CG from chasing it.
             res = cg(A, Pb, x, projector=projector, rtol=opts.rtol, atol=b_noise,
-                     max_it=opts.max_it)
+                     max_it=opts.max_it, monitor=progress.inner)
         else:
             lb = x.duplicate()
             lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
@@ -103,12 +105,14 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                              eq_rtol=opts.eq_rtol or opts.rtol, eq_scale=norm.value,
                              rho=opts.smalbe_rho * norm.value, M=opts.smalbe_M * norm.value,
                              eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
-                             beta=opts.smalbe_beta, norm_A=norm.value, inner_options=inner,
-                             max_outer=opts.max_outer, max_it=opts.max_it)
+                             beta=opts.smalbe_beta, norm_A=norm.value,
+                             inner_options={**inner, "monitor": progress.inner},
+                             max_outer=opts.max_outer, max_it=opts.max_it,
+                             monitor=progress.outer)
             else:
                 report.solver = "mprgp"
                 res = mprgp(feti.F, feti.d, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
-                            norm_A=norm.value, **inner)
+                            norm_A=norm.value, monitor=progress.inner, **inner)
     report.hessian_mults = feti.hessian_mults - mults0
 
     with timer.phase("recovery"):
@@ -148,6 +152,9 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                 f"the contact forces do not balance the load (||G lambda - e|| / ||e|| = "
                 f"{report.G_lambda:.1e}): a body may be pulled away from its only support; "
                 "contact can push but not pull")
+    progress.info(f"{report.solver}: {'converged' if report.converged else 'NOT converged'} "
+                  f"({report.reason}), {report.outer_iterations} outer / {report.iterations} "
+                  f"inner iterations, {report.hessian_mults} F-multiplications")
     sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm)
     sol.check_kkt(ineq)
     report.timings = timer.reduced(comm)

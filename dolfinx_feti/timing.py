@@ -11,9 +11,10 @@ from mpi4py import MPI
 class Timer:
     """Accumulates the wall time of named phases; reports the maximum over ranks."""
 
-    def __init__(self) -> None:
-        """Start with no phase timed."""
+    def __init__(self, on_end=None) -> None:
+        """Start with no phase timed; ``on_end(name, seconds)`` is called as each phase ends."""
         self.phases: dict[str, float] = {}
+        self._on_end = on_end
 
     @contextmanager
     def phase(self, name: str):
@@ -22,7 +23,10 @@ class Timer:
         try:
             yield
         finally:
-            self.phases[name] = self.phases.get(name, 0.0) + time.perf_counter() - t0
+            dt = time.perf_counter() - t0
+            self.phases[name] = self.phases.get(name, 0.0) + dt
+            if self._on_end is not None:
+                self._on_end(name, dt)
 
     def reduced(self, comm: MPI.Comm) -> dict[str, float]:
         """Phase times, maximum over the ranks of ``comm`` (the slowest rank sets the pace)."""
