@@ -67,7 +67,7 @@ def b1_solution(b1_problem):
 DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 100,
             "factor": "cholmod", "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
-            "norm_rtol": 1e-4}
+            "norm_rtol": 1e-4, "verbose": 0}
 
 
 def test_defaults():
@@ -265,3 +265,18 @@ def test_non_converged_solve_report(b1_problem):
     assert all(math.isfinite(v) for v in (rep.gP_rel, rep.G_lambda, rep.norm_F))
     assert all(math.isfinite(v) for v in rep.kkt.values())
     json.dumps(rep.to_dict(), allow_nan=False)
+
+
+def test_command_line_options_reach_petsc():
+    """-feti_* tokens of argv land in PETSc's database (DOLFINx does not pass argv to PETSc)."""
+    from dolfinx_feti.options import SolverOptions, insert_command_line
+
+    opts = PETSc.Options()
+    try:
+        insert_command_line(["demo.py", "-feti_rtol", "1e-3", "--out", "x",
+                             "-feti_factor", "mumps", "-feti_verbose"][1:])
+        o = SolverOptions.create()
+        assert (o.rtol, o.factor, o.verbose) == (1e-3, "mumps", 1)
+    finally:
+        for name in ("feti_rtol", "feti_factor", "feti_verbose"):
+            opts.delValue(name)

@@ -17,6 +17,7 @@ from .equality import (
 )
 from .mprgp import mprgp
 from .norm import NormEstimate, estimate_norm
+from .precond import Preconditioner, ProjectedPreconditioner
 from .result import QPResult
 from .shell import python_shell
 from .smalbe import smalbe
@@ -25,6 +26,8 @@ __all__ = [
     "EqualityConstraint",
     "NormEstimate",
     "OrthonormalConstraint",
+    "Preconditioner",
+    "ProjectedPreconditioner",
     "Projector",
     "QPResult",
     "RowBlockConstraint",

@@ -18,9 +18,12 @@ from petsc4py import PETSc
 from .equality import EqualityConstraint, penalized_operator
 from .mprgp import mprgp
 from .norm import estimate_norm
+from .precond import Preconditioner, ProjectedPreconditioner
 from .result import QPResult
 
-_RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_it")
+_RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_it",
+             "preconditioner")
+PRECONDITIONER_FORMS = ("projected", "plain")
 
 
 def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, lb=None,
@@ -29,7 +32,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
            norm_A: float | None = None, inner: str = "mprgp",
            inner_options: dict[str, Any] | None = None, max_outer: int = 100,
            max_it: int = 10000, monitor: Callable[[int, dict], None] | None = None,
-           eq_scale: float = 1.0, multiplier: np.ndarray | None = None) -> QPResult:
+           eq_scale: float = 1.0, multiplier: np.ndarray | None = None,
+           preconditioner=None, preconditioner_form: str = "projected") -> QPResult:
     """Solve ``min f(x)`` s.t. ``lb <= x <= ub``, ``D x = 0`` by SMALBE-M (collective).
 
     Outer iteration ``k``:
@@ -53,6 +57,20 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     The inner gradient is carried over between outer iterations (the change of ``mu`` changes
     it by ``D^T (mu_{k+1} - mu_k)``), so an outer iteration costs no extra multiplication.
 
+    Preconditioning: ``preconditioner`` approximates ``A^{-1}`` (in FETI, e.g. the lumped or
+    Dirichlet preconditioner of ``F``) and the inner MPRGP preconditions in face with
+
+    - ``preconditioner_form='projected'`` (default): ``P M^{-1} P + rho^{-1} D^T D``
+      (:class:`.ProjectedPreconditioner`). This assumes ``A = P A P`` (``A`` maps ``ker D``
+      into itself and vanishes on ``Im D^T``, as ``P F P`` does): then the inner Hessian is
+      ``P A P`` on ``ker D`` and ``rho I`` on ``Im D^T``, and the operator is exact on
+      ``Im D^T`` and the classical projected preconditioner on ``ker D``. For another ``A``
+      it is still symmetric positive (semi)definite, hence safe, but not that inverse;
+    - ``'plain'``: ``M^{-1}`` as given, which must then approximate
+      ``(A + rho D^T D)^{-1}`` itself.
+
+    ``counts['precond']`` sums the applications of ``M^{-1}`` over all inner solves.
+
     Args:
         A: Symmetric positive semidefinite Hessian, positive definite on ``ker D``.
         b: Linear term.
@@ -69,7 +87,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         norm_A: ``||A||``; default a Lanczos estimate (counted in ``hessian_mults``).
         inner: Inner solver: only ``'mprgp'``.
         inner_options: Extra keyword arguments of :func:`mprgp` (``gamma``, ``expansion``,
-            ``alpha_bar``, ``norm_A``, ``monitor``).
+            ``alpha``, ``alpha_bar``, ``norm_A``, ``monitor``).
         max_outer: Maximum number of outer iterations.
         max_it: Budget of inner iterations over all outer iterations.
         monitor: Called as ``monitor(k, record)`` after each outer iteration with the record
@@ -78,6 +96,9 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             (in FETI: multipliers vs. gradients); ``eq_scale = ||A||`` makes the test
             unit-consistent. Default 1 (the test of the theory).
         multiplier: Initial ``mu`` (replicated array of length ``D.m``); default zeros.
+        preconditioner: Optional ``M^{-1}`` (a PETSc Mat or PC, an object with ``mult(x, y)``
+            or a callable ``f(x, y)``).
+        preconditioner_form: ``'projected'`` or ``'plain'``, see above.
 
     Returns:
         The result, with ``multiplier``, ``outer_iterations`` and one history record per outer
@@ -92,7 +113,11 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     opts = dict(inner_options or {})
     bad = sorted(set(opts) & set(_RESERVED))
     if bad:
-        raise ValueError(f"smalbe: inner_options may not set {bad} (SMALBE controls them)")
+        raise ValueError(f"smalbe: inner_options may not set {bad} (SMALBE controls them; "
+                         "pass a preconditioner as smalbe(preconditioner=...))")
+    if preconditioner_form not in PRECONDITIONER_FORMS:
+        raise ValueError(f"smalbe: preconditioner_form must be one of {PRECONDITIONER_FORMS}, "
+                         f"got {preconditioner_form!r}")
     if not beta > 1.0 or rtol < 0 or max_outer < 1 or max_it < 0 or not eq_scale > 0:
         raise ValueError("smalbe: need beta > 1, rtol >= 0, max_outer >= 1, max_it >= 0, "
                          "eq_scale > 0")
@@ -113,6 +138,11 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
                          "eta defaults to 0.1 ||b||, so a zero b needs an explicit eta")
     opts.setdefault("norm_A", max(norm_A, rho))
     H = penalized_operator(A, D, rho)
+    if preconditioner is not None:
+        prec = Preconditioner(preconditioner)  # counts the applications of M^{-1}
+        counts["precond"] = 0
+        opts["preconditioner"] = (ProjectedPreconditioner(prec, D, rho)
+                                  if preconditioner_form == "projected" else prec)
     tol_g, tol_e = rtol * b_norm, eq_rtol * b_norm / eq_scale
 
     mu = np.zeros(D.m) if multiplier is None else np.array(multiplier, dtype=np.float64)
@@ -167,6 +197,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             reason = res.reason
             break
     f = res.objective - float(np.dot(mu - rho * Dx, Dx)) - 0.5 * rho * dx * dx
+    if preconditioner is not None:
+        counts["precond"] = prec.count
     return QPResult(x=x, converged=reason == "converged", reason=reason, iterations=total_it,
                     outer_iterations=len(history), hessian_mults=mults, counts=counts,
                     gP_norm=res.gP_norm, Dx_norm=dx, b_norm=b_norm, active=res.active,

@@ -194,3 +194,55 @@ def kkt(A: np.ndarray, b: np.ndarray, x: np.ndarray, l: np.ndarray, u: np.ndarra
         "comp": float(np.max(comp_l + comp_u, initial=0.0)),
         "natural": float(np.linalg.norm(x - np.clip(x - g, l, u))),
     }
+
+
+# ---------------------------------------------------------------------------- preconditioners
+
+class Diagonal:
+    """``y = d * x`` for a global array ``d``: with ``d = 1 / diag(A)`` the Jacobi
+    preconditioner, as a plain object with ``mult(x, y)`` (no PETSc Mat)."""
+
+    def __init__(self, d: np.ndarray, like: PETSc.Vec) -> None:
+        lo, hi = like.getOwnershipRange()
+        self.d = np.asarray(d, dtype=np.float64)[lo:hi]
+        self.calls = 0
+
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.calls += 1
+        y.array[:] = self.d * x.array_r
+
+
+class GlobalSolve:
+    """Callable ``f(x, y)``: ``y = solve(x)`` on the gathered global vector (any rank count).
+
+    ``solve`` maps a global NumPy array to a global NumPy array, e.g. a factorization of a
+    matrix near the Hessian.
+    """
+
+    def __init__(self, solve) -> None:
+        self.solve = solve
+        self.calls = 0
+
+    def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.calls += 1
+        lo, hi = y.getOwnershipRange()
+        y.array[:] = self.solve(gather(x))[lo:hi]
+
+
+def obstacle(k: int, load: float = -30.0):
+    """Membrane ``-Laplace u = f`` (u = 0 on the boundary of the unit square) over an obstacle
+    ``u >= psi``: 5-point stencil on a k x k grid, about 60% of the bounds active."""
+    h = 1.0 / (k + 1)
+    A = laplacian_2d(k, shift=0.0) / h**2
+    xs = np.arange(1, k + 1) * h
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    psi = -0.05 - 0.5 * ((X - 0.5) ** 2 + (Y - 0.5) ** 2) - 0.1 * np.sin(6 * X) ** 2
+    return A.tocsr(), np.full(k * k, load), psi.ravel(), np.full(k * k, np.inf)
+
+
+def scaled(A, rng: np.random.Generator, decades: float = 2.0):
+    """``S A S`` with a random positive diagonal ``S`` spanning ``decades`` decades."""
+    s = 10.0 ** rng.uniform(0, decades, A.shape[0])
+    if sp.issparse(A):
+        return (sp.diags(s) @ A @ sp.diags(s)).tocsr()
+    return (A * s[:, None]) * s[None, :]
