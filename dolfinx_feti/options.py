@@ -50,6 +50,13 @@ class SolverOptions:
         factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc").
         mprgp_gamma: MPRGP's proportioning parameter Γ.
         mprgp_expansion: "fixed", "optimal" or "projcg".
+        mprgp_alpha: Expansion step length: "fixed" (ᾱ = 1.95/||A||) or "bb" (Barzilai–Borwein,
+            accepted only if the energy decreases; needs mprgp_expansion "fixed").
+        preconditioner: "none", "lumped" (B K Bᵀ) or "dirichlet" (B S Bᵀ), applied projected
+            in CG and in the face (free set) in MPRGP.
+        qp: "auto" (CG / SMALBE / MPRGP as the problem needs) or "penalty" (the dual penalty
+            FETI-NCG_ρ: MPRGP on PFP + ρQ, the equality only approximated: ||Gλ|| = O(1/ρ)).
+        penalty_rho: ρ of qp="penalty", relative to ||PFP||.
         smalbe_rho: SMALBE's penalty ρ relative to ||PFP||.
         smalbe_M: SMALBE's initial M relative to ||PFP||. The reference value 100 stalls the
             outer loop (136 outer iterations on the 3D two-block problem); 1 needs 1-28 outer
@@ -68,6 +75,10 @@ class SolverOptions:
     factor: str = "cholmod"
     mprgp_gamma: float = 1.0
     mprgp_expansion: str = "fixed"
+    mprgp_alpha: str = "fixed"
+    preconditioner: str = "none"
+    qp: str = "auto"
+    penalty_rho: float = 1e3
     smalbe_rho: float = 1.1
     smalbe_M: float = 1.0
     smalbe_eta: float | None = None
@@ -130,6 +141,17 @@ class SolverOptions:
         if self.mprgp_expansion not in ("fixed", "optimal", "projcg"):
             raise InputError("mprgp_expansion must be 'fixed', 'optimal' or 'projcg', got "
                              f"{self.mprgp_expansion!r}")
+        if self.mprgp_alpha not in ("fixed", "bb"):
+            raise InputError(f"mprgp_alpha must be 'fixed' or 'bb', got {self.mprgp_alpha!r}")
+        if self.mprgp_alpha == "bb" and self.mprgp_expansion != "fixed":
+            raise InputError("mprgp_alpha 'bb' needs mprgp_expansion 'fixed'")
+        if self.preconditioner not in ("none", "lumped", "dirichlet"):
+            raise InputError("preconditioner must be 'none', 'lumped' or 'dirichlet', got "
+                             f"{self.preconditioner!r}")
+        if self.qp not in ("auto", "penalty"):
+            raise InputError(f"qp must be 'auto' or 'penalty', got {self.qp!r}")
+        if not self.penalty_rho > 0:
+            raise InputError(f"penalty_rho must be positive, got {self.penalty_rho}")
         if self.smalbe_beta <= 1:
             raise InputError(f"smalbe_beta must be > 1, got {self.smalbe_beta}")
 

@@ -14,10 +14,13 @@ from mpi4py import MPI
 from .constraints import build_rows
 from .errors import InputError
 from .feti import TotalFETI
+from .feti.precond import make_preconditioner
+from .log import Progress
 from .mesh.decompose import decompose
 from .options import SolverOptions
 from .problem import ContactProblem
 from .qp import (
+    ProjectedPreconditioner,
     Projector,
     RowBlockConstraint,
     cg,
@@ -30,7 +33,6 @@ from .qp import (
 )
 from .report import Report
 from .solution import Solution
-from .log import Progress
 from .timing import Timer
 
 #: ||N^T e|| / ||e|| above this means the load cannot be balanced (e ∉ Im G).
@@ -83,36 +85,14 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         A = projected_operator(feti.F, ocon)
         norm = estimate_norm(A, Pb, rtol=opts.norm_rtol)
 
+    with timer.phase("preconditioner"):
+        precond = make_preconditioner(opts.preconditioner, feti, opts.factor)
     x = b.duplicate()
     x.set(0.0)
     mults0 = feti.hessian_mults
     with timer.phase("iterations"):
-        if n_ineq == 0:
-            report.solver = "cg"
-            # When only prescribed values drive the problem, P b can be pure round-off: the
-            # floor b_noise keeps CG from chasing it.
-            res = cg(A, Pb, x, projector=projector, rtol=opts.rtol, atol=b_noise,
-                     max_it=opts.max_it, monitor=progress.inner)
-        else:
-            lb = x.duplicate()
-            lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
-            x.array[:] = np.maximum(0.0, lb.array_r)
-            inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion}
-            if ocon.m > 0:
-                report.solver = "smalbe"
-                # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
-                res = smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol,
-                             eq_rtol=opts.eq_rtol or opts.rtol, eq_scale=norm.value,
-                             rho=opts.smalbe_rho * norm.value, M=opts.smalbe_M * norm.value,
-                             eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
-                             beta=opts.smalbe_beta, norm_A=norm.value,
-                             inner_options={**inner, "monitor": progress.inner},
-                             max_outer=opts.max_outer, max_it=opts.max_it,
-                             monitor=progress.outer)
-            else:
-                report.solver = "mprgp"
-                res = mprgp(feti.F, feti.d, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
-                            norm_A=norm.value, monitor=progress.inner, **inner)
+        res = _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, ineq,
+                      n_ineq, norm.value, b_noise, precond)
     report.hessian_mults = feti.hessian_mults - mults0
 
     with timer.phase("recovery"):
@@ -164,6 +144,46 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     for v in (b, Pb, g, x, lam_hat):
         v.destroy()
     return sol
+
+
+def _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, ineq, n_ineq,
+            norm_A, b_noise, precond):
+    """The least machinery the problem needs (see the module docstring)."""
+    if n_ineq == 0:
+        report.solver = "cg"
+        # When only prescribed values drive the problem, P b can be pure round-off: the floor
+        # b_noise keeps CG from chasing it.
+        return cg(A, Pb, x, projector=projector, rtol=opts.rtol, atol=b_noise,
+                  max_it=opts.max_it, monitor=progress.inner, preconditioner=precond)
+    lb = x.duplicate()
+    lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
+    x.array[:] = np.maximum(0.0, lb.array_r)
+    inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion,
+             "alpha": opts.mprgp_alpha}
+    if ocon.m == 0:
+        report.solver = "mprgp"
+        return mprgp(feti.F, feti.d, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
+                     norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
+    if opts.qp == "penalty":
+        # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
+        report.solver = "mprgp (dual penalty)"
+        rho = opts.penalty_rho * norm_A
+        Arho = projected_operator(feti.F, ocon, rho=rho)
+        if precond is not None:
+            precond = ProjectedPreconditioner(precond, ocon, rho)
+        res = mprgp(Arho, Pb, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
+                    norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
+                    **inner)
+        res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
+        return res
+    report.solver = "smalbe"
+    # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
+    return smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
+                  eq_scale=norm_A, rho=opts.smalbe_rho * norm_A, M=opts.smalbe_M * norm_A,
+                  eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
+                  beta=opts.smalbe_beta, norm_A=norm_A,
+                  inner_options={**inner, "monitor": progress.inner}, preconditioner=precond,
+                  max_outer=opts.max_outer, max_it=opts.max_it, monitor=progress.outer)
 
 
 def _check_balance(ocon, feti: TotalFETI, report: Report) -> None:
