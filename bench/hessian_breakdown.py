@@ -2,7 +2,8 @@
 
 Splits one application of the projected dual operator into the subdomain forward/backward
 solves (one block-diagonal CHOLMOD factor per rank), the two sparse products with B, the rest
-of the K⁺ application (gather and scatter of the free dofs), and the projector. Run: ``python bench/hessian_breakdown.py``.
+of the K⁺ application (copying in and out, zeroing the fixing dofs), and the projector.
+Run: ``python bench/hessian_breakdown.py``.
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ def breakdown(name: str, problem: df.ContactProblem) -> str:
 def main() -> None:
     """Print the table."""
     print("| problem | primal dofs | subdomains | dofs/subdomain | P F P [ms] | solves [ms] | "
-          "K⁺ gather/scatter [ms] | B, Bᵀ [ms] | 2 projections [ms] | PFP − F [ms] | not solves |")
+          "K⁺ copies [ms] | B, Bᵀ [ms] | 2 projections [ms] | PFP − F [ms] | not solves |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, prob in [("B1 n=128, H=1/4", b1(128, 0.25)), ("B1 n=256, H=1/8", b1(256, 0.125)),
                        ("B1 n=512, H=1/4", b1(512, 0.25)),
