@@ -5,19 +5,13 @@ Run: ``python bench/factor_packages.py`` (3D stacked blocks, n = 16, 1 and 4 par
 
 from __future__ import annotations
 
-import gmsh
-
 import dolfinx_feti as df
 from dolfinx_feti import meshes
 
 
 def main() -> None:
     """Print one line per (decomposition, package)."""
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.blocks3d(16)
-    mesh = df.read_gmsh(None)
-    gmsh.finalize()
+    mesh = df.build_mesh(meshes.blocks3d, 16)
     print("| parts per block | package | primal dofs | subdomains | factorization [s] | "
           "ms per F-mult |")
     print("|---|---|---|---|---|---|")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import time
 
-import gmsh
 import numpy as np
 import ufl
 from mpi4py import MPI
@@ -25,11 +24,7 @@ from dolfinx_feti.timing import Timer
 
 
 def b1(n: int, H: float) -> df.ContactProblem:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.membranes(n)
-    mesh = df.read_gmsh(None)
-    gmsh.finalize()
+    mesh = df.build_mesh(meshes.membranes, n)
     k = int(round(2 / H))
 
     def f(x):
@@ -44,11 +39,7 @@ def b1(n: int, H: float) -> df.ContactProblem:
 
 
 def blocks(n: int, parts: int) -> df.ContactProblem:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.blocks3d(n)
-    mesh = df.read_gmsh(None)
-    gmsh.finalize()
+    mesh = df.build_mesh(meshes.blocks3d, n)
     return df.ContactProblem(
         mesh, df.Elasticity(1000.0, 0.3, tractions={"top": (0.0, 0.0, -1.0)}),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sides_upper", components=[0, 1])],

@@ -12,7 +12,6 @@
 import argparse
 from pathlib import Path
 
-import gmsh
 import numpy as np
 from mpi4py import MPI
 
@@ -29,13 +28,7 @@ parser.add_argument("--json", type=Path, default=None)
 args, _ = parser.parse_known_args()
 comm = MPI.COMM_WORLD
 
-if comm.rank == 0:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.blocks3d(args.n)
-mesh = df.read_gmsh(None, comm)
-if comm.rank == 0:
-    gmsh.finalize()
+mesh = df.build_mesh(meshes.blocks3d, args.n, comm=comm)
 # -
 
 # The two blocks may have different materials: the forms helper takes one value per body.

@@ -18,7 +18,6 @@ import argparse
 import time
 from pathlib import Path
 
-import gmsh
 import numpy as np
 from mpi4py import MPI
 
@@ -40,19 +39,13 @@ comm = MPI.COMM_WORLD
 # `dolfinx_feti.meshes.hertz2d` builds the quarter disk and the half block in gmsh, with
 # matching node abscissae $x_k = k h$ on the two contact surfaces, as node-to-node contact
 # requires. Physical groups name the bodies (`disk`, `block`) and the boundary parts
-# (`disk_contact`, `block_contact`, `load`, `symmetry`, `bottom`). Only rank 0 builds the model;
-# `read_gmsh` broadcasts it.
+# (`disk_contact`, `block_contact`, `load`, `symmetry`, `bottom`). `build_mesh` runs the
+# generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file instead).
 
 # +
 R, P, E, nu = 8.0, 10.0, 200.0, 0.3
 t0 = time.perf_counter()
-if comm.rank == 0:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.hertz2d(h_contact=args.h, R=R)
-mesh = df.read_gmsh(None, comm)
-if comm.rank == 0:
-    gmsh.finalize()
+mesh = df.build_mesh(meshes.hertz2d, h_contact=args.h, R=R, comm=comm)
 t_mesh = time.perf_counter() - t0
 # -
 

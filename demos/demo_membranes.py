@@ -16,7 +16,6 @@
 import argparse
 from pathlib import Path
 
-import gmsh
 import numpy as np
 import ufl
 from mpi4py import MPI
@@ -38,13 +37,7 @@ comm = MPI.COMM_WORLD
 # The mesh: each square an $n \times n$ grid of squares cut along their
 # $(i,j) \to (i+1,j+1)$ diagonals, with separate (matching) nodes on $x = 1$.
 
-if comm.rank == 0:
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    meshes.membranes(args.n)
-mesh = df.read_gmsh(None, comm)
-if comm.rank == 0:
-    gmsh.finalize()
+mesh = df.build_mesh(meshes.membranes, args.n, comm=comm)
 
 # The load as a UFL expression of the coordinates, and the decomposition: either the two
 # membranes themselves or a regular grid of $H \times H$ squares (a function of the cell

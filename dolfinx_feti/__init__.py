@@ -12,7 +12,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 
 from .errors import InputError, SolveError
 from .fem import Elasticity, Poisson, Subdomain
-from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
 from .options import SolverOptions
 from .problem import (
                       ContactProblem,
@@ -31,4 +31,4 @@ from .solve import solve
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Cylinder", "Dirichlet",
            "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
            "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
-           "SolverOptions", "Sphere", "Subdomain", "read_gmsh", "solve"]
+           "SolverOptions", "Sphere", "Subdomain", "build_mesh", "read_gmsh", "solve"]

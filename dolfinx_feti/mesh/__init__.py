@@ -1,6 +1,7 @@
 """Mesh input (gmsh), geometry utilities and decomposition into subdomains."""
 
 from .decompose import ByFunction, ByTags, Decomposition, Parts, decompose
-from .gmsh_input import MeshData, read_gmsh
+from .gmsh_input import MeshData, build_mesh, read_gmsh
 
-__all__ = ["ByFunction", "ByTags", "Decomposition", "MeshData", "Parts", "decompose", "read_gmsh"]
+__all__ = ["ByFunction", "ByTags", "Decomposition", "MeshData", "Parts", "build_mesh", "decompose",
+           "read_gmsh"]

@@ -109,6 +109,38 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
     return comm.bcast(data, root=0)
 
 
+def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
+               **kwargs) -> MeshData:
+    """Run a gmsh model generator on rank 0 and read the model it leaves current.
+
+    Args:
+        generator: A function that builds and meshes a model in the current gmsh session,
+            e.g. one of :mod:`dolfinx_feti.meshes`; called as ``generator(*args, **kwargs)``.
+        *args: Positional arguments of the generator.
+        comm: The ranks that receive the mesh.
+        gdim: Geometric dimension (default: that of the cells).
+        **kwargs: Keyword arguments of the generator.
+
+    Returns:
+        The mesh data, identical on every rank.
+    """
+    import gmsh
+
+    if comm.rank == 0:
+        gmsh.initialize()
+        gmsh.option.setNumber("General.Terminal", 0)
+        try:
+            generator(*args, **kwargs)
+        except Exception:
+            gmsh.finalize()
+            raise
+    try:
+        return read_gmsh(None, comm, gdim)
+    finally:
+        if comm.rank == 0:
+            gmsh.finalize()
+
+
 def _extract(source, gdim: int | None) -> MeshData:
     import gmsh
 
