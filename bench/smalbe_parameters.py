@@ -6,41 +6,24 @@ Writes ``output/bench/smalbe_parameters.md``. Run: ``python bench/smalbe_paramet
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-import numpy as np
-import ufl
 from mpi4py import MPI
 
-import dolfinx_feti as df
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import dolfinx_feti as df  # noqa: E402
+import problems as P  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def problems() -> dict[str, df.ContactProblem]:
     """B1 (n = 16, 4×4 grid per membrane), 2D Hertz (4 parts per body), 3D blocks (2 parts)."""
-    b1 = df.read_gmsh(ROOT / "meshes/membranes_16.msh")
-
-    def f(x):
-        return ufl.conditional(ufl.lt(x[0], 1.0), ufl.conditional(ufl.ge(x[1], 0.75), -3.0, 0.0),
-                               ufl.conditional(ufl.lt(x[1], 0.25), -1.0, 0.0))
-
-    grid = df.ByFunction(lambda m: (np.floor(m[:, 0] / 0.25)
-                                    + 100 * np.floor(m[:, 1] / 0.25)).astype(np.int64))
-    hertz = df.read_gmsh(ROOT / "meshes/hertz2d.msh")
-    blocks = df.read_gmsh(ROOT / "meshes/blocks3d.msh")
     return {
-        "B1 n=16, 32 subdomains": df.ContactProblem(
-            b1, df.Poisson(source=f), dirichlet=[df.Dirichlet("dirichlet")],
-            contact=[df.NodeToNode("contact_left", "contact_right")], decomposition=grid),
-        "Hertz 2D, Parts(4)": df.ContactProblem(
-            hertz, df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 16)}),
-            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-            contact=[df.NodeToNode("disk_contact", "block_contact")], decomposition=df.Parts(4)),
-        "3D blocks, Parts(2)": df.ContactProblem(
-            blocks, df.Elasticity(1000.0, 0.3, tractions={"top": (0.0, 0.0, -1.0)}),
-            dirichlet=[df.Dirichlet("bottom")],
-            contact=[df.NodeToNode("contact_upper", "contact_lower")], decomposition=df.Parts(2)),
+        "B1 n=16, 32 subdomains": P.b1(16, 0.25),
+        "Hertz 2D, Parts(4)": P.hertz2d(4),
+        "3D blocks, Parts(2)": P.blocks3d(4, 2, sides=False),
     }
 
 

@@ -16,6 +16,7 @@ from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
 from .options import SolverOptions
 from .problem import (
                       ContactProblem,
+                      Coulomb,
                       Cylinder,
                       Dirichlet,
                       NodeToNode,
@@ -23,12 +24,14 @@ from .problem import (
                       RigidObstacle,
                       SignedDistance,
                       Sphere,
+                      Tresca,
 )
 from .report import Report
 from .solution import ContactData, Solution
 from .solve import solve
 
-__all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Cylinder", "Dirichlet",
+__all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
+           "Dirichlet",
            "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
            "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
-           "SolverOptions", "Sphere", "Subdomain", "build_mesh", "read_gmsh", "solve"]
+           "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve"]

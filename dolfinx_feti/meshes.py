@@ -446,3 +446,175 @@ def rigid_sphere_cube(
     _add_group(2, entities_in(2, (0, 0, 0), (1, 1, 0)), 14, "top")
     gmsh.model.mesh.generate(3)
     return physical_groups()
+
+
+def hertz2d_full(
+    h_contact: float = 0.05,
+    h_far: float = 1.0,
+    R: float = 8.0,
+    width: float = 20.0,
+    height: float = 20.0,
+    contact_width: float = 2.5,
+) -> dict[str, tuple[int, int]]:
+    """A disk on a block, the full (not symmetric) model of :func:`hertz2d`, for friction.
+
+    "disk" is the lower half {y <= R} of the disk with centre (0, R), which touches the block's
+    top y = 0 at the origin; "block" = [-width/2, width/2] × [-height, 0]. In the contact zone
+    |x| <= contact_width both bodies have nodes at the same abscissae x_k = ±k·h_contact (and
+    at ±contact_width): on the block's top at (x_k, 0), on the disk's arc exactly on the circle.
+    The element size grows from h_contact near the contact zone to h_far, as in
+    :func:`hertz2d`. A tangential load can be carried (by friction): there is no symmetry line.
+
+    Physical groups (dim, tag): "disk" (2, 1), "block" (2, 2), "disk_contact" (1, 11) = the arc
+    with |x| <= contact_width, "block_contact" (1, 12) = the block's top with
+    |x| <= contact_width, "load" (1, 13) = the disk's flat top y = R (from x = -R to R),
+    "bottom" (1, 14) = y = -height.
+
+    Args:
+        h_contact: Node spacing (in x) in the contact zone.
+        h_far: Largest element size.
+        R: Disk radius.
+        width: Width of the block.
+        height: Height of the block.
+        contact_width: Half-extent in x of the contact zone with matching nodes.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If the sizes are inconsistent.
+    """
+    if not 0 < h_contact <= contact_width < min(R, width / 2):
+        raise ValueError(
+            "hertz2d_full: need 0 < h_contact <= contact_width < min(R, width/2), got "
+            f"h_contact={h_contact}, contact_width={contact_width}, R={R}, width={width}"
+        )
+    if h_far < h_contact or height <= 0:
+        raise ValueError(
+            f"hertz2d_full: need h_far >= h_contact and height > 0, got {h_far}, {height}"
+        )
+    gmsh.model.add("hertz2d_full")
+    _set_output_options()
+    geo = gmsh.model.geo
+    half = _contact_abscissae(h_contact, contact_width)
+    xs = np.concatenate([-half[:0:-1], half])  # -cw ... 0 ... cw, symmetric
+    w2 = width / 2
+
+    # Disk, counter-clockwise: left outer arc, contact arcs (left to right), right outer arc,
+    # flat top (right to left).
+    centre = geo.addPoint(0.0, R, 0.0)
+    left = geo.addPoint(-R, R, 0.0)
+    right = geo.addPoint(R, R, 0.0)
+    arc_points = [geo.addPoint(x, R - math.sqrt(R * R - x * x), 0.0) for x in xs]
+    arc_left = geo.addCircleArc(left, centre, arc_points[0])
+    disk_contact = [
+        geo.addCircleArc(a, centre, b) for a, b in zip(arc_points[:-1], arc_points[1:], strict=True)
+    ]
+    arc_right = geo.addCircleArc(arc_points[-1], centre, right)
+    load = geo.addLine(right, left)
+    disk_loop = geo.addCurveLoop([arc_left, *disk_contact, arc_right, load])
+    disk = geo.addPlaneSurface([disk_loop])
+
+    # Block, counter-clockwise: bottom, right side, top (right to left, contact zone inside).
+    bl = geo.addPoint(-w2, -height, 0.0)
+    br = geo.addPoint(w2, -height, 0.0)
+    tr = geo.addPoint(w2, 0.0, 0.0)
+    tl = geo.addPoint(-w2, 0.0, 0.0)
+    top_points = [geo.addPoint(x, 0.0, 0.0) for x in xs]
+    bottom = geo.addLine(bl, br)
+    side_r = geo.addLine(br, tr)
+    top_r = geo.addLine(tr, top_points[-1])
+    block_contact = [
+        geo.addLine(top_points[k + 1], top_points[k]) for k in reversed(range(len(xs) - 1))
+    ]
+    top_l = geo.addLine(top_points[0], tl)
+    side_l = geo.addLine(tl, bl)
+    block_loop = geo.addCurveLoop([bottom, side_r, top_r, *block_contact, top_l, side_l])
+    block = geo.addPlaneSurface([block_loop])
+    geo.synchronize()
+
+    for curve in disk_contact + block_contact:
+        gmsh.model.mesh.setTransfiniteCurve(curve, 2)
+    _threshold_field(
+        arc_points + top_points,
+        size_min=h_contact,
+        size_max=h_far,
+        dist_min=0.2 * contact_width,
+        dist_max=0.2 * contact_width + 5 * (h_far - h_contact),
+    )
+
+    _add_group(2, [disk], 1, "disk")
+    _add_group(2, [block], 2, "block")
+    _add_group(1, disk_contact, 11, "disk_contact")
+    _add_group(1, block_contact, 12, "block_contact")
+    _add_group(1, [load], 13, "load")
+    _add_group(1, [bottom], 14, "bottom")
+    gmsh.model.mesh.generate(2)
+    return physical_groups()
+
+
+def tresca2d(
+    n: int = 8,
+    block: tuple[float, float] = (2.0, 1.0),
+    foundation: tuple[float, float] | None = (4.0, 1.0),
+) -> dict[str, tuple[int, int]]:
+    """A block on a wider foundation, structured triangles (the friction benchmark B4).
+
+    "block" = [x0, x0 + Lb] × [0, Hb] with (Lb, Hb) = block and x0 = (Lf − Lb)/2 centring it on
+    "foundation" = [0, Lf] × [-Hf, 0] with (Lf, Hf) = foundation (without a foundation, x0 = 0).
+    Both are grids of squares of side 1/n split along the diagonal from (i, j) to (i+1, j+1)
+    (max(1, round(n·L)) squares along a side of length L), so the block's bottom nodes coincide
+    with foundation top nodes when x0 is a multiple of 1/n; each body has its own nodes.
+
+    Physical groups (dim, tag): "block" (2, 2), "top" (1, 12) = the block's top,
+    "block_bottom" (1, 14) = its bottom, "block_sides" (1, 15); with a foundation also
+    "foundation" (2, 1), "bottom" (1, 11) = y = -Hf, "foundation_top" (1, 13) = y = 0 of the
+    foundation, "foundation_sides" (1, 16).
+
+    Args:
+        n: Squares per unit length.
+        block: (width, height) of the block.
+        foundation: (width, height) of the foundation, or None for the block alone.
+
+    Returns:
+        The physical groups, ``{name: (dim, tag)}``.
+
+    Raises:
+        ValueError: If n < 1, a size is not positive or the block is wider than the foundation.
+    """
+    if n < 1:
+        raise ValueError(f"tresca2d: n must be >= 1, got {n}")
+    sizes = [*block, *(foundation or ())]
+    if min(sizes) <= 0:
+        raise ValueError(f"tresca2d: sizes must be positive, got {block}, {foundation}")
+    if foundation is not None and block[0] > foundation[0]:
+        raise ValueError(f"tresca2d: the block {block} is wider than the foundation {foundation}")
+
+    def cells(length: float) -> int:
+        return max(1, round(n * length))
+
+    gmsh.model.add("tresca2d")
+    _set_output_options()
+    lb, hb = (float(s) for s in block)
+    next_tag = 1
+    x0 = 0.0
+    if foundation is not None:
+        lf, hf = (float(s) for s in foundation)
+        x0 = 0.5 * (lf - lb)
+        fnd, fsides, next_tag = _add_structured_box(
+            (0.0, -hf), (lf, 0.0), (cells(lf), cells(hf)), 1
+        )
+    blk, bsides, _ = _add_structured_box((x0, 0.0), (x0 + lb, hb), (cells(lb), cells(hb)), next_tag)
+    if foundation is not None:
+        _add_group(2, [fnd], 1, "foundation")
+    _add_group(2, [blk], 2, "block")
+    if foundation is not None:
+        _add_group(1, [fsides[1, 0]], 11, "bottom")
+    _add_group(1, [bsides[1, 1]], 12, "top")
+    if foundation is not None:
+        _add_group(1, [fsides[1, 1]], 13, "foundation_top")
+    _add_group(1, [bsides[1, 0]], 14, "block_bottom")
+    _add_group(1, [bsides[0, 0], bsides[0, 1]], 15, "block_sides")
+    if foundation is not None:
+        _add_group(1, [fsides[0, 0], fsides[0, 1]], 16, "foundation_sides")
+    return physical_groups()

@@ -39,6 +39,18 @@ def parent_function(mesh: MeshData, nodal: np.ndarray, comm: MPI.Comm, name: str
     return u
 
 
+def cell_function(mesh: MeshData, values: np.ndarray, name: str, msh):
+    """A DG0 (cell-wise constant) Function on the parent mesh ``msh``, one value per input cell."""
+    V = compat.dg0_space(msh)
+    f = compat.function(V, name)
+    dofs = V.dofmap.list.array  # one dof per local cell, in cell order
+    cells = compat.cell_input_indices(msh)
+    n = min(dofs.size, cells.size)
+    f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cells[:n]]
+    compat.scatter_forward(f)
+    return f
+
+
 def write_xdmf(path: str | os.PathLike, u, functions) -> None:
     """Write Functions on one mesh to XDMF; the files appear under their names only when done."""
     path = Path(path)
@@ -47,7 +59,13 @@ def write_xdmf(path: str | os.PathLike, u, functions) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
     comm.barrier()
     tmp = path.with_name(f".tmp-{path.name}")
-    compat.write_xdmf(tmp, u.function_space.mesh, functions)
+    try:
+        compat.write_xdmf(tmp, u.function_space.mesh, functions)
+    except BaseException:
+        if comm.rank == 0:  # leave no partial temporary files behind either
+            for p in (tmp, tmp.with_suffix(".h5")):
+                p.unlink(missing_ok=True)
+        raise
     comm.barrier()
     if comm.rank == 0:
         h5_tmp, h5 = tmp.with_suffix(".h5"), path.with_suffix(".h5")

@@ -31,8 +31,75 @@ class Dirichlet:
 
 
 @dataclass(frozen=True)
+class Tresca:
+    """Given (Tresca) friction: the tangential traction is bounded by the slip bound ``g``.
+
+    At each contact node the tangential nodal force satisfies |λ_T| <= g(x)·A with A the
+    node's lumped area (length in 2D) on the slave surface: the node sticks (no relative
+    tangential displacement) while |λ_T| < g(x)·A and slips against the friction force when
+    |λ_T| = g(x)·A. In 2D this is a box on one tangential multiplier, in 3D a disc on two.
+
+    Args:
+        bound: The slip bound g >= 0, a traction (force per unit area, per unit length in
+            2D): a number, ``numpy.inf`` (no slip: the tangential rows become equalities) or
+            ``bound(x) -> (n,)`` of the node coordinates ``x`` (n, gdim).
+    """
+
+    bound: float | Callable[[np.ndarray], np.ndarray]
+
+    def __post_init__(self) -> None:
+        """Check a constant bound."""
+        if not callable(self.bound):
+            try:
+                g = float(self.bound)
+            except (TypeError, ValueError):
+                raise InputError(f"Tresca: the slip bound must be a number or a function of "
+                                 f"the node coordinates, got {self.bound!r}") from None
+            if np.isnan(g) or g < 0:
+                raise InputError(f"Tresca: the slip bound must be >= 0, got {self.bound}")
+
+
+@dataclass(frozen=True)
+class Coulomb:
+    """Coulomb friction, solved by a fixed point on Tresca problems.
+
+    The slip bound of each contact node is 𝓕 times its normal nodal force: g_i = 𝓕 λ_N,i.
+    Each fixed-point step solves a Tresca problem (warm-started from the previous step) with
+    the bound taken from the previous normal forces; the first step uses g = ∞ (no slip). The
+    iteration stops when ||g_new − g|| <= rtol ||g_new|| (2-norms over all Coulomb nodes) or
+    after ``max_steps`` steps (then the report says not converged). With several Coulomb
+    pairs the smallest ``rtol`` and the largest ``max_steps`` apply.
+
+    Args:
+        coefficient: The friction coefficient 𝓕 >= 0.
+        rtol: Relative change of the slip bounds that ends the fixed point.
+        max_steps: Budget of fixed-point steps (Tresca solves).
+    """
+
+    coefficient: float
+    rtol: float = 1e-6
+    max_steps: int = 50
+
+    def __post_init__(self) -> None:
+        """Check the data."""
+        try:
+            f = float(self.coefficient)
+        except (TypeError, ValueError):
+            raise InputError(f"Coulomb: the coefficient must be a number, got "
+                             f"{self.coefficient!r}") from None
+        if not np.isfinite(f) or f < 0:
+            raise InputError(f"Coulomb: the coefficient must be finite and >= 0, got {f}")
+        if not self.rtol > 0 or int(self.max_steps) < 1:
+            raise InputError(f"Coulomb: need rtol > 0 and max_steps >= 1, got {self.rtol}, "
+                             f"{self.max_steps}")
+
+
+Friction = Tresca | Coulomb
+
+
+@dataclass(frozen=True)
 class NodeToNode:
-    """Frictionless contact of two surfaces of different bodies with matching nodes.
+    """Contact of two surfaces of different bodies with matching nodes.
 
     Each node of the ``slave`` surface is paired with the master node at the same position
     along the master surface (up to the initial gap along the master's normal). The normal is
@@ -45,12 +112,15 @@ class NodeToNode:
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
         match_tol: Pairing tolerance relative to the mean edge length of the slave surface.
+        friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
+            slip is the tangential part of u_slave − u_master.
     """
 
     slave: str
     master: str
     gap: float | None = None
     match_tol: float = 1e-4
+    friction: Friction | None = None
 
 
 class Obstacle(Protocol):
@@ -118,14 +188,17 @@ class SignedDistance:
 
 @dataclass(frozen=True)
 class RigidObstacle:
-    """Frictionless contact of a body's boundary group with a rigid obstacle.
+    """Contact of a body's boundary group with a rigid obstacle.
 
     The condition at each node is φ(x + u) >= 0, linearized: ∇φ(x)·u >= −φ(x). Nodes that
     start inside the obstacle (φ < 0) are pushed out: an initial penetration is honoured.
+    ``friction`` (``None``, :class:`Tresca` or :class:`Coulomb`) acts on the tangential part
+    of u (the obstacle does not move).
     """
 
     group: str
     obstacle: Obstacle
+    friction: Friction | None = None
 
 
 @dataclass
@@ -190,3 +263,8 @@ class ContactProblem:
                     raise InputError("rigid obstacles need a vector (elasticity) problem")
             else:
                 raise InputError(f"unknown contact condition {c!r}")
+            fr = c.friction
+            if fr is not None and not isinstance(fr, (Tresca, Coulomb)):
+                raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
+            if fr is not None and self.value_size == 1:
+                raise InputError("friction needs a vector (elasticity) problem")

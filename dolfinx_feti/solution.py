@@ -4,12 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from .constraints.contact import surface
+from .constraints.friction import FRICTIONLESS, SLIP, STICK
 from .constraints.rows import Kind, Rows
 from .feti import TotalFETI
 from .mesh.decompose import Decomposition
@@ -29,7 +31,25 @@ class ContactData:
         force: Nodal contact force (the physical multiplier, >= 0).
         pressure: Force divided by the node's lumped area on its surface.
         gap: Gap after deformation (>= 0 up to the tolerance; < 0 is penetration).
+
+    With friction on some contact condition (None otherwise; zeros, NaN and ``FRICTIONLESS``
+    at the nodes of frictionless conditions):
+
+    Attributes:
+        tangential_force: (n, gdim) friction force on the slave node, −Σ_k λ_T,k t_k.
+        tangential_traction: The tangential force divided by the node's lumped area.
+        slip: (n, gdim) relative tangential displacement Σ_k ((u_slave − u_master)·t_k) t_k
+            (u_master = 0 for an obstacle). Where a node slips, the slip is opposite to the
+            tangential force; where it sticks, it is zero.
+        slip_bound: The nodal slip bound g (a force: Tresca bound × area, or 𝓕 × normal force
+            of the previous Coulomb step); |tangential_force| <= slip_bound.
+        state: ``STICK`` (1: |λ_T| < g, zero slip), ``SLIP`` (2: |λ_T| = g) or
+            ``FRICTIONLESS`` (0).
     """
+
+    FRICTIONLESS: ClassVar[int] = FRICTIONLESS
+    STICK: ClassVar[int] = STICK
+    SLIP: ClassVar[int] = SLIP
 
     spec: np.ndarray
     node: np.ndarray
@@ -39,11 +59,16 @@ class ContactData:
     force: np.ndarray
     pressure: np.ndarray
     gap: np.ndarray
+    tangential_force: np.ndarray | None = None
+    tangential_traction: np.ndarray | None = None
+    slip: np.ndarray | None = None
+    slip_bound: np.ndarray | None = None
+    state: np.ndarray | None = None
 
     def of(self, spec: int) -> ContactData:
         """The entries of one contact condition."""
         m = self.spec == spec
-        return ContactData(**{k: v[m] for k, v in self.__dict__.items()})
+        return ContactData(**{k: None if v is None else v[m] for k, v in self.__dict__.items()})
 
 
 class Solution:
@@ -59,9 +84,10 @@ class Solution:
 
     def __init__(self, problem: ContactProblem, feti: TotalFETI, dec: Decomposition, rows: Rows,
                  u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
-                 comm: MPI.Comm) -> None:
-        """Collect results (collective)."""
+                 comm: MPI.Comm, friction=None) -> None:
+        """Collect results (collective); ``friction`` is the solve's FrictionSolve or None."""
         self.problem, self.feti, self.dec, self.rows = problem, feti, dec, rows
+        self.friction = friction
         self.u_vec, self.lam, self.alpha, self.report, self.comm = u, lam, alpha, report, comm
         self._Bu = feti.B.createVecLeft()
         feti.B.mult(u, self._Bu)
@@ -87,10 +113,12 @@ class Solution:
         kkt = {
             "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
             "primal_feasibility": max(pen, 0.0) / u_max,
-            "equality": gmax(np.abs(viol[~ineq])) / u_max,
+            "equality": gmax(np.abs(viol[~ineq & (rows.kind[sl] != Kind.TANGENT)])) / u_max,
             "complementarity": gmax(np.abs(lam_phys[ineq] * viol[ineq]))
             / max(lam_max * u_max, 1e-300),
         }
+        if self.friction is not None:
+            kkt.update(self.friction.kkt(lam_phys, viol, lam_max, u_max))
         kkt.update(feti.residuals(self.u_vec, self.lam))
         self.report.kkt = kkt
         self.report.max_penetration = max(pen, 0.0) if np.isfinite(pen) else 0.0
@@ -111,15 +139,29 @@ class Solution:
             nodes, _, a = surface(mesh, group)
             m = spec == i
             area[m] = a[np.searchsorted(nodes, node[m])]
+        extra = {}
+        if self.friction is not None:
+            scale = rows.scale[sl]
+            extra = self.friction.contact_fields(self.lam.array_r * scale,
+                                                 (self._Bu.array_r - feti.c.array_r) / scale,
+                                                 mesh.gdim)
+            extra["tangential_traction"] = extra["tangential_force"] / area[:, None]
         return ContactData(spec=spec, node=node, x=mesh.x[node], partner=rows.partner[sel],
-                           normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap)
+                           normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap,
+                           **extra)
 
     @property
     def total_contact_force(self) -> np.ndarray:
-        """Sum of the nodal contact force vectors Σ λ n (a scalar sum for scalar problems)."""
+        """Sum of the nodal contact force vectors Σ λ n (a scalar sum for scalar problems).
+
+        With friction the tangential forces are included.
+        """
         if self.problem.value_size == 1:
             return np.array([self.contact.force.sum()])
-        return (self.contact.force[:, None] * self.contact.normal).sum(axis=0)
+        total = (self.contact.force[:, None] * self.contact.normal).sum(axis=0)
+        if self.contact.tangential_force is not None:
+            total = total + self.contact.tangential_force.sum(axis=0)
+        return total
 
     # --- displacement ----------------------------------------------------------------------
     def nodal_values(self) -> np.ndarray:
@@ -166,9 +208,15 @@ class Solution:
                                msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:
-        """Write the displacement and the contact pressure to XDMF (for ParaView)."""
+        """Write the solution to XDMF (for ParaView), atomically.
+
+        Fields: the displacement (P1; ``u`` for a scalar problem), ``contact_pressure`` (P1,
+        zero off contact), ``subdomain`` (DG0) and, for :class:`~dolfinx_feti.Elasticity`,
+        ``von_mises`` (DG0; see :mod:`dolfinx_feti.postprocess`).
+        """
         from .output import write_xdmf
-        write_xdmf(path, self.u, [self.u, self.pressure_function()])
+        from .postprocess import output_functions
+        write_xdmf(path, self.u, [self.u, self.pressure_function(), *output_functions(self)])
 
     def multipliers(self, kind: Kind | None = None) -> np.ndarray:
         """Physical multipliers (nodal forces) of all rows, or of one kind, on every rank."""

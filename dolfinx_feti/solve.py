@@ -4,6 +4,9 @@ Solver choice (the least machinery the problem needs):
 - no inequality rows: projected CG on P F P;
 - inequalities and a coarse space (always in Total FETI): SMALBE-M with inner MPRGP on P F P;
 - inequalities and no coarse space: MPRGP alone on F.
+With friction (:mod:`.friction`) the tangential multipliers get box bounds (2D: MPRGP with upper
+bounds) or disc bounds (3D: MPGP, also as SMALBE's inner solver); Coulomb friction repeats the
+solve in a fixed point on the slip bounds.
 """
 
 from __future__ import annotations
@@ -12,9 +15,11 @@ import numpy as np
 from mpi4py import MPI
 
 from .constraints import build_rows
+from .constraints.friction import friction_data
 from .errors import InputError
 from .feti import TotalFETI
 from .feti.precond import make_preconditioner
+from .friction import FrictionSolve
 from .log import Progress
 from .mesh.decompose import decompose
 from .options import SolverOptions
@@ -26,6 +31,7 @@ from .qp import (
     cg,
     estimate_norm,
     homogenize,
+    mpgp,
     mprgp,
     orthonormalize,
     projected_operator,
@@ -69,6 +75,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     feti = TotalFETI(problem, dec, rows, comm, timer, opts.factor)
     ineq = rows.inequality[feti.rows_local]
     n_ineq = int(rows.inequality.sum())
+    fdata = friction_data(problem, rows)
+    friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
 
     with timer.phase("coarse problem"):
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
@@ -91,8 +99,10 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     x.set(0.0)
     mults0 = feti.hessian_mults
     with timer.phase("iterations"):
-        res = _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, ineq,
-                      n_ineq, norm.value, b_noise, precond)
+        def run_qp():
+            return _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat,
+                           ineq, n_ineq, norm.value, b_noise, precond, friction)
+        res = run_qp() if friction is None else friction.run(run_qp, x, lam_hat, ineq, progress)
     report.hessian_mults = feti.hessian_mults - mults0
 
     with timer.phase("recovery"):
@@ -100,13 +110,17 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         lam.axpy(1.0, lam_hat)
         at_bound = res.active if res.active is not None else np.zeros(ineq.size, dtype=bool)
         lam.array[ineq & at_bound] = 0.0  # exactly on the bound: λ = 0, not λ̂ − λ̂ rounded
+        active = ~ineq | ~at_bound
+        if friction is not None:  # a friction row holds as an equality where the node sticks
+            friction.snap(lam, at_bound)
+            active = friction.recovery_active(ineq, at_bound)
         g = feti.d.duplicate()
         feti.F.mult(lam, g)
         g.axpy(-1.0, feti.d)  # the dual gradient F λ − d
         hint = None
         if res.multiplier is not None:  # SMALBE: α = −T̃ᵀ(μ − G̃ g) from the dual KKT conditions
             hint = -ocon.transform_transpose(res.multiplier - ocon.mult(g))
-        alpha = feti.rigid_amplitudes(g, ~ineq | ~at_bound, hint)
+        alpha = feti.rigid_amplitudes(g, active, hint)
         u = feti.primal(lam, alpha)
 
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
@@ -120,8 +134,9 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.G_lambda = float(np.linalg.norm(Glam - feti.e) / (e_norm if e_norm > 0 else 1.0))
     report.norm_F = float(norm.value)
     report.hessian_mults_total = feti.hessian_mults
+    n_tang = 0 if fdata is None else int(fdata.rows.size)
     report.sizes = {"primal": feti.primal_size[1], "dual": rows.size, "inequality": n_ineq,
-                    "equality": rows.size - n_ineq, "subdomains": dec.num_subdomains,
+                    "equality": rows.size - n_ineq - n_tang, "subdomains": dec.num_subdomains,
                     "coarse": int(feti.coarse_size[1]), "coarse_rank": int(ocon.m),
                     "ranks": comm.size}
     if not report.converged:
@@ -135,7 +150,11 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     progress.info(f"{report.solver}: {'converged' if report.converged else 'NOT converged'} "
                   f"({report.reason}), {report.outer_iterations} outer / {report.iterations} "
                   f"inner iterations, {report.hessian_mults} F-multiplications")
-    sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm)
+    if friction is not None:
+        report.sizes["tangential"] = n_tang
+        report.extra["friction"] = friction.info
+        friction.destroy()
+    sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm, friction=friction)
     sol.check_kkt(ineq)
     report.timings = timer.reduced(comm)
     report.timings["total"] = float(sum(report.timings.values()))
@@ -147,8 +166,11 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
 
 
 def _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, ineq, n_ineq,
-            norm_A, b_noise, precond):
-    """The least machinery the problem needs (see the module docstring)."""
+            norm_A, b_noise, precond, friction=None):
+    """The least machinery the problem needs (see the module docstring).
+
+    With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
+    """
     if n_ineq == 0:
         report.solver = "cg"
         # When only prescribed values drive the problem, P b can be pure round-off: the floor
@@ -157,28 +179,36 @@ def _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, in
                   max_it=opts.max_it, monitor=progress.inner, preconditioner=precond)
     lb = x.duplicate()
     lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
-    x.array[:] = np.maximum(0.0, lb.array_r)
+    ub = multiplier = None
+    qp = mprgp
     inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion,
              "alpha": opts.mprgp_alpha}
+    if friction is None:
+        x.array[:] = np.maximum(0.0, lb.array_r)
+    else:
+        ub, discs, multiplier = friction.bounds(lb, lam_hat)
+        if discs is not None:  # MPGP: the fixed expansion only
+            qp, inner = mpgp, {"gamma": opts.mprgp_gamma, "discs": discs}
     if ocon.m == 0:
-        report.solver = "mprgp"
-        return mprgp(feti.F, feti.d, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
-                     norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
+        report.solver = qp.__name__
+        return qp(feti.F, feti.d, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
+                  norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
-        report.solver = "mprgp (dual penalty)"
+        report.solver = f"{qp.__name__} (dual penalty)"
         rho = opts.penalty_rho * norm_A
         Arho = projected_operator(feti.F, ocon, rho=rho)
         if precond is not None:
             precond = ProjectedPreconditioner(precond, ocon, rho)
-        res = mprgp(Arho, Pb, x, lb=lb, rtol=opts.rtol, max_it=opts.max_it,
-                    norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
-                    **inner)
+        res = qp(Arho, Pb, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
+                 norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
+                 **inner)
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res
-    report.solver = "smalbe"
+    report.solver = "smalbe" if qp is mprgp else "smalbe (mpgp)"
     # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
-    return smalbe(A, Pb, ocon, x, lb=lb, rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
+    return smalbe(A, Pb, ocon, x, lb=lb, ub=ub, inner=qp.__name__, multiplier=multiplier,
+                  rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
                   eq_scale=norm_A, rho=opts.smalbe_rho * norm_A, M=opts.smalbe_M * norm_A,
                   eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
                   beta=opts.smalbe_beta, norm_A=norm_A,

@@ -9,6 +9,7 @@ from ..mesh.decompose import Decomposition
 from ..problem import ContactProblem, NodeToNode, RigidObstacle
 from .contact import node_to_node_rows, obstacle_rows
 from .dirichlet import dirichlet_mask, dirichlet_rows
+from .friction import with_tangential_rows
 from .gluing import gluing_rows
 from .rows import Rows
 
@@ -17,7 +18,9 @@ def build_rows(problem: ContactProblem, dec: Decomposition) -> Rows:
     """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
 
     Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
-    are contiguous and the global order does not depend on the number of ranks.
+    are contiguous and the global order does not depend on the number of ranks. The normal and
+    tangential (friction) rows of a contact node touch the same subdomains, so they stay
+    consecutive.
     """
     mesh, bs = problem.mesh, problem.value_size
     node_ptr, node_subs = dec.node_subdomains()
@@ -29,6 +32,8 @@ def build_rows(problem: ContactProblem, dec: Decomposition) -> Rows:
             blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs))
         elif isinstance(c, RigidObstacle):
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs))
+        if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
+            blocks[-1] = with_tangential_rows(blocks[-1], node_ptr, node_subs)
     rows = Rows.concatenate(blocks)
     if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
         raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "

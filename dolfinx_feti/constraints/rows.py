@@ -15,6 +15,7 @@ class Kind(IntEnum):
     DIRICHLET = 1
     CONTACT = 2  # node-to-node, between two bodies
     OBSTACLE = 3  # a body against a rigid obstacle
+    TANGENT = 4  # friction: relative tangential displacement of a contact node (box/disc bound)
 
 
 @dataclass
@@ -25,8 +26,9 @@ class Rows:
     Per row: right-hand side ``rhs`` (of the scaled row), ``kind``, ``scale`` (the row is the
     physical constraint multiplied by ``scale``, so the physical multiplier — a nodal force —
     is ``scale * λ``), ``node`` (the slave/constrained node), ``partner`` (the master node of a
-    node-to-node pair, else -1), ``normal`` (contact normal, zeros otherwise) and ``spec``
-    (index of the condition in the problem's list that made the row).
+    node-to-node pair, else -1), ``normal`` (contact normal, zeros otherwise; for a TANGENT
+    row its unit tangent t, the row being scale·(u_slave − u_master)·t) and ``spec`` (index of
+    the condition in the problem's list that made the row).
     """
 
     e_row: np.ndarray
@@ -51,6 +53,11 @@ class Rows:
     def inequality(self) -> np.ndarray:
         """Mask of the rows that are inequalities (B u <= c)."""
         return (self.kind == Kind.CONTACT) | (self.kind == Kind.OBSTACLE)
+
+    @property
+    def tangential(self) -> np.ndarray:
+        """Mask of the friction rows (multipliers in a box or a disc, see constraints.friction)."""
+        return self.kind == Kind.TANGENT
 
     @staticmethod
     def empty(gdim: int) -> Rows:

@@ -1,4 +1,4 @@
-"""QP solvers for FETI: CG, MPRGP (box constraints) and SMALBE-M (box + equality constraints).
+"""QP solvers for FETI: CG, MPRGP (box), MPGP (box and discs) and SMALBE-M (+ equalities).
 
 Only NumPy, SciPy, petsc4py and mpi4py are used: vectors are PETSc Vecs (possibly distributed),
 operators PETSc Mats (AIJ or python shells), equality constraints small and replicated.
@@ -15,6 +15,7 @@ from .equality import (
     penalized_operator,
     projected_operator,
 )
+from .mpgp import Discs, SeparableSet, mpgp
 from .mprgp import mprgp
 from .norm import NormEstimate, estimate_norm
 from .precond import Preconditioner, ProjectedPreconditioner
@@ -23,6 +24,7 @@ from .shell import python_shell
 from .smalbe import smalbe
 
 __all__ = [
+    "Discs",
     "EqualityConstraint",
     "NormEstimate",
     "OrthonormalConstraint",
@@ -31,9 +33,11 @@ __all__ = [
     "Projector",
     "QPResult",
     "RowBlockConstraint",
+    "SeparableSet",
     "cg",
     "estimate_norm",
     "homogenize",
+    "mpgp",
     "mprgp",
     "orthonormalize",
     "penalized_operator",

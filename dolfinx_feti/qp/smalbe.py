@@ -85,9 +85,11 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         eta: Inner absolute precision cap; default ``0.1 ||b||``.
         beta: Divisor of ``M`` (> 1).
         norm_A: ``||A||``; default a Lanczos estimate (counted in ``hessian_mults``).
-        inner: Inner solver: only ``'mprgp'``.
-        inner_options: Extra keyword arguments of :func:`mprgp` (``gamma``, ``expansion``,
-            ``alpha``, ``alpha_bar``, ``norm_A``, ``monitor``).
+        inner: Inner solver: ``'mprgp'`` (bounds ``lb``, ``ub``) or ``'mpgp'``
+            (:func:`.mpgp.mpgp`: bounds and disc constraints, given as
+            ``inner_options={'discs': ...}``).
+        inner_options: Extra keyword arguments of the inner solver (``gamma``, ``expansion``,
+            ``alpha``, ``alpha_bar``, ``norm_A``, ``monitor``; ``discs`` for MPGP).
         max_outer: Maximum number of outer iterations.
         max_it: Budget of inner iterations over all outer iterations.
         monitor: Called as ``monitor(k, record)`` after each outer iteration with the record
@@ -108,8 +110,12 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         ``inner_reason``. ``reason`` is ``'converged'``, ``'max_it'``, ``'max_outer'`` or the
         inner failure (``'unbounded'``, ``'breakdown'``).
     """
-    if inner != "mprgp":
-        raise ValueError(f"smalbe: inner solver {inner!r} is not available (only 'mprgp')")
+    if inner not in ("mprgp", "mpgp"):
+        raise ValueError(f"smalbe: inner solver {inner!r} is not available ('mprgp', 'mpgp')")
+    if inner == "mpgp":
+        from .mpgp import mpgp as inner_solver
+    else:
+        inner_solver = mprgp
     opts = dict(inner_options or {})
     bad = sorted(set(opts) & set(_RESERVED))
     if bad:
@@ -163,7 +169,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             dxv = float(np.linalg.norm(D.mult(xv)))
             return gP <= min(M_k * dxv, eta) or (gP <= tol_g and dxv <= tol_e)
 
-        res = mprgp(H, bk, x, lb=lb, ub=ub, rtol=0.0, atol=0.0, stop=inner_stop,
+        res = inner_solver(H, bk, x, lb=lb, ub=ub, rtol=0.0, atol=0.0, stop=inner_stop,
                     max_it=max_it - total_it, b_norm=b_norm, g=g, g_valid=g_valid, **opts)
         g_valid = True
         total_it += res.iterations

@@ -1,0 +1,260 @@
+"""The command ``dolfinx-feti`` (also ``python -m dolfinx_feti``): solve a TOML problem file.
+
+Usage::
+
+    dolfinx-feti PROBLEM.toml [-o DIR] [-v | -q] [--check] [--plot] [-feti_<option> VALUE ...]
+    mpirun -n 4 dolfinx-feti problems/hertz2d.toml -feti_rtol 1e-10
+
+The problem file is read and checked completely (every fault reported, with the file and the
+key) before anything heavy starts; then the problem is solved by Total FETI on all ranks of
+``MPI.COMM_WORLD`` and the outputs are written, each atomically (a temporary name in the target
+folder, renamed when complete), and only after a successful solve.
+
+Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, an
+output that cannot be written); 2 the command line or the problem file is wrong (nothing
+written); 3 the solver did not converge (only the JSON report is written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+import time
+from collections.abc import Sequence
+from contextlib import contextmanager
+from pathlib import Path
+
+from mpi4py import MPI
+
+from . import postprocess
+from .errors import InputError, SolveError
+from .log import Progress, logger
+from .problemfile import ProblemFile, ProblemFileError, load
+
+PROG = "dolfinx-feti"
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
+
+
+class _Exit(Exception):
+    def __init__(self, code: int) -> None:
+        super().__init__(code)
+        self.code = code
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser that prints on rank 0 only and raises instead of exiting."""
+
+    def _print_message(self, message, file=None):
+        if MPI.COMM_WORLD.rank == 0:
+            super()._print_message(message, file)
+
+    def exit(self, status=0, message=None):  # noqa: D102
+        if message:
+            self._print_message(message, sys.stderr)
+        raise _Exit(status)
+
+
+def _parser() -> _Parser:
+    p = _Parser(
+        prog=PROG,
+        description="Solve a contact problem described in a TOML problem file by Total FETI "
+                    "(SMALBE/MPRGP). Runs the same under mpirun -n N.",
+        epilog="Solver options: any field of dolfinx_feti.SolverOptions as -feti_<name> VALUE "
+               "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1); these override the file's "
+               "[solver] table. Exit status: 0 solved, 1 solve failed, 2 bad command line or "
+               "problem file (nothing written), 3 not converged (only the report is written).")
+    p.add_argument("problem", type=Path, help="the problem file (TOML)")
+    p.add_argument("-o", "--output-dir", type=Path, default=None,
+                   help="write the outputs here instead of the file's output.directory")
+    v = p.add_mutually_exclusive_group()
+    v.add_argument("-v", "--verbose", action="store_true",
+                   help="also print every iteration (verbose 2)")
+    v.add_argument("-q", "--quiet", action="store_true",
+                   help="print nothing but errors (verbose 0)")
+    p.add_argument("--check", action="store_true",
+                   help="check the problem file and the mesh, then stop (no solve, no output)")
+    p.add_argument("--plot", action="store_true",
+                   help="also plot the contact pressure when the file asks for no plot")
+    p.add_argument("--version", action="store_true", help="print the versions and stop")
+    return p
+
+
+def split_feti_options(argv: Sequence[str]) -> tuple[list[str], list[str]]:
+    """Separate ``-feti_<name> [value]`` tokens (for PETSc) from the command's own arguments."""
+    own, feti = [], []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if token.startswith("-feti_"):
+            feti.append(token)
+            nxt = argv[i + 1] if i + 1 < len(argv) else None
+            if nxt is not None and (not nxt.startswith("-") or _is_number(nxt)):
+                feti.append(nxt)
+                i += 1
+        else:
+            own.append(token)
+        i += 1
+    return own, feti
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+@contextmanager
+def _console(verbose: int):
+    """Send the package's log lines to the current stdout for the duration of the command."""
+    handler = None
+    if verbose > 0 and MPI.COMM_WORLD.rank == 0:
+        handler = logging.StreamHandler(sys.stdout)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        saved = (list(logger.handlers), logger.level, logger.propagate)
+        logger.handlers = [handler]
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
+    try:
+        yield
+    finally:
+        if handler is not None:
+            handler.flush()
+            logger.handlers, level, logger.propagate = saved[0], saved[1], saved[2]
+            logger.setLevel(level)
+
+
+def _error(message: str) -> None:
+    if MPI.COMM_WORLD.rank == 0:
+        print(message, file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; returns the exit status (collective over ``MPI.COMM_WORLD``).
+
+    Args:
+        argv: The arguments (without the program name); ``sys.argv[1:]`` by default.
+    """
+    comm = MPI.COMM_WORLD
+    argv = list(sys.argv[1:] if argv is None else argv)
+    own, feti = split_feti_options(argv)
+    if "--version" in own:
+        if comm.rank == 0:
+            for k, v in postprocess.versions().items():
+                print(f"{k} {v}")
+        return EXIT_OK
+    try:
+        args = _parser().parse_args(own)
+    except _Exit as e:
+        return e.code
+    verbose = 2 if args.verbose else 0 if args.quiet else None
+    with _console(1 if verbose is None else verbose):
+        return _run(args, feti, verbose, comm)
+
+
+def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
+    t0 = time.perf_counter()
+    try:
+        pf = load(args.problem, comm, output_dir=args.output_dir, command_line=feti)
+        # verbose: 1 by default, then [solver] verbose, then -feti_verbose, then -v / -q
+        opts = pf.solver_options(defaults={"verbose": 1}, verbose=verbose)
+    except ProblemFileError as e:
+        _error(str(e))
+        return EXIT_USAGE
+    except InputError as e:
+        _error(f"{args.problem}: {e}")
+        return EXIT_USAGE
+    progress = Progress(comm, opts.verbose)
+    m = pf.mesh
+    progress.info(f"{pf.path}: {pf.model}, {m.gdim}D mesh {pf.mesh_source} ({m.num_nodes} nodes, "
+                  f"{m.cells.shape[0]} cells, bodies {list(m.body_names)}), {comm.size} rank(s)")
+    progress.phase("problem file", time.perf_counter() - t0)
+    if args.check:
+        progress.info(f"{pf.path}: the problem file is valid")
+        return EXIT_OK
+
+    from .solve import solve
+
+    try:
+        solution = solve(pf.problem, comm=comm, options=opts)
+    except (InputError, SolveError) as e:
+        _error(f"{PROG}: {pf.path}: the solve failed: {e}")
+        return EXIT_FAILED
+    report = solution.report
+    report.extra["problem"] = pf.summary()
+    report.extra["versions"] = postprocess.versions()
+    report.extra["results"] = postprocess.results(solution)
+    report.extra["command"] = [PROG, str(args.problem), *feti]
+    converged = report.converged
+    try:
+        written = _write_outputs(pf, solution, args.plot, converged, comm, progress)
+    except OSError as e:
+        _error(f"{PROG}: {pf.path}: cannot write the output: {e}")
+        return EXIT_FAILED
+    if comm.rank == 0 and opts.verbose > 0:
+        print(report.summary(), flush=True)
+        for path in written:
+            print(f"wrote {path}", flush=True)
+    if not converged:
+        _error(f"{PROG}: {pf.path}: the solver did not converge ({report.reason}); only the "
+               "report was written")
+        return EXIT_NOT_CONVERGED
+    return EXIT_OK
+
+
+def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: bool,
+                   comm: MPI.Comm, progress: Progress) -> list[Path]:
+    """Write the outputs (collective); raise OSError on every rank if one failed."""
+    t0 = time.perf_counter()
+    out = pf.output
+    written: list[Path] = []
+    plot = out.pressure_plot
+    if plot is None and plot_on_request and pf.problem.contact:
+        from .problemfile import PlotSpec
+
+        spec = pf.problem.contact[0]
+        group = getattr(spec, "slave", None) or spec.group
+        nodes = solution.contact.of(0).x
+        along = "xyz"[int(abs(nodes.max(axis=0) - nodes.min(axis=0)).argmax())] \
+            if nodes.size else "x"
+        plot = PlotSpec(out.directory / f"{pf.path.stem}_pressure.png", 0, group, along)
+    if converged:
+        if out.xdmf is not None:
+            solution.write_xdmf(out.xdmf)  # collective, atomic
+            written += [out.xdmf, out.xdmf.with_suffix(".h5")]
+        solution.nodal_values()  # collective: computed (and cached) on every rank first
+        error = None
+        if comm.rank == 0:
+            try:
+                if out.nodal_values is not None:
+                    postprocess.save_nodal_values(solution, out.nodal_values)
+                    written.append(out.nodal_values)
+                if plot is not None:
+                    postprocess.plot_pressure(solution, plot.path, plot.contact, plot.along,
+                                              title=f"{pf.title}: contact pressure on "
+                                                    f"{plot.surface!r}")
+                    written.append(plot.path)
+            except Exception as e:  # noqa: BLE001 - rank 0 only: raised on every rank below
+                error = str(e) if isinstance(e, OSError) else f"{type(e).__name__}: {e}"
+        _raise_collectively(comm, error)
+    error = None
+    if out.report is not None and comm.rank == 0:
+        try:
+            solution.report.save_json(out.report)  # atomic
+            written.append(out.report)
+        except OSError as e:
+            error = str(e)
+    _raise_collectively(comm, error)
+    progress.phase("output", time.perf_counter() - t0)
+    return written
+
+
+def _raise_collectively(comm: MPI.Comm, error: str | None) -> None:
+    error = comm.bcast(error, root=0)
+    if error is not None:
+        raise OSError(error)
+
+
+__all__ = ["main", "split_feti_options"]

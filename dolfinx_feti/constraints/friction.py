@@ -1,0 +1,190 @@
+"""Friction rows: tangents of the contact normals, the tangential rows of B and their slip bounds.
+
+A contact node with friction gets, next to its normal (non-penetration) row, one tangential row
+per tangent direction t (one in 2D, two orthonormal ones in 3D)::
+
+    node-to-node:  scale · (u_slave − u_master)·t      (scale = 1/√2, like the normal row)
+    obstacle:      u·t                                 (scale = 1)
+
+with right-hand side 0: the row measures the relative tangential displacement (the slip). Its
+multiplier λ_T (physical value scale·λ, a nodal force) is bounded: |λ_T| <= g in 2D (a box),
+||(λ_T1, λ_T2)|| <= g in 3D (a disc), g the nodal slip bound. The rows of one node are
+consecutive in B (normal row first) and are owned by the same rank.
+
+Sign convention (Lagrangian ½uᵀKu − fᵀu + λᵀ(Bu − c)): the friction force on the slave node is
+−Σ_k λ_T,k t_k; where a node slips, its slip s = Σ_k ((u_s − u_m)·t_k) t_k is parallel to
+Σ_k λ_T,k t_k, i.e. opposite to the friction force; where it sticks (|λ_T| < g), s = 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..mesh.gmsh_input import MeshData
+from ..problem import ContactProblem, Coulomb, NodeToNode, Tresca
+from .contact import surface
+from .rows import Kind, Rows
+
+#: Values of ``ContactData.state``.
+FRICTIONLESS, STICK, SLIP = 0, 1, 2
+
+
+def tangent_basis(normal: np.ndarray) -> np.ndarray:
+    """Unit tangents orthogonal to unit normals, shape (k, gdim − 1, gdim).
+
+    2D: t = (n_y, −n_x), so that (t, n) is right-handed. 3D: t1 is the coordinate axis least
+    aligned with n (the first one in a tie) made orthogonal to n by Gram–Schmidt, t2 = n × t1,
+    so that (t1, t2, n) is right-handed.
+    """
+    n = np.asarray(normal, dtype=float)
+    k, d = n.shape
+    if d == 2:
+        return np.stack([n[:, 1], -n[:, 0]], axis=1)[:, None, :]
+    axis = np.argmin(np.abs(n), axis=1)
+    e = np.zeros((k, 3))
+    e[np.arange(k), axis] = 1.0
+    t1 = e - np.einsum("ij,ij->i", e, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    t2 = np.cross(n, t1)
+    return np.stack([t1, t2], axis=1)
+
+
+def with_tangential_rows(normal: Rows, node_ptr: np.ndarray, node_subs: np.ndarray) -> Rows:
+    """The normal rows of one contact condition with their tangential rows interleaved.
+
+    Row order: for each contact node, its normal row, then its gdim − 1 tangential rows.
+    """
+    k, d = normal.normal.shape
+    nt = d - 1
+    T = tangent_basis(normal.normal)  # (k, nt, d)
+    first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
+    nrow = k * nt
+    row = np.arange(nrow)
+    node = np.repeat(normal.node, nt)
+    partner = np.repeat(normal.partner, nt)
+    scale = np.repeat(normal.scale, nt)
+    tang = T.reshape(nrow, d)
+    e_row = [np.repeat(row, d)]
+    e_node = [np.repeat(node, d)]
+    e_coef = [(scale[:, None] * tang).ravel()]
+    two = partner >= 0  # node-to-node: the master node enters with the opposite sign
+    e_row.append(np.repeat(row[two], d))
+    e_node.append(np.repeat(partner[two], d))
+    e_coef.append((-scale[two, None] * tang[two]).ravel())
+    e_row, e_node, e_coef = (np.concatenate(a) for a in (e_row, e_node, e_coef))
+    e_comp = np.tile(np.arange(d), e_row.size // d)
+    keep = e_coef != 0.0
+    tangential = Rows(
+        e_row=e_row[keep], e_sub=first[e_node[keep]].astype(np.int32), e_node=e_node[keep],
+        e_comp=e_comp[keep].astype(np.int8), e_coef=e_coef[keep], rhs=np.zeros(nrow),
+        kind=np.full(nrow, Kind.TANGENT, dtype=np.int8), scale=scale, node=node,
+        partner=partner, normal=tang, spec=np.repeat(normal.spec, nt))
+    both = Rows.concatenate([normal, tangential])
+    order = np.empty((k, nt + 1), dtype=np.int64)
+    order[:, 0] = np.arange(k)
+    order[:, 1:] = k + np.arange(nrow).reshape(k, nt)
+    return both.permuted(order.ravel())
+
+
+@dataclass
+class FrictionData:
+    """The friction rows of a problem in the global row order (the same on every rank).
+
+    Attributes:
+        rows: Global indices of the TANGENT rows, ascending; the ``per_node`` rows of one
+            contact node are consecutive.
+        normal_row: The normal (CONTACT or OBSTACLE) row of the same contact node, per row.
+        per_node: Tangential rows per contact node (gdim − 1).
+        tresca: Nodal Tresca bound (a force: traction bound × lumped area) per row; NaN on
+            Coulomb rows.
+        coefficient: Coulomb coefficient per row; NaN on Tresca rows.
+        area: Lumped area (length in 2D) of the contact node on its surface, per row.
+        rtol: Relative change of the slip bounds that ends the Coulomb fixed point.
+        max_steps: Budget of Coulomb fixed-point steps.
+    """
+
+    rows: np.ndarray
+    normal_row: np.ndarray
+    per_node: int
+    tresca: np.ndarray
+    coefficient: np.ndarray
+    area: np.ndarray
+    rtol: float
+    max_steps: int
+
+    @property
+    def coulomb(self) -> bool:
+        """Whether any bound depends on the normal forces (a fixed point is needed)."""
+        return bool(np.any(~np.isnan(self.coefficient)))
+
+
+def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
+    """Collect the friction rows of built (and ordered) rows; None without friction."""
+    t = np.flatnonzero(rows.tangential)
+    if t.size == 0:
+        return None
+    mesh: MeshData = problem.mesh
+    nt = mesh.gdim - 1
+    ineq = np.flatnonzero(rows.inequality)
+    N = np.int64(mesh.num_nodes)
+    key_n = rows.spec[ineq].astype(np.int64) * N + rows.node[ineq]
+    key_t = rows.spec[t].astype(np.int64) * N + rows.node[t]
+    sorter = np.argsort(key_n, kind="stable")
+    pos = np.minimum(np.searchsorted(key_n[sorter], key_t), key_n.size - 1)
+    normal_row = ineq[sorter[pos]]
+    if not np.array_equal(key_n[sorter[pos]], key_t):
+        raise AssertionError("a tangential row has no normal row")
+    grouped = t.reshape(-1, nt)
+    if not (np.all(np.diff(grouped, axis=1) == 1)
+            and np.all(normal_row.reshape(-1, nt) == normal_row.reshape(-1, nt)[:, :1])):
+        raise AssertionError("the tangential rows of a contact node are not consecutive")
+    owner = rows.min_subdomain()
+    if not np.array_equal(owner[t], owner[normal_row]):
+        raise AssertionError("a tangential row and its normal row have different owners")
+
+    tresca = np.full(t.size, np.nan)
+    coefficient = np.full(t.size, np.nan)
+    area = np.zeros(t.size)
+    rtol, max_steps = np.inf, 0
+    for i, c in enumerate(problem.contact):
+        m = rows.spec[t] == i
+        if not np.any(m):
+            continue
+        group = c.slave if isinstance(c, NodeToNode) else c.group
+        nodes, _, a = surface(mesh, group)
+        node = rows.node[t[m]]
+        area[m] = a[np.searchsorted(nodes, node)]
+        fr = c.friction
+        if isinstance(fr, Tresca):
+            tresca[m] = _traction_bound(fr, mesh.x[node], group) * area[m]
+        elif isinstance(fr, Coulomb):
+            coefficient[m] = float(fr.coefficient)
+            rtol, max_steps = min(rtol, float(fr.rtol)), max(max_steps, int(fr.max_steps))
+    return FrictionData(rows=t, normal_row=normal_row, per_node=nt, tresca=tresca,
+                        coefficient=coefficient, area=area, rtol=float(rtol),
+                        max_steps=int(max_steps))
+
+
+def _traction_bound(fr: Tresca, x: np.ndarray, group: str) -> np.ndarray:
+    """The Tresca traction bound g(x) at the nodes x, checked."""
+    if callable(fr.bound):
+        try:
+            g = np.asarray(fr.bound(x), dtype=float)
+        except InputError:
+            raise
+        except Exception as e:  # a user function: say where it failed
+            raise InputError(f"Tresca bound on {group!r}: evaluating it failed: {e}") from e
+        if g.size == 1:
+            g = np.full(x.shape[0], float(g.ravel()[0]))
+        if g.shape != (x.shape[0],):
+            raise InputError(f"Tresca bound on {group!r}: bound(x) must return shape "
+                             f"({x.shape[0]},), got {g.shape}")
+    else:
+        g = np.full(x.shape[0], float(fr.bound))
+    if np.any(np.isnan(g)) or np.any(g < 0):
+        raise InputError(f"Tresca bound on {group!r}: the slip bound must be >= 0 (inf allowed) "
+                         "at every node")
+    return g

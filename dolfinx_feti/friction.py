@@ -1,0 +1,218 @@
+"""Friction in the solve: bounds, the Coulomb fixed point, recovery, KKT residuals, output.
+
+With λ = μ + λ̂ (homogenization) the bounds of the tangential multipliers move with λ̂:
+
+- 2D (one tangential row per contact node, a box): −g/s − λ̂_T <= μ_T <= g/s − λ̂_T, solved by
+  MPRGP with upper bounds;
+- 3D (two rows per node, a disc): ||μ_T + λ̂_T|| <= g/s, a disc centred at −λ̂_T, solved by
+  MPGP (:mod:`dolfinx_feti.qp.mpgp`);
+
+g the physical nodal slip bound and s the row scale (1/√2 for node-to-node rows, 1 for
+obstacles), since the physical multiplier is s·λ. Coulomb friction iterates g = 𝓕 λ_N
+(physical normal forces) over warm-started Tresca solves. Only built when a contact condition
+has friction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .constraints.friction import SLIP, STICK, FrictionData
+from .constraints.rows import Rows
+from .qp import Discs, QPResult
+
+
+class FrictionSolve:
+    """The friction rows owned by this rank and the state of the friction solve.
+
+    Attributes:
+        data: The global :class:`~dolfinx_feti.constraints.friction.FrictionData`.
+        t: Local indices (into the rank's rows) of the tangential rows.
+        n: Local index of the normal row of each tangential row.
+        g: Nodal slip bound (a force) per local tangential row, of the last Tresca solve.
+        at_bound: Per local tangential row: its multiplier is on the bound (the node slips).
+        info: What is reported in ``report.extra['friction']``.
+    """
+
+    def __init__(self, data: FrictionData, rows: Rows, rows_local: slice,
+                 comm: MPI.Comm) -> None:
+        self.data, self.rows, self.comm = data, rows, comm
+        lo, hi = np.searchsorted(data.rows, [rows_local.start, rows_local.stop])
+        self._global = slice(int(lo), int(hi))
+        self.t = data.rows[lo:hi] - rows_local.start
+        self.n = data.normal_row[lo:hi] - rows_local.start
+        self.scale = rows.scale[data.rows[lo:hi]]
+        self.scale_n = rows.scale[data.normal_row[lo:hi]]
+        self.tresca = data.tresca[lo:hi]
+        self.coef = data.coefficient[lo:hi]
+        self.coulomb_rows = ~np.isnan(self.coef)
+        self.nt = data.per_node
+        self.g = np.where(self.coulomb_rows, np.inf, self.tresca)
+        self.at_bound = np.zeros(self.t.size, dtype=bool)
+        self.multiplier = None
+        self.info: dict = {}
+        self._ub: PETSc.Vec | None = None
+
+    # --- the QP ----------------------------------------------------------------------------
+    def bounds(self, lb: PETSc.Vec, lam_hat: PETSc.Vec):
+        """Set the tangential entries of ``lb``; return ``(ub, discs, multiplier)``."""
+        lh = lam_hat.array_r[self.t]
+        r = self.g / self.scale  # the bound on the scaled multiplier
+        if self.nt == 1:
+            lb.array[self.t] = -r - lh
+            if self._ub is None:
+                self._ub = lb.duplicate()
+            self._ub.set(np.inf)
+            self._ub.array[self.t] = r - lh
+            return self._ub, None, self.multiplier
+        lb.array[self.t] = -np.inf
+        pairs = self.t.reshape(-1, 2)
+        discs = Discs(pairs, -lh.reshape(-1, 2), r.reshape(-1, 2)[:, 0])
+        return None, discs, self.multiplier
+
+    def run(self, run_qp: Callable[[], QPResult], x: PETSc.Vec, lam_hat: PETSc.Vec,
+            ineq: np.ndarray, progress) -> QPResult:
+        """Tresca: one QP solve. Coulomb: the fixed point over warm-started Tresca solves."""
+        x.array[:] = np.where(ineq, np.maximum(0.0, -lam_hat.array_r), 0.0)
+        model = "coulomb" if self.data.coulomb else "tresca"
+        self.info = {"model": model, "nodes": int(self.data.rows.size // self.nt),
+                     "disc": self.nt == 2}
+        if not self.data.coulomb:
+            return run_qp()
+        comm = self.comm
+        steps, results = [], []
+        fp_converged = False
+        for k in range(self.data.max_steps):
+            res = run_qp()
+            results.append(res)
+            lam_n = (x.array_r[self.n] + lam_hat.array_r[self.n]) * self.scale_n
+            g_new = np.where(self.coulomb_rows, self.coef * np.maximum(lam_n, 0.0), self.tresca)
+            c = self.coulomb_rows
+            first = comm.allreduce(bool(np.any(np.isinf(self.g[c]))), op=MPI.LOR)
+            d2 = comm.allreduce(float(np.sum((g_new[c] - self.g[c]) ** 2)) if not first else 0.0)
+            n2 = comm.allreduce(float(np.sum(g_new[c] ** 2)))
+            change = math.inf if first else (math.sqrt(d2 / n2) if n2 > 0 else
+                                             (0.0 if d2 == 0 else math.inf))
+            steps.append({"step": k, "change": change, "iterations": res.iterations,
+                          "outer_iterations": res.outer_iterations,
+                          "hessian_mults": res.hessian_mults, "qp_converged": res.converged})
+            progress.info(f"Coulomb step {k}: relative change of the slip bound {change:.2e}, "
+                          f"{res.hessian_mults} F-multiplications")
+            if not res.converged:
+                break
+            if change <= self.data.rtol:
+                fp_converged = True
+                break
+            if k + 1 == self.data.max_steps:
+                break  # keep g: the solution is that of the last Tresca solve
+            self.g = g_new
+            self.multiplier = res.multiplier
+        self.info.update({"fixed_point_steps": len(steps), "fixed_point_converged": fp_converged,
+                          "rtol": self.data.rtol, "steps": steps})
+        out = results[-1]
+        out.iterations = sum(r.iterations for r in results)
+        out.outer_iterations = sum(r.outer_iterations for r in results)
+        out.hessian_mults = sum(r.hessian_mults for r in results)
+        counts: dict[str, int] = {}
+        for r in results:
+            for key, v in r.counts.items():
+                counts[key] = counts.get(key, 0) + v
+        out.counts = counts
+        out.history = [dict(h, coulomb_step=i) for i, r in enumerate(results) for h in r.history]
+        if out.converged and not fp_converged:
+            out.converged, out.reason = False, "coulomb_max_steps"
+        return out
+
+    # --- the recovery ----------------------------------------------------------------------
+    def snap(self, lam: PETSc.Vec, at_bound: np.ndarray) -> None:
+        """Put the tangential multipliers that are on their bound exactly on it."""
+        self.at_bound = at_bound[self.t].copy()
+        la = lam.array
+        r = self.g / self.scale
+        if self.nt == 1:
+            on = self.at_bound & np.isfinite(r)
+            la[self.t[on]] = np.sign(la[self.t[on]]) * r[on]
+            return
+        pairs = self.t.reshape(-1, 2)
+        rr = r.reshape(-1, 2)[:, 0]
+        on = self.at_bound.reshape(-1, 2)[:, 0] & np.isfinite(rr)
+        Y = la[pairs[on]]
+        nrm = np.linalg.norm(Y, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(nrm > 0, rr[on] / nrm, 0.0)
+        la[pairs[on]] = Y * s[:, None]
+
+    def recovery_active(self, ineq: np.ndarray, at_bound: np.ndarray) -> np.ndarray:
+        """Rows on which B u = c holds: equalities, pressed contact rows, sticking friction rows."""
+        tang = np.zeros(ineq.size, dtype=bool)
+        tang[self.t] = True
+        return (~ineq & ~tang) | ~at_bound
+
+    # --- residuals and output --------------------------------------------------------------
+    def _per_node(self, lam_phys: np.ndarray, viol: np.ndarray):
+        lt = lam_phys[self.t].reshape(-1, self.nt)
+        r = viol[self.t].reshape(-1, self.nt)
+        g = self.g.reshape(-1, self.nt)[:, 0]
+        return lt, r, g
+
+    def kkt(self, lam_phys: np.ndarray, viol: np.ndarray, lam_max: float,
+            u_max: float) -> dict[str, float]:
+        """The friction KKT residuals.
+
+        ``friction_feasibility`` = max (|λ_T| − g)⁺ / max|λ|; ``friction_complementarity`` =
+        max (g |s| − λ_T·s) / (max|λ| ‖u‖∞), the Fenchel–Young gap of g|·| at the slip s: zero
+        iff s = 0 where |λ_T| < g and s ∥ λ_T where |λ_T| = g; |s|/‖u‖∞ where g = ∞.
+        """
+        lt, r, g = self._per_node(lam_phys, viol)
+        nl = np.linalg.norm(lt, axis=1)
+        nr = np.linalg.norm(r, axis=1)
+        fin = np.isfinite(g)
+        over = np.where(fin, np.maximum(nl - np.where(fin, g, 0.0), 0.0), 0.0)
+        gap = np.where(fin, np.abs(np.where(fin, g, 0.0) * nr - np.einsum("ij,ij->i", lt, r))
+                       / max(lam_max * u_max, 1e-300), nr / max(u_max, 1e-300))
+
+        def gmax(a):
+            return self.comm.allreduce(float(a.max(initial=0.0)), op=MPI.MAX)
+
+        return {"friction_feasibility": gmax(over) / max(lam_max, 1e-300),
+                "friction_complementarity": gmax(gap)}
+
+    def contact_fields(self, lam_phys: np.ndarray, viol: np.ndarray, gdim: int
+                       ) -> dict[str, np.ndarray]:
+        """The friction fields of :class:`~dolfinx_feti.solution.ContactData`.
+
+        Per contact node in the order of the normal rows, on every rank.
+        """
+        comm, rows, data = self.comm, self.rows, self.data
+
+        def gather(a):
+            return np.concatenate(comm.allgather(np.asarray(a)))
+
+        lt = gather(lam_phys[self.t])
+        s = gather(viol[self.t])
+        g = gather(self.g)
+        slip_state = gather(self.at_bound)
+        sel = np.flatnonzero(rows.inequality)
+        pos = np.searchsorted(sel, data.normal_row)
+        tang = rows.normal[data.rows]
+        nc = sel.size
+        force = np.zeros((nc, gdim))
+        slip = np.zeros((nc, gdim))
+        np.add.at(force, pos, -lt[:, None] * tang)
+        np.add.at(slip, pos, s[:, None] * tang)
+        bound = np.full(nc, np.nan)
+        bound[pos] = g
+        state = np.zeros(nc, dtype=np.int8)
+        state[pos] = np.where(slip_state, SLIP, STICK)
+        return {"tangential_force": force, "slip": slip, "slip_bound": bound, "state": state}
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        if self._ub is not None:
+            self._ub.destroy()
+            self._ub = None

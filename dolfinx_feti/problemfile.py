@@ -1,0 +1,1225 @@
+"""Problem files: a contact problem described in TOML, checked completely before any solve.
+
+A problem file names a gmsh ``.msh`` file and describes, on top of its physical groups, the
+model (elasticity or a scalar Poisson problem) and its data, the Dirichlet conditions, the
+contact conditions, the decomposition, the solver options and the outputs; see the "Problem
+file reference" in ``docs/index.md``. A minimal example::
+
+    mesh = "../meshes/hertz2d.msh"          # relative to this file
+
+    [model]
+    type = "elasticity"
+    E = 200.0
+    nu = 0.3
+    tractions = { load = [0.0, -0.625] }
+
+    [[dirichlet]]
+    group = "bottom"
+
+    [[contact]]
+    type = "node_to_node"
+    slave = "disk_contact"
+    master = "block_contact"
+
+:func:`load` reads the file, reads the mesh and checks every key against the schema and the
+mesh's groups. All faults are collected and raised together as one :class:`ProblemFileError`
+whose message names the file, the key path (``contact[1].master``) and what was expected.
+Nothing heavy (assembly, factorization) happens before that check has passed.
+"""
+
+from __future__ import annotations
+
+import difflib
+import inspect
+import json
+import math
+import os
+import re
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import ufl
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .errors import InputError
+from .fem import Elasticity, Poisson
+from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from .options import SolverOptions
+from .problem import (
+    ContactProblem,
+    Cylinder,
+    Dirichlet,
+    NodeToNode,
+    Plane,
+    RigidObstacle,
+    Sphere,
+)
+
+# ------------------------------------------------------------------------------------------
+# The schema: the keys each table accepts (the reference in docs/index.md lists them all)
+# ------------------------------------------------------------------------------------------
+
+#: Top-level keys.
+TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "decomposition",
+            "solver", "output")
+#: ``[model]`` keys by model type.
+MODEL_KEYS = {"elasticity": ("type", "E", "nu", "tractions", "body_force"),
+              "poisson": ("type", "source", "k", "flux", "source_boxes")}
+#: Keys of an affine traction ``model.tractions.<group> = {value, gradient}``.
+AFFINE_KEYS = ("value", "gradient")
+#: ``[[model.source_boxes]]`` keys.
+BOX_KEYS = ("min", "max", "value")
+#: ``[[dirichlet]]`` keys.
+DIRICHLET_KEYS = ("group", "value", "components")
+#: ``[[contact]]`` keys by contact type.
+CONTACT_KEYS = {"node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
+                "obstacle": ("type", "group", "plane", "sphere", "cylinder", "friction")}
+#: ``contact[i].friction`` keys by friction law.
+FRICTION_KEYS = {"tresca": ("type", "bound"),
+                 "coulomb": ("type", "coefficient", "rtol", "max_steps")}
+#: Obstacle shapes and their keys.
+OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
+                 "cylinder": ("point", "axis", "radius")}
+#: ``[decomposition]`` keys by decomposition type.
+DECOMPOSITION_KEYS = {"tags": ("type", "gluing"), "parts": ("type", "n", "method", "gluing"),
+                      "grid": ("type", "size", "origin", "gluing")}
+#: ``[output]`` keys.
+OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
+#: ``[output.pressure_plot]`` keys.
+PLOT_KEYS = ("file", "surface", "along")
+#: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
+SOLVER_KEYS = tuple(f.name for f in fields(SolverOptions))
+
+_ALONG = ("x", "y", "z", "arclength")
+_GLUING = ("orthonormal", "redundant", "nonredundant")
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+def generators() -> dict[str, Any]:
+    """The mesh generators that a problem file may name (``mesh = {generator = "<name>"}``).
+
+    They are the public functions of :mod:`dolfinx_feti.meshes` that build a model.
+    """
+    from . import meshes
+
+    return {name: fn for name, fn in vars(meshes).items()
+            if inspect.isfunction(fn) and fn.__module__ == meshes.__name__
+            and not name.startswith("_") and name != "physical_groups"}
+
+
+# ------------------------------------------------------------------------------------------
+# Faults
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One fault of a problem file: where (a key path such as ``contact[1].master``) and what."""
+
+    key: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.key}: {self.message}" if self.key else self.message
+
+
+class ProblemFileError(InputError):
+    """A problem file that cannot be solved as written; ``faults`` lists every fault found.
+
+    The message has one line per fault, ``<file>: <key>: <what is wrong, what was expected>``.
+    """
+
+    def __init__(self, path: str | Path, faults: Sequence[Fault]) -> None:
+        self.path = str(path)
+        self.faults = list(faults)
+        n = len(self.faults)
+        lines = [f"{self.path}: {n} error{'s' if n != 1 else ''} in the problem file"]
+        lines += [f"{self.path}: {f}" for f in self.faults]
+        super().__init__("\n".join(lines))
+
+
+def _key(parent: str, name: str | int) -> str:
+    if isinstance(name, int):
+        return f"{parent}[{name}]"
+    part = name if _BARE_KEY.fullmatch(name) else json.dumps(name)
+    return f"{parent}.{part}" if parent else part
+
+
+def _describe(value: Any) -> str:
+    if isinstance(value, bool):
+        return f"a boolean ({str(value).lower()})"
+    if isinstance(value, int | float):
+        return f"the number {value}"
+    if isinstance(value, str):
+        return f"a string ({value!r})"
+    if isinstance(value, list):
+        return f"an array of {len(value)} item(s)"
+    if isinstance(value, dict):
+        return "a table"
+    return f"a {type(value).__name__}"
+
+
+class _Check:
+    """Collects faults while reading values; each reader returns None for a bad value."""
+
+    def __init__(self) -> None:
+        self.faults: list[Fault] = []
+
+    def fault(self, key: str, message: str) -> None:
+        self.faults.append(Fault(key, message))
+
+    def table(self, value: Any, key: str, allowed: Sequence[str] | None,
+              required: Sequence[str] = (), what: str = "a table") -> dict | None:
+        """A table with only ``allowed`` keys (any key when None) and all ``required`` ones."""
+        if not isinstance(value, dict):
+            self.fault(key, f"expected {what}, got {_describe(value)}")
+            return None
+        for k in value:
+            if allowed is not None and k not in allowed:
+                close = difflib.get_close_matches(k, allowed, n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                self.fault(_key(key, k), f"unknown key{hint}; expected one of: "
+                           f"{', '.join(allowed)}")
+        for k in required:
+            if k not in value:
+                self.fault(_key(key, k), "missing: this key is required")
+        return value
+
+    def array_of_tables(self, value: Any, key: str) -> list:
+        if value is None:
+            return []
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            self.fault(key, f"expected an array of tables ([[{key}]] sections), got "
+                       f"{_describe(value)}")
+            return []
+        return value
+
+    def number(self, value: Any, key: str, expected: str = "a number", ok=None,
+               integer: bool = False) -> float | None:
+        """A finite number (an integer when ``integer``) for which ``ok(value)`` holds."""
+        kind = "an integer" if integer else "a number"
+        if isinstance(value, bool) or not isinstance(value, int | float) or \
+                (integer and not isinstance(value, int)):
+            self.fault(key, f"expected {expected if expected != 'a number' else kind}, got "
+                       f"{_describe(value)}")
+            return None
+        if not math.isfinite(value):
+            self.fault(key, f"expected {expected}, got {value} (not a finite number)")
+            return None
+        if ok is not None and not ok(value):
+            self.fault(key, f"expected {expected}, got {value}")
+            return None
+        return value
+
+    def string(self, value: Any, key: str, choices: Sequence[str] | None = None) -> str | None:
+        if not isinstance(value, str):
+            what = "a string" if choices is None else "one of " + ", ".join(map(repr, choices))
+            self.fault(key, f"expected {what}, got {_describe(value)}")
+            return None
+        if choices is not None and value not in choices:
+            close = difflib.get_close_matches(value, choices, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            self.fault(key, f"expected one of {', '.join(map(repr, choices))}, got "
+                       f"{value!r}{hint}")
+            return None
+        return value
+
+    def vector(self, value: Any, key: str, length: int | None, what: str = "numbers"
+               ) -> list[float] | None:
+        """An array of ``length`` finite numbers (any length when None)."""
+        n = "" if length is None else f"{length} "
+        if not isinstance(value, list) or any(isinstance(v, bool) or
+                                              not isinstance(v, int | float) for v in value):
+            self.fault(key, f"expected an array of {n}{what}, got {_describe(value)}")
+            return None
+        if length is not None and len(value) != length:
+            self.fault(key, f"expected an array of {n}{what} (the mesh is {length}D), got "
+                       f"{len(value)}")
+            return None
+        if not all(math.isfinite(v) for v in value):
+            self.fault(key, f"expected finite {what}, got {value}")
+            return None
+        return [float(v) for v in value]
+
+    def per_body(self, value: Any, key: str, mesh: MeshData | None, expected: str, ok,
+                 complete: bool = True) -> float | dict[str, float] | None:
+        """A number, or a table body name → number (covering every body when ``complete``)."""
+        if not isinstance(value, dict):
+            return self.number(value, key, f"{expected}, or a table of one per body", ok)
+        out, good = {}, True
+        for body, v in value.items():
+            v = self.number(v, _key(key, body), expected, ok)
+            good &= v is not None
+            out[body] = v
+            if mesh is not None and body not in mesh.body_names:
+                self.fault(_key(key, body), f"unknown body; the mesh's bodies are "
+                           f"{list(mesh.body_names)}")
+                good = False
+        if mesh is not None and complete:
+            missing = [b for b in mesh.body_names if b not in value]
+            if missing:
+                self.fault(key, f"no value for bodies {missing}: give a number for every body "
+                           f"of {list(mesh.body_names)}, or one number for all")
+                good = False
+        return out if good else None
+
+    def group(self, value: Any, key: str, mesh: MeshData | None) -> str | None:
+        """The name of a non-empty boundary group of the mesh."""
+        name = self.string(value, key)
+        if name is None or mesh is None:
+            return name
+        if name not in mesh.facet_groups:
+            if name in mesh.body_names:
+                self.fault(key, f"{name!r} is a body (a physical group of dimension "
+                           f"{mesh.tdim}), not a boundary group; the boundary groups are "
+                           f"{sorted(mesh.facet_groups)}")
+            else:
+                close = difflib.get_close_matches(name, list(mesh.facet_groups), n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                self.fault(key, f"unknown boundary group {name!r}{hint}; the mesh's boundary "
+                           f"groups (dimension {mesh.tdim - 1}) are {sorted(mesh.facet_groups)}")
+            return None
+        if mesh.facet_groups[name].shape[0] == 0:
+            self.fault(key, f"boundary group {name!r} holds no facet")
+            return None
+        return name
+
+
+# ------------------------------------------------------------------------------------------
+# Model pieces that the Python API has no ready-made object for
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SourceBox:
+    """A constant source ``value`` in the axis-aligned box ``min <= x <= max``."""
+
+    min: tuple[float, ...]
+    max: tuple[float, ...]
+    value: float
+
+    def indicator(self, x) -> Any:
+        """The box's indicator function as a UFL expression of the spatial coordinate x."""
+        inside = None
+        for a, (lo, hi) in enumerate(zip(self.min, self.max, strict=True)):
+            c = ufl.And(ufl.ge(x[a], lo), ufl.le(x[a], hi))
+            inside = c if inside is None else ufl.And(inside, c)
+        return ufl.conditional(inside, self.value, 0.0)
+
+
+class FilePoisson(Poisson):
+    """:class:`~dolfinx_feti.Poisson` with the source of a problem file.
+
+    The source f is the sum of a constant per body (``source``) and the values of the boxes
+    (``source_boxes``) that contain the point; the boxes need no expression language.
+    """
+
+    def __init__(self, source: float | Mapping[str, float] = 0.0, *,
+                 boxes: Sequence[SourceBox] = (), flux: Mapping | None = None,
+                 k: float | Mapping[str, float] = 1.0) -> None:
+        self.body_source = dict(source) if isinstance(source, Mapping) else None
+        self.boxes = tuple(boxes)
+        constant = 0.0 if isinstance(source, Mapping) else float(source)
+        if self.boxes:
+            def f(x):
+                expr = constant
+                for b in self.boxes:
+                    expr = expr + b.indicator(x)
+                return expr
+            super().__init__(f, flux=flux, k=k)
+        else:
+            super().__init__(constant, flux=flux, k=k)
+
+    def __call__(self, V, sub):
+        """The forms on one subdomain (the per-body source added to Poisson's)."""
+        a, L = super().__call__(V, sub)
+        if self.body_source:
+            values = {b: self.body_source.get(b, 0.0) for b in sub.bodies}
+            f = sub.cellwise(values)
+            if not (isinstance(f, float) and f == 0.0):
+                L = L + f * ufl.TestFunction(V) * sub.dx()
+        return a, L
+
+
+@dataclass(frozen=True)
+class AffineTraction:
+    """The traction t(x) = value + gradient · x (``gradient[i][j]`` = ∂t_i/∂x_j)."""
+
+    value: tuple[float, ...]
+    gradient: tuple[tuple[float, ...], ...] | None = None
+
+    def __call__(self, x) -> Any:
+        """t as a UFL vector of the spatial coordinate x."""
+        comps = []
+        for i, v in enumerate(self.value):
+            t = v
+            for j, gij in enumerate(self.gradient[i] if self.gradient else ()):
+                if gij != 0.0:
+                    t = t + gij * x[j]
+            comps.append(t)
+        return ufl.as_vector(comps)
+
+
+@dataclass(frozen=True)
+class GridLabels:
+    """Labels of a regular grid of boxes of edge lengths ``size`` starting at ``origin``.
+
+    Called on the cell midpoints (C, gdim), it returns the index of the box holding each one,
+    numbered lexicographically with x running fastest (:class:`~dolfinx_feti.ByFunction`).
+    """
+
+    size: tuple[float, ...]
+    origin: tuple[float, ...]
+
+    def __call__(self, midpoints: np.ndarray) -> np.ndarray:
+        """The box index of each midpoint."""
+        idx = np.floor((midpoints - np.asarray(self.origin)) / np.asarray(self.size))
+        idx = idx.astype(np.int64)
+        idx -= idx.min(axis=0)
+        label = np.zeros(midpoints.shape[0], dtype=np.int64)
+        stride = 1
+        for a in range(midpoints.shape[1]):
+            label += stride * idx[:, a]
+            stride *= int(idx[:, a].max()) + 1
+        return label
+
+
+# ------------------------------------------------------------------------------------------
+# What load() returns
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class PlotSpec:
+    """The requested plot of the contact pressure along one contact surface."""
+
+    path: Path
+    contact: int  # index in problem.contact
+    surface: str
+    along: str  # "x", "y", "z" or "arclength"
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """Where the outputs go (None: not written)."""
+
+    directory: Path
+    xdmf: Path | None
+    report: Path | None
+    nodal_values: Path | None
+    pressure_plot: PlotSpec | None
+
+    def paths(self) -> list[Path]:
+        """Every file that a successful run writes (the XDMF's .h5 included)."""
+        out = [p for p in (self.xdmf, self.report, self.nodal_values) if p is not None]
+        if self.xdmf is not None:
+            out.append(self.xdmf.with_suffix(".h5"))
+        if self.pressure_plot is not None:
+            out.append(self.pressure_plot.path)
+        return out
+
+
+@dataclass
+class ProblemFile:
+    """A checked problem file: the problem ready to solve, its solver options and outputs.
+
+    Attributes:
+        path: The problem file.
+        title: Its title (the file name when none is given).
+        model: ``"elasticity"`` or ``"poisson"``.
+        mesh: The mesh, on every rank.
+        mesh_source: The mesh file, or the generator call that built the mesh.
+        problem: The :class:`~dolfinx_feti.ContactProblem`.
+        solver: The ``[solver]`` table (fields of :class:`~dolfinx_feti.SolverOptions`).
+        command_line: ``-feti_<name> value`` pairs given on the command line, checked.
+        output: The outputs.
+    """
+
+    path: Path
+    title: str
+    model: str
+    mesh: MeshData
+    mesh_source: str
+    problem: ContactProblem
+    solver: dict[str, Any]
+    output: OutputSpec
+    command_line: list[tuple[str, str]] = field(default_factory=list)
+
+    def solver_options(self, defaults: Mapping[str, Any] | None = None,
+                       **overrides) -> SolverOptions:
+        """The solver options: defaults < ``[solver]`` < ``-feti_*`` options < overrides.
+
+        ``overrides`` that are None are ignored. The command-line pairs are put in PETSc's
+        options database for the call only (then the database is as before), so options given
+        to an in-process run do not leak into the next.
+        """
+        db = PETSc.Options()
+        saved = {}
+        for name, value in self.command_line:
+            key = name.lstrip("-")
+            if key not in saved:
+                saved[key] = db.getString(key) if db.hasName(key) else None
+            db.setValue(key, value)
+        try:
+            feti = PETSc.Options("feti_")
+            kw = {k: v for k, v in {**(defaults or {}), **self.solver}.items()
+                  if not feti.hasName(k)}
+            kw.update({k: v for k, v in overrides.items() if v is not None})
+            return SolverOptions.create(**kw)
+        finally:
+            for key, old in saved.items():
+                if old is None:
+                    db.delValue(key)
+                else:
+                    db.setValue(key, old)
+
+    def summary(self) -> dict[str, Any]:
+        """What was solved, for the report."""
+        m = self.mesh
+        return {"file": str(self.path), "title": self.title, "model": self.model,
+                "mesh": self.mesh_source, "gdim": m.gdim, "nodes": int(m.num_nodes),
+                "cells": int(m.cells.shape[0]), "bodies": list(m.body_names),
+                "dirichlet": len(self.problem.dirichlet), "contact": len(self.problem.contact),
+                "decomposition": repr(self.problem.decomposition)}
+
+
+# ------------------------------------------------------------------------------------------
+# Reading
+# ------------------------------------------------------------------------------------------
+
+
+def load(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, *,
+         output_dir: str | Path | None = None,
+         command_line: Sequence[str] = ()) -> ProblemFile:
+    """Read and check a problem file (collective on ``comm``).
+
+    Args:
+        path: The TOML file. Relative paths inside it are relative to its folder.
+        comm: The ranks that will solve it (all receive the same data).
+        output_dir: Overrides ``output.directory`` (relative to the current directory).
+        command_line: ``-feti_<name> value`` tokens to check along with the file.
+
+    Returns:
+        The checked problem file.
+
+    Raises:
+        ProblemFileError: With every fault found (syntax, unknown keys, types, values, groups
+            missing in the mesh, the command-line options), on every rank.
+    """
+    path = Path(path)
+    text, err = None, None
+    if comm.rank == 0:
+        try:
+            text = path.read_bytes()
+        except FileNotFoundError:
+            err = "the problem file does not exist"
+        except OSError as e:
+            err = f"cannot read the problem file: {e.strerror or e}"
+    text, err = comm.bcast((text, err), root=0)
+    if err is not None:
+        raise ProblemFileError(path, [Fault("", err)])
+    try:
+        data = tomllib.loads(text.decode("utf-8"))
+    except UnicodeDecodeError as e:
+        raise ProblemFileError(path, [Fault("", f"not a UTF-8 text file ({e.reason})")]) from None
+    except tomllib.TOMLDecodeError as e:
+        raise ProblemFileError(path, [Fault("", f"TOML syntax error: {e}")]) from None
+    return _Reader(path, data, comm, output_dir, list(command_line)).read()
+
+
+def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], list[Fault]]:
+    """Pair ``-feti_<name> value`` tokens and check the names and values.
+
+    Returns:
+        The (option, value) pairs and the faults (key ``command line -feti_<name>``).
+    """
+    pairs, faults = [], []
+    kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
+    i = 0
+    while i < len(tokens):
+        name = tokens[i]
+        value = tokens[i + 1] if i + 1 < len(tokens) else None
+        if value is not None and value.startswith("-") and not _is_number(value):
+            value = None
+        i += 1 if value is None else 2
+        key = f"command line {name}"
+        if not name.startswith("-feti_"):
+            faults.append(Fault(key, "expected an option -feti_<name>"))
+            continue
+        field_name = name[len("-feti_"):]
+        if field_name not in kinds:
+            close = difflib.get_close_matches(field_name, list(kinds), n=1)
+            hint = f" (did you mean -feti_{close[0]}?)" if close else ""
+            faults.append(Fault(key, f"unknown solver option{hint}; the options are "
+                                     f"{', '.join('-feti_' + k for k in kinds)}"))
+            continue
+        if value is None:
+            faults.append(Fault(key, "expected a value after the option"))
+            continue
+        kind = kinds[field_name]
+        try:
+            typed = int(value) if "int" in kind else float(value) if "float" in kind else value
+        except ValueError:
+            faults.append(Fault(key, f"expected {'an integer' if 'int' in kind else 'a number'}"
+                                     f", got {value!r}"))
+            continue
+        try:
+            SolverOptions(**{field_name: typed}).validate()
+        except InputError as e:
+            faults.append(Fault(key, str(e)))
+            continue
+        pairs.append((name, value))
+    return pairs, faults
+
+
+def _is_number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+class _Reader:
+    """One pass over the file: checks every key and builds the objects when all is well."""
+
+    def __init__(self, path: Path, data: dict, comm: MPI.Comm, output_dir, command_line) -> None:
+        self.path, self.data, self.comm = path, data, comm
+        self.base = path.parent
+        self.output_dir = None if output_dir is None else Path(output_dir)
+        self.command_line = command_line
+        self.c = _Check()
+        self.mesh: MeshData | None = None
+        self.model: str | None = None
+
+    # --- top level ---------------------------------------------------------------------
+    def read(self) -> ProblemFile:
+        c, data = self.c, self.data
+        c.table(data, "", TOP_KEYS, required=("mesh", "model"))
+        title = data.get("title", self.path.stem)
+        if "title" in data:
+            title = c.string(title, "title") or self.path.stem
+        if "method" in data:
+            c.string(data["method"], "method", ("tfeti",))
+        mesh_source = self._mesh()
+        model, forms = self._model()
+        value_size = None if self.mesh is None or model is None else \
+            (self.mesh.gdim if model == "elasticity" else 1)
+        dirichlet = self._dirichlet(value_size)
+        contact = self._contact(model)
+        decomposition, gluing = self._decomposition()
+        solver = self._solver()
+        output = self._output(contact)
+        pairs, faults = check_command_line(self.command_line)
+        c.faults.extend(faults)
+        if c.faults:
+            raise ProblemFileError(self.path, c.faults)
+        try:
+            problem = ContactProblem(self.mesh, forms, value_size=value_size,
+                                     dirichlet=dirichlet, contact=contact,
+                                     decomposition=decomposition, gluing=gluing)
+        except InputError as e:
+            raise ProblemFileError(self.path, [Fault("", str(e))]) from None
+        self._dry_run_contact(problem)
+        if c.faults:
+            raise ProblemFileError(self.path, c.faults)
+        pf = ProblemFile(path=self.path, title=title, model=model, mesh=self.mesh,
+                         mesh_source=mesh_source, problem=problem, solver=solver, output=output,
+                         command_line=pairs)
+        try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
+            pf.solver_options()
+        except InputError as e:
+            raise ProblemFileError(self.path, [Fault("solver", str(e))]) from None
+        return pf
+
+    def _mesh(self) -> str:
+        c = self.c
+        if "mesh" not in self.data:
+            return ""
+        if isinstance(self.data["mesh"], dict):
+            return self._generated_mesh(self.data["mesh"])
+        if not isinstance(self.data["mesh"], str):
+            c.fault("mesh", "expected the path of a gmsh .msh file or a table {generator = "
+                    f"'<name>', ...}}, got {_describe(self.data['mesh'])}")
+            return ""
+        mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
+        exists = self.comm.bcast(mesh_path.is_file() if self.comm.rank == 0 else None, root=0)
+        if not exists:
+            c.fault("mesh", f"mesh file not found: {str(mesh_path)!r} (paths are relative to "
+                    "the problem file's folder); expected a gmsh .msh file")
+            return str(mesh_path)
+        try:
+            self.mesh = read_gmsh(mesh_path, self.comm)
+        except InputError as e:
+            c.fault("mesh", f"cannot use the mesh {str(mesh_path)!r}: {e}")
+        return str(mesh_path)
+
+    def _generated_mesh(self, t: dict) -> str:
+        """A mesh built by a generator of :mod:`dolfinx_feti.meshes` (on rank 0, collectively)."""
+        c, comm = self.c, self.comm
+        gens = generators()
+        if "generator" not in t:
+            c.fault("mesh.generator", f"missing: one of {sorted(gens)}")
+            return ""
+        name = c.string(t["generator"], "mesh.generator", sorted(gens))
+        if name is None:
+            return ""
+        params = inspect.signature(gens[name]).parameters
+        kwargs, good = {}, True
+        for k, v in t.items():
+            if k == "generator":
+                continue
+            if k not in params:
+                close = difflib.get_close_matches(k, list(params), n=1)
+                hint = f" (did you mean {close[0]!r}?)" if close else ""
+                c.fault(_key("mesh", k), f"unknown parameter of meshes.{name}{hint}; expected "
+                        f"one of: {', '.join(params)}")
+                good = False
+            elif isinstance(v, dict):
+                c.fault(_key("mesh", k), f"expected a number or an array, got {_describe(v)}")
+                good = False
+            else:
+                kwargs[k] = tuple(v) if isinstance(v, list) else v
+        source = f"meshes.{name}({', '.join(f'{k}={v!r}' for k, v in kwargs.items())})"
+        if not good:
+            return source
+        import gmsh
+
+        err = None
+        if comm.rank == 0:
+            try:
+                gmsh.initialize()
+                gmsh.option.setNumber("General.Terminal", 0)
+                gens[name](**kwargs)
+            except Exception as e:  # noqa: BLE001 - reported as a fault on every rank
+                err = f"{type(e).__name__}: {e}"
+        err = comm.bcast(err, root=0)
+        try:
+            if err is None:
+                self.mesh = read_gmsh(None, comm)
+        except InputError as e:
+            err = str(e)
+        finally:
+            if comm.rank == 0:
+                try:
+                    gmsh.finalize()
+                except Exception:  # noqa: BLE001, S110 - gmsh was not initialized
+                    pass
+        if err is not None:
+            c.fault("mesh", f"{source} failed: {err}")
+        return source
+
+    # --- model -------------------------------------------------------------------------
+    def _model(self):
+        c, mesh = self.c, self.mesh
+        m = self.data.get("model")
+        if m is None:  # reported as missing
+            return None, None
+        if not isinstance(m, dict):
+            c.fault("model", f"expected a table, got {_describe(m)}")
+            return None, None
+        kind = c.string(m.get("type", "elasticity"), "model.type", tuple(MODEL_KEYS))
+        if kind is None:
+            return None, None
+        m = c.table(m, "model", MODEL_KEYS[kind],
+                    required=("E", "nu") if kind == "elasticity" else ())
+        if m is None:
+            return None, None
+        self.model = kind
+        gdim = None if mesh is None else mesh.gdim
+        if kind == "elasticity":
+            E = c.per_body(m.get("E"), "model.E", mesh, "a number > 0", lambda v: v > 0) \
+                if "E" in m else None
+            nu = c.per_body(m.get("nu"), "model.nu", mesh, "a number in (-1, 0.5)",
+                            lambda v: -1.0 < v < 0.5) if "nu" in m else None
+            tractions = {}
+            t = c.table(m.get("tractions", {}), "model.tractions", None)
+            for group, vec in (t or {}).items():
+                key = _key("model.tractions", group)
+                g = c.group(group, key, mesh)
+                if isinstance(vec, dict):
+                    v = self._affine(vec, key, gdim)
+                else:
+                    v = c.vector(vec, key, gdim, "numbers (a traction vector), or a table "
+                                 "{value, gradient}")
+                if g is not None and v is not None:
+                    tractions[g] = v
+            body_force = None
+            if "body_force" in m:
+                body_force = c.vector(m["body_force"], "model.body_force", gdim)
+            if E is None or nu is None:
+                return kind, None
+            return kind, Elasticity(E, nu, tractions=tractions, body_force=body_force)
+        source = c.per_body(m.get("source", 0.0), "model.source", mesh, "a number",
+                            None, complete=False)
+        k = c.per_body(m.get("k", 1.0), "model.k", mesh, "a number > 0", lambda v: v > 0)
+        flux = {}
+        t = c.table(m.get("flux", {}), "model.flux", None)
+        for group, val in (t or {}).items():
+            key = _key("model.flux", group)
+            g = c.group(group, key, mesh)
+            v = c.number(val, key, "a number (the flux k du/dn)")
+            if g is not None and v is not None:
+                flux[g] = v
+        boxes = []
+        for i, b in enumerate(c.array_of_tables(m.get("source_boxes"), "model.source_boxes")):
+            key = _key("model.source_boxes", i)
+            b = c.table(b, key, BOX_KEYS, required=BOX_KEYS)
+            if b is None or any(k_ not in b for k_ in BOX_KEYS):
+                continue
+            lo = c.vector(b["min"], _key(key, "min"), gdim)
+            hi = c.vector(b["max"], _key(key, "max"), gdim)
+            val = c.number(b["value"], _key(key, "value"))
+            if lo is not None and hi is not None and len(lo) != len(hi):
+                c.fault(key, f"min and max have different lengths ({len(lo)}, {len(hi)})")
+            elif lo is not None and hi is not None and not all(
+                    a < b_ for a, b_ in zip(lo, hi, strict=True)):
+                c.fault(key, f"expected min < max in every coordinate, got min {lo}, max {hi}")
+            elif lo is not None and hi is not None and val is not None:
+                boxes.append(SourceBox(tuple(lo), tuple(hi), float(val)))
+        if source is None or k is None:
+            return kind, None
+        return kind, FilePoisson(source, boxes=boxes, flux=flux, k=k)
+
+    def _affine(self, t: dict, key: str, gdim: int | None) -> AffineTraction | None:
+        c = self.c
+        t = c.table(t, key, AFFINE_KEYS, required=("value",))
+        if t is None or "value" not in t:
+            return None
+        value = c.vector(t["value"], _key(key, "value"), gdim)
+        gradient = t.get("gradient")
+        gkey = _key(key, "gradient")
+        if gradient is not None:
+            if not isinstance(gradient, list) or (gdim is not None and len(gradient) != gdim):
+                c.fault(gkey, f"expected an array of {gdim or 'gdim'} rows (row i: the "
+                        f"derivatives of component i along x, y[, z]), got {_describe(gradient)}")
+                return None
+            rows = [c.vector(r, _key(gkey, i), gdim) for i, r in enumerate(gradient)]
+            if any(r is None for r in rows):
+                return None
+            gradient = tuple(tuple(r) for r in rows)
+        if value is None:
+            return None
+        return AffineTraction(tuple(value), gradient)
+
+    # --- conditions --------------------------------------------------------------------
+    def _dirichlet(self, value_size: int | None) -> list[Dirichlet]:
+        c, mesh = self.c, self.mesh
+        out = []
+        for i, d in enumerate(c.array_of_tables(self.data.get("dirichlet"), "dirichlet")):
+            key = _key("dirichlet", i)
+            d = c.table(d, key, DIRICHLET_KEYS, required=("group",))
+            if d is None:
+                continue
+            group = c.group(d.get("group"), _key(key, "group"), mesh) if "group" in d else None
+            comps = None
+            if "components" in d:
+                comps = d["components"]
+                if not isinstance(comps, list) or not comps or any(
+                        isinstance(v, bool) or not isinstance(v, int) for v in comps):
+                    c.fault(_key(key, "components"), "expected a non-empty array of component "
+                            f"indices (0 = x, 1 = y, 2 = z), got {_describe(comps)}")
+                    comps = None
+                elif len(set(comps)) != len(comps):
+                    c.fault(_key(key, "components"), f"expected distinct indices, got {comps}")
+                    comps = None
+                elif value_size is not None and any(not 0 <= v < value_size for v in comps):
+                    c.fault(_key(key, "components"), f"expected indices in 0..{value_size - 1} "
+                            f"(the problem has {value_size} component(s)), got {comps}")
+                    comps = None
+            ncomp = len(comps) if comps is not None else value_size
+            value = d.get("value", 0.0)
+            vkey = _key(key, "value")
+            if isinstance(value, list):
+                v = c.vector(value, vkey, None)
+                if v is not None and ncomp is not None and len(v) not in (1, ncomp):
+                    c.fault(vkey, f"expected one number or {ncomp} (one per constrained "
+                            f"component), got {len(v)}")
+                    v = None
+                value = v
+            else:
+                value = c.number(value, vkey, "a number or an array of one per component")
+            if group is not None and value is not None and \
+                    ("components" not in d or comps is not None):
+                out.append(Dirichlet(group, value, comps))
+        return out
+
+    def _contact(self, model: str | None) -> list:
+        c, mesh = self.c, self.mesh
+        out = []
+        for i, t in enumerate(c.array_of_tables(self.data.get("contact"), "contact")):
+            key = _key("contact", i)
+            kind = t.get("type")
+            if kind is None:
+                kind = "node_to_node" if "slave" in t or "master" in t else \
+                    "obstacle" if "group" in t else None
+                if kind is None:
+                    c.fault(_key(key, "type"), "missing: expected 'node_to_node' (with slave "
+                            "and master) or 'obstacle' (with group and a shape)")
+                    continue
+            else:
+                kind = c.string(kind, _key(key, "type"), tuple(CONTACT_KEYS))
+                if kind is None:
+                    continue
+            if kind == "node_to_node":
+                t = c.table(t, key, CONTACT_KEYS[kind], required=("slave", "master"))
+                s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
+                m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
+                if "slave" in t and t.get("slave") == t.get("master"):
+                    c.fault(key, f"a contact pair of the group {t['slave']!r} with itself: slave "
+                            "and master must be surfaces of two different bodies")
+                    s = None
+                elif s is not None and m is not None and mesh is not None:
+                    sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
+                    if sb & mb:
+                        c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
+                                f"{mesh.body_names[min(sb & mb)]!r}: node-to-node contact is "
+                                "between two bodies")
+                        s = None
+                kw = {}
+                if "gap" in t:
+                    kw["gap"] = c.number(t["gap"], _key(key, "gap"), "a number >= 0 (the "
+                                         "initial gap; omit it to take the gap from the geometry)",
+                                         lambda v: v >= 0)
+                if "match_tol" in t:
+                    kw["match_tol"] = c.number(t["match_tol"], _key(key, "match_tol"),
+                                               "a number > 0", lambda v: v > 0)
+                if "friction" in t:
+                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"),
+                                                    NodeToNode, model)
+                if s is not None and m is not None and all(v is not None for v in kw.values()):
+                    out.append(NodeToNode(slave=s, master=m, **kw))
+            else:
+                t = c.table(t, key, CONTACT_KEYS[kind], required=("group",))
+                g = c.group(t["group"], _key(key, "group"), mesh) if "group" in t else None
+                if model == "poisson":
+                    c.fault(key, "a rigid obstacle needs an elasticity model (model.type = "
+                            "'elasticity')")
+                shapes = [s for s in OBSTACLE_KEYS if s in t]
+                if len(shapes) != 1:
+                    c.fault(key, "expected exactly one obstacle shape: plane = {point, normal}, "
+                            "sphere = {center, radius} or cylinder = {point, axis, radius}; got "
+                            f"{shapes or 'none'}")
+                    continue
+                obstacle = self._obstacle(shapes[0], t[shapes[0]], _key(key, shapes[0]))
+                kw = {}
+                if "friction" in t:
+                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"),
+                                                    RigidObstacle, model)
+                if g is not None and obstacle is not None and \
+                        all(v is not None for v in kw.values()):
+                    out.append(RigidObstacle(g, obstacle, **kw))
+        return out
+
+    def _friction(self, t: Any, key: str, condition: type, model: str | None):
+        """A friction law (``Tresca`` or ``Coulomb`` of dolfinx_feti.problem), or None."""
+        from . import problem as api
+
+        c = self.c
+        if not isinstance(t, dict):
+            c.fault(key, "expected a table: {type = 'coulomb', coefficient = ...} or "
+                    f"{{type = 'tresca', bound = ...}}, got {_describe(t)}")
+            return None
+        kind = c.string(t.get("type"), _key(key, "type"), tuple(FRICTION_KEYS)) \
+            if "type" in t else None
+        if "type" not in t:
+            c.fault(_key(key, "type"), "missing: expected 'coulomb' or 'tresca'")
+        if kind is None:
+            return None
+        t = c.table(t, key, FRICTION_KEYS[kind], required=FRICTION_KEYS[kind][:2])
+        law = getattr(api, kind.capitalize(), None)
+        if law is None or "friction" not in {f.name for f in fields(condition)}:
+            c.fault(key, "friction is not supported by this version of dolfinx_feti")
+            return None
+        if model == "poisson":
+            c.fault(key, "friction needs an elasticity model (model.type = 'elasticity')")
+            return None
+        if kind == "tresca":
+            if "bound" not in t:
+                return None
+            b = t["bound"]
+            if isinstance(b, float) and b == math.inf:
+                return law(math.inf)
+            b = c.number(b, _key(key, "bound"), "a slip bound >= 0 (a traction; inf: no slip)",
+                         lambda v: v >= 0)
+            return None if b is None else law(float(b))
+        kw = {}
+        if "coefficient" in t:
+            kw["coefficient"] = c.number(t["coefficient"], _key(key, "coefficient"),
+                                         "a friction coefficient >= 0", lambda v: v >= 0)
+        if "rtol" in t:
+            kw["rtol"] = c.number(t["rtol"], _key(key, "rtol"), "a number > 0", lambda v: v > 0)
+        if "max_steps" in t:
+            kw["max_steps"] = c.number(t["max_steps"], _key(key, "max_steps"),
+                                       "an integer >= 1", lambda v: v >= 1, integer=True)
+        if "coefficient" not in t or any(v is None for v in kw.values()):
+            return None
+        try:
+            return law(**kw)
+        except (InputError, TypeError) as e:
+            c.fault(key, str(e))
+            return None
+
+    def _obstacle(self, shape: str, t: Any, key: str):
+        c = self.c
+        gdim = None if self.mesh is None else self.mesh.gdim
+        t = c.table(t, key, OBSTACLE_KEYS[shape], required=OBSTACLE_KEYS[shape])
+        if t is None or any(k not in t for k in OBSTACLE_KEYS[shape]):
+            return None
+        if shape == "plane":
+            p = c.vector(t["point"], _key(key, "point"), gdim)
+            n = c.vector(t["normal"], _key(key, "normal"), gdim)
+            if n is not None and not np.linalg.norm(n) > 0:
+                c.fault(_key(key, "normal"), "expected a non-zero vector (pointing out of the "
+                        "obstacle)")
+                n = None
+            return None if p is None or n is None else Plane(p, n)
+        r = c.number(t["radius"], _key(key, "radius"), "a radius > 0", lambda v: v > 0)
+        if shape == "sphere":
+            x = c.vector(t["center"], _key(key, "center"), gdim)
+            return None if x is None or r is None else Sphere(x, r)
+        if gdim is not None and gdim != 3:
+            c.fault(key, f"a cylinder obstacle needs a 3D mesh (this one is {gdim}D); use a "
+                    "sphere (a disc) in 2D")
+            return None
+        p = c.vector(t["point"], _key(key, "point"), 3)
+        a = c.vector(t["axis"], _key(key, "axis"), 3)
+        if a is not None and not np.linalg.norm(a) > 0:
+            c.fault(_key(key, "axis"), "expected a non-zero vector")
+            a = None
+        return None if p is None or a is None or r is None else Cylinder(p, a, r)
+
+    def _dry_run_contact(self, problem: ContactProblem) -> None:
+        """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
+        from .constraints.contact import node_to_node_rows, obstacle_rows
+
+        mesh = problem.mesh
+        node_ptr = np.arange(mesh.num_nodes + 1, dtype=np.int64)
+        node_subs = np.zeros(mesh.num_nodes, dtype=np.int32)
+        for i, spec in enumerate(problem.contact):
+            try:
+                if isinstance(spec, NodeToNode):
+                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                else:
+                    obstacle_rows(mesh, spec, i, node_ptr, node_subs)
+            except InputError as e:
+                self.c.fault(_key("contact", i), str(e))
+            except Exception:  # noqa: BLE001 - internals changed: the solve checks it again
+                pass
+
+    # --- decomposition, solver, output -------------------------------------------------
+    def _decomposition(self):
+        c, mesh = self.c, self.mesh
+        d = self.data.get("decomposition", {})
+        key = "decomposition"
+        if not isinstance(d, dict):
+            c.fault(key, f"expected a table, got {_describe(d)}")
+            return ByTags(), "orthonormal"
+        kind = c.string(d.get("type", "tags"), _key(key, "type"), tuple(DECOMPOSITION_KEYS))
+        if kind is None:
+            return ByTags(), "orthonormal"
+        allowed = DECOMPOSITION_KEYS[kind]
+        for k in d:
+            if k not in allowed:
+                owner = [t for t, keys in DECOMPOSITION_KEYS.items() if k in keys]
+                what = (f"not a key of decomposition type {kind!r} (it belongs to type "
+                        f"{owner[0]!r})") if owner else "unknown key"
+                c.fault(_key(key, k), f"{what}; expected one of: {', '.join(allowed)}")
+        gluing = c.string(d.get("gluing", "orthonormal"), _key(key, "gluing"), _GLUING)
+        gluing = gluing or "orthonormal"
+        if kind == "tags":
+            return ByTags(), gluing
+        gdim = None if mesh is None else mesh.gdim
+        if kind == "parts":
+            if "n" not in d:
+                c.fault(_key(key, "n"), "missing: the number of parts per body (an integer "
+                        ">= 1, or a table body = integer)")
+                return None, gluing
+            n = d["n"]
+            if isinstance(n, dict):
+                ok = True
+                for body, v in n.items():
+                    ok &= c.number(v, _key(_key(key, "n"), body), "an integer >= 1",
+                                   lambda v: v >= 1, integer=True) is not None
+                    if mesh is not None and body not in mesh.body_names:
+                        c.fault(_key(_key(key, "n"), body), "unknown body; the mesh's bodies "
+                                f"are {list(mesh.body_names)}")
+                        ok = False
+                n = dict(n) if ok else None
+            else:
+                n = c.number(n, _key(key, "n"), "an integer >= 1 (or a table body = integer)",
+                             lambda v: v >= 1, integer=True)
+            method = c.string(d.get("method", "rcb"), _key(key, "method"), ("rcb", "ptscotch"))
+            if n is None or method is None:
+                return None, gluing
+            if mesh is not None:
+                counts = np.bincount(mesh.cell_body, minlength=len(mesh.body_names))
+                for b, name in enumerate(mesh.body_names):
+                    nb = n.get(name, 1) if isinstance(n, dict) else n
+                    if nb > counts[b]:
+                        c.fault(_key(key, "n"), f"{nb} parts for body {name!r}, which has only "
+                                f"{counts[b]} cells")
+            return Parts(n, method), gluing
+        if "size" not in d:
+            c.fault(_key(key, "size"), "missing: the edge length of the grid's boxes (a number "
+                    "> 0, or an array of one per coordinate)")
+            return None, gluing
+        size = d["size"]
+        if isinstance(size, list):
+            size = c.vector(size, _key(key, "size"), gdim, "edge lengths")
+            if size is not None and min(size) <= 0:
+                c.fault(_key(key, "size"), f"expected edge lengths > 0, got {size}")
+                size = None
+        else:
+            size = c.number(size, _key(key, "size"), "an edge length > 0 (or an array of one "
+                            "per coordinate)", lambda v: v > 0)
+            if size is not None and gdim is not None:
+                size = [float(size)] * gdim
+        origin = None
+        if "origin" in d:
+            origin = c.vector(d["origin"], _key(key, "origin"), gdim)
+            if origin is None:
+                return None, gluing
+        if size is None or mesh is None:
+            return None, gluing
+        lo, hi = mesh.x.min(axis=0), mesh.x.max(axis=0)
+        origin = lo if origin is None else np.asarray(origin)
+        boxes = np.prod(np.maximum(np.ceil((hi - np.minimum(origin, lo)) / size), 1.0))
+        if boxes > mesh.cells.shape[0]:
+            c.fault(_key(key, "size"), f"a grid of {boxes:.0f} boxes of size {size} is finer "
+                    f"than the mesh ({mesh.cells.shape[0]} cells): expected a larger size")
+            return None, gluing
+        return ByFunction(GridLabels(tuple(size), tuple(float(v) for v in origin))), gluing
+
+    def _solver(self) -> dict[str, Any]:
+        c = self.c
+        s = c.table(self.data.get("solver", {}), "solver", SOLVER_KEYS)
+        if s is None:
+            return {}
+        kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
+        out = {}
+        for k, v in s.items():
+            if k not in kinds:
+                continue
+            key = _key("solver", k)
+            kind = kinds[k]
+            if "int" in kind:
+                v = c.number(v, key, "an integer", integer=True)
+            elif "float" in kind:
+                v = c.number(v, key, "a number")
+            else:
+                v = c.string(v, key)
+            if v is None:
+                continue
+            try:
+                SolverOptions(**{k: v}).validate()
+            except InputError as e:
+                c.fault(key, str(e))
+                continue
+            out[k] = v
+        try:
+            SolverOptions(**out).validate()
+        except InputError as e:
+            c.fault("solver", str(e))
+        return out
+
+    def _output(self, contact: list) -> OutputSpec:
+        c, stem = self.c, self.path.stem
+        o = c.table(self.data.get("output", {}), "output", OUTPUT_KEYS) or {}
+        directory = Path(os.path.normpath(
+            self.base / (c.string(o.get("directory", "."), "output.directory") or ".")))
+        if self.output_dir is not None:
+            directory = self.output_dir
+
+        def name(k: str, default: str | None, suffix: str | None) -> Path | None:
+            v = o.get(k, default)
+            if v is False or v is None:
+                return None
+            if not isinstance(v, str) or not v:
+                c.fault(_key("output", k), f"expected a file name or false, got {_describe(v)}")
+                return None
+            if suffix is not None and not v.endswith(suffix):
+                c.fault(_key("output", k), f"expected a file name ending in {suffix}, got {v!r}")
+                return None
+            return directory / v
+
+        xdmf = name("xdmf", f"{stem}.xdmf", ".xdmf")
+        report = name("report", f"{stem}.json", None)
+        nodal = name("nodal_values", None, ".npz")
+        plot = None
+        p = o.get("pressure_plot", False)
+        if p is True:
+            p = {}
+        if p is not False:
+            plot = self._plot(p, directory, stem, contact)
+        spec = OutputSpec(directory, xdmf, report, nodal, plot)
+        paths = [q.resolve() for q in spec.paths()]
+        if len(set(paths)) != len(paths):
+            c.fault("output", "two outputs have the same file name: "
+                    f"{sorted({str(q) for q in paths if paths.count(q) > 1})}")
+        return spec
+
+    def _plot(self, p: Any, directory: Path, stem: str, contact: list) -> PlotSpec | None:
+        c, mesh, key = self.c, self.mesh, "output.pressure_plot"
+        p = c.table(p, key, PLOT_KEYS, what="a table or true/false")
+        if p is None:
+            return None
+        file = p.get("file", f"{stem}_pressure.png")
+        if not isinstance(file, str) or not file.endswith(".png"):
+            c.fault(_key(key, "file"), f"expected a file name ending in .png, got "
+                    f"{_describe(file)}")
+            return None
+        specs = self.data.get("contact")
+        surfaces = []
+        if isinstance(specs, list):
+            for t in specs:
+                if isinstance(t, dict):
+                    surfaces.append(t.get("slave", t.get("group")))
+        if not surfaces:
+            c.fault(key, "a pressure plot needs a contact condition ([[contact]])")
+            return None
+        surface = p.get("surface", surfaces[0])
+        if surface not in surfaces:
+            c.fault(_key(key, "surface"), f"expected the slave or obstacle group of a contact "
+                    f"condition, one of {surfaces}, got {_describe(surface)}")
+            return None
+        index = surfaces.index(surface)
+        along = None
+        if "along" in p:
+            along = c.string(p["along"], _key(key, "along"), _ALONG)
+            if along is None:
+                return None
+        if mesh is not None and isinstance(surface, str) and surface in mesh.facet_groups:
+            if along is None:
+                nodes = np.unique(mesh.facet_groups[surface])
+                along = "xyz"[int(np.argmax(np.ptp(mesh.x[nodes], axis=0)))]
+            elif along == "arclength":
+                from .postprocess import surface_arclength
+                try:
+                    surface_arclength(mesh, surface)
+                except InputError as e:
+                    c.fault(_key(key, "along"), str(e))
+                    return None
+            elif "xyz".index(along) >= mesh.gdim:
+                c.fault(_key(key, "along"), f"the mesh is {mesh.gdim}D: expected one of "
+                        f"{list('xyz'[:mesh.gdim]) + ['arclength']}, got {along!r}")
+                return None
+        if len(contact) != len(surfaces):  # a faulty contact entry: nothing to map
+            return None
+        return PlotSpec(directory / file, index, surface, along or "x")
+
+
+def _bodies_of(mesh: MeshData, group: str) -> set[int]:
+    """The bodies with a cell that touches a node of the group."""
+    nodes = np.unique(mesh.facet_groups[group])
+    return set(np.unique(mesh.cell_body[np.isin(mesh.cells, nodes).any(axis=1)]).tolist())
+
+
+__all__ = ["AffineTraction", "Fault", "FilePoisson", "GridLabels", "OutputSpec", "PlotSpec",
+           "ProblemFile", "ProblemFileError", "SourceBox", "check_command_line", "generators",
+           "load"]
