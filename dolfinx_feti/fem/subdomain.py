@@ -7,7 +7,7 @@ nothing downstream depends on DOLFINx's dof numbering.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,39 +42,63 @@ def _check_finite_literals(form, what: str) -> None:
 
 
 class Subdomain:
-    """A subdomain's serial mesh with the parent's tags, as the user's form callback sees it.
+    """Subdomains' serial mesh with the parent's tags, as the user's form callback sees it.
+
+    One or several subdomains of a rank are meshed together as a disjoint union: each keeps its
+    own copy of the nodes it shares with others, so the assembled matrix is block diagonal,
+    one block per subdomain, in the canonical order. Assembling a rank's subdomains at once
+    costs one mesh construction and one assembly instead of one per subdomain.
 
     Attributes:
-        index: Subdomain number (global).
+        indices: Subdomain numbers (global), in the order of their blocks.
         mesh: The DOLFINx mesh on ``MPI.COMM_SELF``.
-        nodes: Sorted global node indices of the subdomain (the canonical local order).
-        bodies: Names of the bodies with cells in this subdomain.
+        nodes: Global node index of each mesh node (the canonical local order; a node shared
+            by two of the subdomains appears twice).
+        bodies: Names of the bodies with cells here.
     """
 
-    def __init__(self, index: int, mesh: MeshData, cells: np.ndarray, nodes: np.ndarray,
-                 facets: Mapping[str, np.ndarray]) -> None:
-        """Build the serial mesh of the given cells (global indices) and tag it.
+    def __init__(self, indices: Sequence[int], mesh: MeshData, cells: Sequence[np.ndarray],
+                 nodes: Sequence[np.ndarray], facets: Sequence[Mapping[str, np.ndarray]]) -> None:
+        """Build the serial mesh of the given subdomains and tag it.
 
         Args:
-            index: Subdomain number.
+            indices: Subdomain numbers.
             mesh: The global mesh data.
-            cells: Global indices of the subdomain's cells.
-            nodes: Sorted global nodes of those cells.
-            facets: Boundary group name → the group's facets (global nodes) in this subdomain.
+            cells: Per subdomain, the global indices of its cells.
+            nodes: Per subdomain, the sorted global nodes of those cells.
+            facets: Per subdomain, boundary group name → the group's facets (global nodes) there.
         """
-        self.index = index
-        self.nodes = nodes
+        self.indices = tuple(int(i) for i in indices)
         self._mesh_data = mesh
-        local_cells = np.searchsorted(nodes, mesh.cells[cells])
-        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, mesh.x[nodes], mesh.cell_type)
+        offsets = np.cumsum([0] + [n.size for n in nodes[:-1]])
+        self.nodes = np.concatenate(nodes)
+        local_cells = np.concatenate([np.searchsorted(n, mesh.cells[c]) + o
+                                      for c, n, o in zip(cells, nodes, offsets, strict=True)])
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, mesh.x[self.nodes],
+                                       mesh.cell_type)
         self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → local node
         cell_input = compat.cell_input_indices(self.mesh)
-        body = mesh.cell_body[cells][cell_input]
+        body = mesh.cell_body[np.concatenate(cells)][cell_input]
         self.bodies = tuple(mesh.body_names[b] for b in np.unique(body))
         self._cell_tags = compat.cell_tags(self.mesh, np.arange(body.size), body)
-        self._facet_tags, self._facet_ids = self._tag_facets(facets)
+        local_facets: dict[str, list[np.ndarray]] = {}
+        for f, n, o in zip(facets, nodes, offsets, strict=True):
+            for name, fac in f.items():
+                local_facets.setdefault(name, []).append(np.searchsorted(n, fac) + o)
+        self._facet_tags, self._facet_ids = self._tag_facets(
+            {name: np.concatenate(parts) for name, parts in local_facets.items()})
+
+    @property
+    def _ids(self) -> str:
+        return ", ".join(map(str, self.indices))
+
+    @property
+    def index(self) -> int:
+        """The (first) subdomain number, for messages."""
+        return self.indices[0]
 
     def _tag_facets(self, facets: Mapping[str, np.ndarray]):
+        """Facet tags from facets given by local node indices."""
         # A facet may sit in several groups: tag each facet with the index of its set of
         # groups, so every group is a union of tag values of one MeshTags (UFL allows only one
         # subdomain_data per integral type in a form).
@@ -88,7 +112,7 @@ class Subdomain:
         member = np.zeros((ukeys.size, len(names)), dtype=bool)
         member[inv, group] = True
         classes, cls = np.unique(member, axis=0, return_inverse=True)
-        local = np.searchsorted(self.nodes, allf[first])
+        local = allf[first]
         geom_of_node = np.empty_like(self._node_of_geom)
         geom_of_node[self._node_of_geom] = np.arange(self._node_of_geom.size)
         tags = compat.facet_tags(self.mesh, geom_of_node[local], cls.ravel() + 1)
@@ -100,8 +124,8 @@ class Subdomain:
     def body(self) -> str:
         """The body this subdomain belongs to (an error if it spans several)."""
         if len(self.bodies) != 1:
-            raise InputError(f"subdomain {self.index} spans bodies {list(self.bodies)}: use "
-                             "sub.bodies, sub.dx(body) or sub.cellwise({...})")
+            raise InputError(f"subdomains {list(self.indices)} span bodies {list(self.bodies)}: "
+                             "use sub.bodies, sub.dx(body) or sub.cellwise({...})")
         return self.bodies[0]
 
     def has_facets(self, group: str) -> bool:
@@ -143,7 +167,7 @@ class Subdomain:
         V = compat.function_space(self.mesh, value_size)
         a, L = forms(V, self)
         for form, what in ((a, "bilinear"), (L, "linear")):
-            _check_finite_literals(form, f"subdomain {self.index} ({', '.join(self.bodies)}): "
+            _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
                                    f"the {what} form")
         A = compat.assemble_matrix(a)
         indptr, indices, data = A.getValuesCSR()
@@ -166,7 +190,7 @@ class Subdomain:
         K.sort_indices()
         f = f[perm]
         if not (np.all(np.isfinite(K.data)) and np.all(np.isfinite(f))):
-            raise InputError(f"subdomain {self.index} (bodies {list(self.bodies)}): the assembled "
-                             "stiffness matrix or load has non-finite entries (NaN/Inf in the "
-                             "data)")
+            raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
+                             "assembled stiffness matrix or load has non-finite entries (NaN/Inf "
+                             "in the data)")
         return K, f

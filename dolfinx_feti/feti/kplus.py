@@ -77,41 +77,43 @@ class FixingNodesInverse:
     array (no gather and scatter of the free dofs).
 
     Args:
-        blocks: (K_i, R_i) per subdomain, in the order of the local primal vector.
+        K: The block-diagonal matrix diag(K_i) of a rank's subdomains.
+        kernels: R_i per block, in order (the block sizes are their row counts).
         factor: PETSc Cholesky package: "cholmod", "mumps" or "petsc".
         labels: Names of the blocks for error messages.
     """
 
-    def __init__(self, blocks: Sequence[tuple[sp.csr_matrix, np.ndarray]],
+    def __init__(self, K: sp.csr_matrix, kernels: Sequence[np.ndarray],
                  factor: str = "cholmod", labels: Sequence[str] | None = None) -> None:
-        labels = list(labels) if labels is not None else [f"block {i}" for i in range(len(blocks))]
-        sizes = [K.shape[0] for K, _ in blocks]
+        """Choose the fixing dofs, factor once, and check K K⁺ K = K per block."""
+        labels = list(labels) if labels is not None else [f"block {i}"
+                                                          for i in range(len(kernels))]
+        sizes = [R.shape[0] for R in kernels]
         self.offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-        fixed = [choose_fixing_dofs(R) + o for (_, R), o in zip(blocks, self.offsets, strict=False)]
+        fixed = [choose_fixing_dofs(R) + o for R, o in zip(kernels, self.offsets, strict=False)]
         self.fixed = np.concatenate(fixed) if fixed else np.zeros(0, dtype=np.int64)
         free = np.ones(int(self.offsets[-1]), dtype=bool)
         free[self.fixed] = False
         self.free = np.flatnonzero(free)
-        K = sp.block_diag([K for K, _ in blocks], format="csr") if blocks else sp.csr_matrix((0, 0))
         keep = sp.diags(free.astype(float))
         A = (keep @ K @ keep + sp.diags((~free).astype(float))).tocsr()
         A.eliminate_zeros()
         try:
             self._chol = SparseCholesky(A, factor)
         except PETSc.Error:
-            self._diagnose(blocks, factor, labels)
+            self._diagnose(K, kernels, factor, labels)
             raise SolveError(f"the Cholesky factorization ({factor}) of the subdomain matrices "
                              "without their fixing dofs failed") from None
         self._check(K, labels)
 
-    @staticmethod
-    def _diagnose(blocks, factor: str, labels) -> None:
+    def _diagnose(self, K, kernels, factor: str, labels) -> None:
         """Find the block whose factorization fails, and name it (the rare, slow path)."""
-        for (K, R), label in zip(blocks, labels, strict=True):
-            fixed = choose_fixing_dofs(R)
-            keep = np.setdiff1d(np.arange(K.shape[0]), fixed)
+        for i, (R, label) in enumerate(zip(kernels, labels, strict=True)):
+            seg = np.arange(self.offsets[i], self.offsets[i + 1])
+            keep = np.setdiff1d(np.arange(R.shape[0]), choose_fixing_dofs(R))
+            Ki = K[seg][:, seg]
             try:
-                SparseCholesky(K[keep][:, keep], factor).destroy()
+                SparseCholesky(Ki[keep][:, keep], factor).destroy()
             except PETSc.Error:
                 raise SolveError(
                     f"{label}: the Cholesky factorization ({factor}) of the stiffness matrix "

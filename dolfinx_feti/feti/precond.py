@@ -59,7 +59,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
         """Factor the interior blocks of the local subdomains."""
         super().__init__(feti)
         rows, dec, bs = feti.rows, feti.dec, feti.bs
-        mine = np.isin(rows.e_sub, np.fromiter(feti.K, dtype=np.int64))
+        mine = np.isin(rows.e_sub, np.fromiter(feti.R, dtype=np.int64))
         start = np.zeros(dec.num_subdomains, dtype=np.int64)  # local offset of each subdomain
         for s, seg in feti._segments():
             start[s] = seg.start

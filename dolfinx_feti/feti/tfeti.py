@@ -38,6 +38,29 @@ def _petsc_aij(csr: sp.csr_matrix, rows: tuple[int, int], cols: tuple[int, int],
     return M
 
 
+def _cells_by_subdomain(cell_sub: np.ndarray, subs: np.ndarray) -> dict[int, np.ndarray]:
+    """The cells of each given subdomain (one sort, not one scan per subdomain)."""
+    order = np.argsort(cell_sub, kind="stable")
+    start = np.searchsorted(cell_sub[order], subs)
+    stop = np.searchsorted(cell_sub[order], subs, side="right")
+    return {int(s): order[a:b] for s, a, b in zip(subs, start, stop, strict=True)}
+
+
+def _runs_of_equal_bodies(mesh, dec, subs, cells_of) -> list[list[int]]:
+    """Consecutive subdomains with the same set of bodies, each run to be assembled as one mesh.
+
+    Grouping by bodies keeps ``sub.body`` meaningful in the user's forms callback.
+    """
+    runs, key = [], None
+    for s in subs:
+        k = tuple(np.unique(mesh.cell_body[cells_of[int(s)]]))
+        if k != key:
+            runs.append([])
+            key = k
+        runs[-1].append(int(s))
+    return runs
+
+
 class _DualShell:
     """The python context of the F shell: y = B K⁺ Bᵀ x, counting applications."""
 
@@ -85,21 +108,22 @@ class TotalFETI:
 
         with timer.phase("assembly"), collective(comm):
             facets = self._subdomain_facets(mesh, dec)
-            self.K, f_parts, self.R = {}, [], {}
-            for s in self.local_subs:
-                cells = np.flatnonzero(dec.cell_sub == s)
-                sub = Subdomain(int(s), mesh, cells, dec.nodes(s), facets.get(int(s), {}))
+            cells_of = _cells_by_subdomain(dec.cell_sub, self.local_subs)
+            K_parts, f_parts = [], []
+            for group in _runs_of_equal_bodies(mesh, dec, self.local_subs, cells_of):
+                sub = Subdomain(group, mesh, [cells_of[s] for s in group],
+                                [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group])
                 K, f = sub.assemble(problem.forms, bs)
-                self.K[int(s)] = K
+                K_parts.append(K)
                 f_parts.append(f)
-                self.R[int(s)] = rigid_modes(mesh.x[dec.nodes(s)], bs)
+            self.K_local = sp.block_diag(K_parts, format="csr") if K_parts else \
+                sp.csr_matrix((0, 0))
+            self.R = {int(s): rigid_modes(mesh.x[dec.nodes(s)], bs) for s in self.local_subs}
             self.k = 1 if bs == 1 else (3 if mesh.gdim == 2 else 6)
         with timer.phase("factorization"), collective(comm):
-            self.K_local = (sp.block_diag(list(self.K.values()), format="csr") if self.K
-                            else sp.csr_matrix((0, 0)))
             self.Kplus = FixingNodesInverse(
-                [(self.K[s], self.R[s]) for s in self.K], factor,
-                [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in self.K])
+                self.K_local, list(self.R.values()), factor,
+                [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in self.R])
 
         with timer.phase("constraints"):
             owner = dec.sub_rank[rows.min_subdomain()]
@@ -123,8 +147,8 @@ class TotalFETI:
         with timer.phase("coarse problem"):
             m_loc = self.k * self.local_subs.size
             self.coarse_size = (m_loc, self.k * dec.num_subdomains)
-            if self.K:  # columns are global coarse indices: k per subdomain, in order
-                Rloc = sp.block_diag([self.R[s] for s in self.K], format="csr")
+            if self.R:  # columns are global coarse indices: k per subdomain, in order
+                Rloc = sp.block_diag(list(self.R.values()), format="csr")
                 Rloc = sp.csr_matrix((Rloc.data, Rloc.indices + self.k * int(self.local_subs[0]),
                                       Rloc.indptr), shape=(Rloc.shape[0], self.coarse_size[1]))
             else:
@@ -137,8 +161,9 @@ class TotalFETI:
             Gt.destroy()
             Rmat.destroy()
             e = np.zeros(self.coarse_size[1])
-            for s, fs in zip(self.K, f_parts, strict=True):
-                e[self.k * s:self.k * (s + 1)] = self.R[s].T @ fs
+            f_loc = self.f.array_r
+            for s, seg in self._segments():
+                e[self.k * s:self.k * (s + 1)] = self.R[s].T @ f_loc[seg]
             self.e = comm.allreduce(e, op=MPI.SUM)
             self.d = self.B.createVecLeft()
             v = self.B.createVecRight()
@@ -166,9 +191,9 @@ class TotalFETI:
         return self._shell.count
 
     def _segments(self):
-        for s in self.K:
+        for s in self.R:
             lo = int(self.sub_offset[s]) - self.primal_start
-            yield s, slice(lo, lo + self.K[s].shape[0])
+            yield s, slice(lo, lo + self.R[s].shape[0])
 
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K⁺ x, subdomain by subdomain (the local solves)."""
@@ -219,7 +244,7 @@ class TotalFETI:
         self.B.multTranspose(lam, w)
         ua, wa, fa = u.array_r, w.array_r, self.f.array_r
         r2 = float(np.sum((self.K_local @ ua - fa + wa) ** 2))
-        kappa = float(abs(self.K_local).sum(axis=1).max()) if self.K else 0.0
+        kappa = float(abs(self.K_local).sum(axis=1).max()) if self.R else 0.0
         r2 = self.comm.allreduce(r2, op=MPI.SUM)
         kappa = self.comm.allreduce(kappa, op=MPI.MAX)
         ref = max(self.f.norm(), w.norm(), kappa * u.norm(), 1e-300)

@@ -11,10 +11,35 @@ _LOCAL_FACETS = {
 }
 
 
-def _row_keys(a: np.ndarray) -> np.ndarray:
-    """One hashable scalar per row of an integer array with sorted rows (for set operations)."""
+def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
+    """One sortable scalar per row of a non-negative integer array, the same for permuted rows.
+
+    With ``bound`` (all entries < bound) and bound**width < 2**63 the key is an int64 (fast to
+    sort); otherwise the row's bytes.
+    """
     a = np.ascontiguousarray(np.sort(a, axis=1), dtype=np.int64)
-    return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
+    width = a.shape[1]
+    if bound is not None and width * np.log2(max(bound, 2)) < 62:
+        key = np.zeros(a.shape[0], dtype=np.int64)
+        for j in range(width):  # over the 2 or 3 vertices of a facet
+            key = key * bound + a[:, j]
+        return key
+    return a.view(np.dtype((np.void, a.dtype.itemsize * width))).ravel()
+
+
+_FACET_INDEX: list = []  # (cells, sorted keys, order): one mesh's facet index, kept for reuse
+
+
+def _facet_index(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Sorted keys of all cell facets and their positions (cached for the last cells array)."""
+    if _FACET_INDEX and _FACET_INDEX[0][0] is cells:
+        return _FACET_INDEX[0][1:]
+    tdim = cells.shape[1] - 1
+    bound = int(cells.max()) + 1 if cells.size else 1
+    keys = _row_keys(cell_facets(cells).reshape(-1, tdim), bound)
+    order = np.argsort(keys, kind="stable")
+    _FACET_INDEX[:] = [(cells, keys[order], order, bound)]
+    return keys[order], order, bound
 
 
 def cell_facets(cells: np.ndarray) -> np.ndarray:
@@ -26,10 +51,8 @@ def cell_facets(cells: np.ndarray) -> np.ndarray:
 def facet_neighbours(cells: np.ndarray) -> np.ndarray:
     """Pairs of cells that share a facet, shape (P, 2)."""
     tdim = cells.shape[1] - 1
-    f = cell_facets(cells).reshape(-1, tdim)
-    keys = _row_keys(f)
-    order = np.argsort(keys, kind="stable")
-    same = keys[order[1:]] == keys[order[:-1]]
+    sorted_keys, order, _ = _facet_index(cells)
+    same = sorted_keys[1:] == sorted_keys[:-1]
     owner = order // (tdim + 1)
     return np.stack([owner[:-1][same], owner[1:][same]], axis=1)
 
@@ -40,12 +63,14 @@ def locate_facets(cells: np.ndarray, facets: np.ndarray) -> tuple[np.ndarray, np
     Returns ``(cell, local)``; both are -1 for a facet that is no facet of any cell.
     """
     tdim = cells.shape[1] - 1
-    all_keys = _row_keys(cell_facets(cells).reshape(-1, tdim))
-    order = np.argsort(all_keys, kind="stable")
-    keys = _row_keys(facets)
-    pos = np.searchsorted(all_keys[order], keys)
+    sorted_keys, order, bound = _facet_index(cells)
+    facets = np.asarray(facets)
+    if facets.size and facets.max() >= bound:
+        return np.full(facets.shape[0], -1), np.full(facets.shape[0], -1)
+    keys = _row_keys(facets, bound)
+    pos = np.searchsorted(sorted_keys, keys)
     pos = np.minimum(pos, order.size - 1)
-    hit = all_keys[order][pos] == keys
+    hit = sorted_keys[pos] == keys
     flat = np.where(hit, order[pos], -1)
     return np.where(hit, flat // (tdim + 1), -1), np.where(hit, flat % (tdim + 1), -1)
 
