@@ -61,6 +61,9 @@ class Report:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it 0600; a report is an ordinary file
         try:
             with os.fdopen(fd, "w") as f:
                 json.dump(self.to_dict(), f, indent=2, default=float)

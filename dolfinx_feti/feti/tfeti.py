@@ -144,7 +144,7 @@ class TotalFETI:
             self._shell = _DualShell(self)
             self.F = python_shell(self._shell, self.c)
 
-        with timer.phase("coarse problem"):
+        with timer.phase("dual operators"):
             m_loc = self.k * self.local_subs.size
             self.coarse_size = (m_loc, self.k * dec.num_subdomains)
             if self.R:  # columns are global coarse indices: k per subdomain, in order
