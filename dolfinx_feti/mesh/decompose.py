@@ -200,6 +200,8 @@ def _assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
     No rank is left without a subdomain when there are at least as many subdomains as ranks.
     """
     nsub = weights.size
+    if nsub <= comm_size:  # one subdomain each on the first ranks
+        return np.arange(nsub, dtype=np.int32)
     cum = np.cumsum(weights)
     starts = [0]
     for r in range(1, comm_size):
