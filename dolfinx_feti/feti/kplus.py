@@ -40,6 +40,10 @@ class SparseCholesky:
                                         comm=PETSc.COMM_SELF)
         self._A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
         self._A.setOption(PETSc.Mat.Option.SPD, True)
+        self.b, self.x = self._A.createVecs()
+        self._ksp = None
+        if A.shape[0] == 0:  # a rank without subdomains: CHOLMOD refuses an empty matrix
+            return
         self._ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         self._ksp.setOperators(self._A)
         self._ksp.setType("preonly")
@@ -47,11 +51,11 @@ class SparseCholesky:
         pc.setType("cholesky")
         pc.setFactorSolverType(factor)
         self._ksp.setUp()
-        self.b, self.x = self._A.createVecs()
 
     def solve_in_place(self) -> None:
         """x = A⁻¹ b on the held vectors ``b`` and ``x`` (no copies)."""
-        self._ksp.solve(self.b, self.x)
+        if self._ksp is not None:
+            self._ksp.solve(self.b, self.x)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A⁻¹ rhs as a new array."""
@@ -62,7 +66,8 @@ class SparseCholesky:
     def destroy(self) -> None:
         """Free the PETSc objects."""
         for obj in (self._ksp, self._A, self.b, self.x):
-            obj.destroy()
+            if obj is not None:
+                obj.destroy()
 
 
 class FixingNodesInverse:
