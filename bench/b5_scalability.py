@@ -15,15 +15,17 @@ Problems (``--problem``):
   mesh and decomposition, B1's loads in-plane), 2 dofs per node.
 - ``hertz``: the 2D Hertz half model on its graded mesh; level k has every element size
   divided by 2^k (h_contact = 0.05/2^k, h_far = 1/2^k) and Parts(4·4^k) per body, so the
-  subdomains keep about the same number of elements (H/h about fixed, subdomains by RCB).
+  subdomains keep about the same number of elements (H/h about fixed; PT-Scotch parts by
+  default, ``--parts-method rcb`` for coordinate bisection).
 
 Writes ``output/bench/b5_scalability.md`` and ``.png`` (``b5_scalability_elasticity.*`` for
 ``--problem elasticity``).
 
-Run: ``python bench/b5_scalability.py`` (about 6 minutes on 2 cores: everything up to
+Run: ``python bench/b5_scalability.py`` (5–6 minutes on 2 cores: everything up to
 2 130 048 primal dofs, i.e. H/h = 128 with H = 1/8; ``--max-primal 9e6`` adds H = 1/16 at
-H/h = 128, 8.5 M dofs, which needs about 12 GB and 10 more minutes per solver);
-``python bench/b5_scalability.py --problem elasticity`` (about 5 minutes, up to 1.1 M dofs).
+H/h = 128, 8.5 M dofs, see docs/benchmarks.md for its memory and time);
+``python bench/b5_scalability.py --problem elasticity`` (about 7 minutes, up to 1.1 M dofs);
+``python bench/b5_scalability.py --problem hertz`` (about 2 minutes).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from solver_variants import parse_variant  # noqa: E402
 
+import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -54,7 +57,7 @@ SEED = {(8, 2): (648, 87, 20), (8, 4): (2592, 447, 23), (8, 8): (10365, 1983, 27
 
 #: The variant compared with the default: the fewest F-multiplications in
 #: bench/solver_variants.py (see docs/benchmarks.md).
-BEST = "optimal+dirichlet"
+BEST = "rho=10+optimal+dirichlet"
 
 BUILDERS = {
     "b1": (P.b1, P.membranes_mesh, 1, "B1 (two membranes, scalar)"),
@@ -71,8 +74,11 @@ def main() -> None:
     parser.add_argument("--H", nargs="*", default=["1/2", "1/4", "1/8", "1/16"],
                         help="subdomain sizes (fractions 1/k)")
     parser.add_argument("--ratios", nargs="*", type=int, default=[8, 32, 128], help="H/h")
-    parser.add_argument("--levels", nargs="*", type=int, default=[0, 1, 2],
+    parser.add_argument("--levels", nargs="*", type=int, default=[0, 1, 2, 3],
                         help="hertz: refinement levels k (h/2^k everywhere, Parts(4·4^k))")
+    parser.add_argument("--parts-method", choices=["rcb", "ptscotch"], default="ptscotch",
+                        help="hertz: the partitioner (rcb leaves 1-cell slivers on the graded "
+                             "mesh, see docs/benchmarks.md)")
     parser.add_argument("--max-primal", type=float, default=None,
                         help="skip larger cases (default 2.2e6 for b1, 1.2e6 for elasticity, "
                              "1e6 for hertz)")
@@ -88,16 +94,17 @@ def main() -> None:
     solvers = {"default": {}}
     for v in args.variants:
         solvers[v] = parse_variant(v)
-    t_start = time.perf_counter()
+    t_start, code = time.perf_counter(), P.git_state()  # the code that runs
 
     # Cases: (group = one line of the plot / one row of the compact table, column, builder,
     # estimated primal dofs).
     cases = []
     if args.problem == "hertz":
-        cols = [f"h0/{2 ** k}, Parts({4 * 4 ** k})" for k in args.levels]
+        cols = [f"h0/{2 ** k}, Parts({4 * 4 ** k}, {args.parts_method})" for k in args.levels]
         for k, col in zip(args.levels, cols, strict=True):
+            parts = df.Parts(4 * 4 ** k, method=args.parts_method)
             cases.append(("graded", col, functools.partial(
-                build, parts=4 * 4 ** k, h_contact=0.05 / 2 ** k, h_far=1.0 / 2 ** k),
+                build, h_contact=0.05 / 2 ** k, h_far=1.0 / 2 ** k, decomposition=parts),
                 6000 * 4 ** k))
         groups = ["graded"]
     else:
@@ -167,7 +174,7 @@ def main() -> None:
         grid.append(cells)
 
     md = [f"# B5 scalability: {title}", "",
-          f"Machine: {P.machine()}. Code: {P.git_state()}. rtol = {args.rtol:g}. "
+          f"Machine: {P.machine()}. Code: {code}. rtol = {args.rtol:g}. "
           f"Run time {elapsed / 60:.1f} min.",
           f"Command: `{' '.join(['python'] + sys.argv)}`", "",
           "outer = SMALBE outer iterations, F-mults = F-multiplications in the QP solver, "

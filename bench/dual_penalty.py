@@ -85,7 +85,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench")
     args, _ = parser.parse_known_args()
     comm = MPI.COMM_WORLD
-    t_start = time.perf_counter()
+    t_start, code = time.perf_counter(), P.git_state()  # the code that runs
     rows, fits = [], []
     for n in args.n:
         problem = P.b1(n, args.H)
@@ -107,7 +107,7 @@ def main() -> None:
                 per_rho[rho] = m
                 rows.append([n, f"{n * args.H:g}", f"{sizes['primal']}/{sizes['dual']}",
                              f"{sizes['dual'] - (n + 1)}", f"{norm_F:.3g}", mode, f"{rho:g}",
-                             f"{rel:.3g}", f"{rel * norm_F:.3g}",
+                             f"{rel:.3g}", f"{rel * norm_F:.3g}", f"{m['Pd']:.4g}",
                              f"{m['Gt']:.3e}", f"{m['G1']:.3e}", f"{m['Ge']:.3e}",
                              f"{m['err']:.1e}", r.iterations, r.hessian_mults, r.converged,
                              f"{time.perf_counter() - t0:.1f}"])
@@ -121,7 +121,7 @@ def main() -> None:
         return
 
     header = ["n", "H/h", "primal/dual", "dual − Dirichlet rows", "‖PFP‖", "ρ is", "ρ",
-              "ρ/‖PFP‖", "ρ absolute", "‖G̃μ‖/‖Pd̃‖", "‖G₁μ‖/‖Pd̃‖", "‖Gλ−e‖/‖e‖",
+              "ρ/‖PFP‖", "ρ absolute", "‖Pd̃‖", "‖G̃μ‖/‖Pd̃‖", "‖G₁μ‖/‖Pd̃‖", "‖Gλ−e‖/‖e‖",
               "‖λ−λ*‖/‖λ*‖", "iterations", "F-mults", "converged", "time [s]"]
     seed_rows = [[f"{r:g}"] + [f"{v:.2e}" for v in SEED[r]] for r in RHOS]
     # Fit ratio(ρ) = C / (ρ + a) from ρ = 1e5 (C) and ρ = 1 (a), for each measure and size.
@@ -136,7 +136,7 @@ def main() -> None:
             fit_rows.append([n, mode, label, f"{C:.3g}", f"{a:.3g}", f"{k:.3g}",
                              f"{C_seed / (k * C):.2f}" if a > 0 else ""])
     md = ["# Dual penalty (FETI-NCG_ρ) on B1, H = 1/8", "",
-          f"Machine: {P.machine()}. Code: {P.git_state()}. rtol = {args.rtol:g}. "
+          f"Machine: {P.machine()}. Code: {code}. rtol = {args.rtol:g}. "
           f"Run time {elapsed / 60:.1f} min.",
           f"Command: `{' '.join(['python'] + sys.argv)}`", "",
           "ρ relative: penalty_rho = ρ (ρQ with ρ in units of ‖PFP‖); ρ absolute: penalty_rho = "

@@ -8,7 +8,7 @@ one F-multiplication and of one application of each preconditioner, per problem.
 
 Writes ``output/bench/solver_variants.md`` and ``output/bench/solver_variants.png``.
 
-Run: ``python bench/solver_variants.py`` (about 9 minutes on 2 cores; ``--quick`` for the small
+Run: ``python bench/solver_variants.py`` (7–9 minutes on 2 cores; ``--quick`` for the small
 problems only, ``--problems`` to choose, ``--repeat`` for the timing repeats).
 """
 
@@ -138,7 +138,7 @@ def main() -> None:
     names = args.problems or [k for k, (_, small) in PROBLEMS.items()
                               if small or not args.quick]
     variants = args.variants or list(VARIANTS)
-    t_start = time.perf_counter()
+    t_start, code = time.perf_counter(), P.git_state()  # the code that runs
 
     results: dict[str, dict[str, dict]] = {}
     costs: dict[str, dict] = {}
@@ -161,7 +161,7 @@ def main() -> None:
             "small": {n: PROBLEMS[n][1] for n in names}, "rtol": args.rtol,
             "repeat": [args.repeat, args.repeat_large],
             "elapsed": time.perf_counter() - t_start, "machine": P.machine(),
-            "code": P.git_state(), "command": " ".join(["python"] + sys.argv)}
+            "code": code, "command": " ".join(["python"] + sys.argv)}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "solver_variants.json").write_text(json.dumps(data, indent=1, default=float))
     report(data, args.out)
@@ -202,6 +202,18 @@ def report(data: dict, out: Path) -> None:
            P.md_table(["problem", "primal", "dual", "contact", "subdomains", "ms / F-mult",
                        "ms / lumped", "ms / Dirichlet", "Dirichlet / F", "Dirichlet setup [s]"],
                       sizes), ""]
+    names = [n for n in results if "default" in results[n]]
+    md += ["## All problems at a glance: F-mults · preconditioner applications · outer "
+           "iterations (✗ = not converged)", "",
+           P.md_table(["variant"] + names,
+                      [[v] + [f"{results[n][v]['mults']} · {results[n][v]['precond']} · "
+                              f"{results[n][v]['outer']}"
+                              + ("" if results[n][v]["converged"] else " ✗") for n in names]
+                       for v in variants]), "",
+           "Measured solve time [s] (preconditioner setup + iterations):", "",
+           P.md_table(["variant"] + names,
+                      [[v] + [f"{results[n][v]['t_solve']:.3f}" for n in names]
+                       for v in variants]), ""]
     for name, rows in results.items():
         md += [f"## {name}", "",
                P.md_table(["variant", "F-mults", "precond", "outer", "converged", "solve [s]",

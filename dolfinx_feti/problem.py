@@ -9,6 +9,12 @@ from typing import Protocol
 import numpy as np
 
 from .errors import InputError
+from .mesh.checks import (
+    check_boundary_group,
+    check_conforming,
+    check_contact_surface,
+    check_mesh,
+)
 from .mesh.decompose import ByFunction, ByTags, Parts
 from .mesh.gmsh_input import MeshData
 
@@ -268,3 +274,18 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
+        _check_mesh(self.mesh, [g for c in self.contact for g in
+                                ((c.slave, c.master) if isinstance(c, NodeToNode) else (c.group,))],
+                    self.forms)
+
+
+def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:
+    """Mesh faults that no later step would notice (:mod:`.mesh.checks`)."""
+    check_mesh(mesh)
+    for group in contact_groups:
+        check_contact_surface(mesh, group)
+    for what in ("tractions", "flux"):  # the loaded groups of df.Elasticity, df.Poisson
+        groups = getattr(forms, what, None)
+        for group in groups if isinstance(groups, dict) else ():
+            check_boundary_group(mesh, group, f"{what} on the group")
+    check_conforming(mesh, exempt_groups=contact_groups)

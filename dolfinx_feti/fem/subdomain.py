@@ -17,6 +17,7 @@ from ufl.corealg.traversal import unique_pre_traversal
 
 from .. import compat
 from ..errors import InputError
+from ..mesh.checks import check_boundary_group
 from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import _row_keys
 
@@ -141,8 +142,8 @@ class Subdomain:
 
     def ds(self, *groups: str) -> ufl.Measure:
         """Exterior facet measure over the named boundary groups (zero if none is here)."""
-        for g in groups:
-            self._mesh_data.facets(g)
+        for g in groups:  # known, not empty, and no facet between two cells
+            check_boundary_group(self._mesh_data, g, "the boundary integral sub.ds over")
         ids = tuple(sorted({i for g in groups for i in self._facet_ids.get(g, ())}))
         return compat.measure("ds", self.mesh, self._facet_tags)(ids or (_NO_FACET,))
 

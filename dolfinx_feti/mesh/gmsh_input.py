@@ -101,6 +101,9 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
     if comm.rank == 0:
         try:
             data = _extract(source, gdim)
+            from .checks import check_mesh  # degenerate or inverted cells, empty bodies
+
+            check_mesh(data)
         except InputError as e:
             err = e
     err = comm.bcast(err, root=0)

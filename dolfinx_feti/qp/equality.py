@@ -126,13 +126,14 @@ class OrthonormalConstraint:
     def transform(self, z: np.ndarray) -> np.ndarray:
         """Return ``T z`` for ``z`` in the range of the original ``D``."""
         if self._L is not None:
-            return sla.solve_triangular(self._L, z, lower=True)
+            return sla.solve_triangular(self._L, z, lower=True, check_finite=False)
         return self._T @ z
 
     def transform_transpose(self, y: np.ndarray) -> np.ndarray:
         """Return ``T^T y``."""
         if self._L is not None:
-            return sla.solve_triangular(self._L, y, lower=True, trans="T")
+            return sla.solve_triangular(self._L, y, lower=True, trans="T",
+                                        check_finite=False)
         return self._T.T @ y
 
     def mult(self, x: PETSc.Vec) -> np.ndarray:

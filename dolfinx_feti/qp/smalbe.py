@@ -139,9 +139,11 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     rho = 1.1 * norm_A if rho is None else float(rho)
     M = 100.0 * norm_A if M is None else float(M)
     eta = 0.1 * b_norm if eta is None else float(eta)
-    if not (rho > 0 and M > 0 and eta > 0):
+    # A zero b (e.g. a body resting on an obstacle with no load) leaves eta = 0: the inner
+    # solves are then exact, which x = 0 (g = 0) satisfies at once.
+    if not (rho > 0 and M > 0 and (eta > 0 or (eta == 0 and b_norm == 0))):
         raise ValueError(f"smalbe: need rho, M, eta > 0 (got {rho}, {M}, {eta}); "
-                         "eta defaults to 0.1 ||b||, so a zero b needs an explicit eta")
+                         "eta = 0 only for a zero b")
     opts.setdefault("norm_A", max(norm_A, rho))
     H = penalized_operator(A, D, rho)
     if preconditioner is not None:
