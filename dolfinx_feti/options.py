@@ -46,7 +46,8 @@ class SolverOptions:
         rtol: Stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term).
         eq_rtol: Stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; default ``rtol``.
         max_it: Budget of inner iterations (all outer iterations together).
-        max_outer: Budget of SMALBE outer iterations.
+        max_outer: Budget of SMALBE outer iterations. Outer iterations with no inner work cost
+            no F-multiplication; 2D elasticity with 512 subdomains needs 166 (docs/benchmarks.md).
         factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc").
         mprgp_gamma: MPRGP's proportioning parameter Γ.
         mprgp_expansion: "fixed", "optimal" or "projcg".
@@ -71,7 +72,7 @@ class SolverOptions:
     rtol: float = 1e-6
     eq_rtol: float | None = None
     max_it: int = 5000
-    max_outer: int = 100
+    max_outer: int = 1000
     factor: str = "cholmod"
     mprgp_gamma: float = 1.0
     mprgp_expansion: str = "fixed"
