@@ -1,0 +1,143 @@
+"""Tables and plots of the peer benchmarks from the JSON of ``bench/peers/run.py``.
+
+Tables: markdown, printed and written to output/peers/tables.md. Plots: error against time per
+problem, time against dofs.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+OUT = Path(__file__).resolve().parents[2] / "output" / "peers"
+RAW = OUT / "raw"
+FLOOR_ERR = 1e-15  # exact active-set results (error 0) are drawn here on the log scale
+STYLE = {"FETI": "C0", "SNES-VI": "C1", "penalty": "C2", "Clarabel": "C3", "OSQP": "C4"}
+LEVEL_MARK = {"1": "o", "2": "s", "3": "^"}
+
+
+def load() -> list[dict]:
+    return [json.loads(p.read_text()) for p in sorted(RAW.glob("*.json"))]
+
+
+def fmt(v, spec=".3g"):
+    return "–" if v is None else format(v, spec)
+
+
+def tables(data: list[dict]) -> str:
+    out = []
+    for problem in ("sphere", "hertz"):
+        ds = [d for d in data if d["problem"] == problem]
+        if not ds:
+            continue
+        out.append(f"\n### {problem}: floors (same mesh, contact set fixed / glued)\n")
+        out.append("| level | free dofs | contact rows | MUMPS Cholesky (s) | CG+GAMG (s) | "
+                   "GAMG its |")
+        out.append("|---|---|---|---|---|---|")
+        seen = set()
+        for d in sorted(ds, key=lambda d: d["level"]):
+            if d["level"] in seen:
+                continue
+            seen.add(d["level"])
+            lv = [e for e in ds if e["level"] == d["level"]]
+            fm = min(e["floor"]["mumps"]["t"] for e in lv)
+            fg = min(e["floor"]["gamg"]["t"] for e in lv)
+            out.append(f"| {d['level']} | {d['ndofs']} | {d['ncontact']} | {fm:.3f} | {fg:.3f} | "
+                       f"{d['floor']['gamg']['its']} |")
+        out.append(f"\n### {problem}: contact solves\n")
+        hertz = problem == "sphere"
+        out.append("| level | dofs | method | tol / penalty | time (s) | ÷ MUMPS floor | "
+                   "÷ GAMG floor | error (u, λ) vs exact | error F vs exact |"
+                   + (" error F vs Hertz |" if hertz else "")
+                   + " its (F-mults) | peak RSS (MiB) |")
+        out.append("|---|---|---|---|---|---|---|---|---|" + ("---|" if hertz else "") + "---|---|")
+        for d in sorted(ds, key=lambda d: (d["level"], d["family"])):
+            for r in d["rows"]:
+                its = r.get("its")
+                if r["method"] == "FETI":
+                    its = f"{r['its']} ({r['mults']}), {r['parts']} parts"
+                out.append(
+                    f"| {d['level']} | {d['ndofs']} | {r['method']} | {r['param']:.0e} | "
+                    f"{r['t']:.3f} | {r['ratio_mumps']:.1f} | {r['ratio_gamg']:.1f} | "
+                    f"{r['err']:.1e} | {r['err_F']:.1e} |"
+                    + (f" {r['err_F_hertz']:.2%} |" if hertz else "")
+                    + f" {its} | {r['rss_peak_mib']:.0f} |")
+    text = "\n".join(out)
+    OUT.mkdir(parents=True, exist_ok=True)
+    (OUT / "tables.md").write_text(text + "\n")
+    return text
+
+
+def plots(data: list[dict]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    for problem in ("sphere", "hertz"):
+        ds = [d for d in data if d["problem"] == problem]
+        if not ds:
+            continue
+        fig, ax = plt.subplots(figsize=(7, 5))
+        for d in sorted(ds, key=lambda d: d["level"]):
+            series = {}
+            for r in d["rows"]:
+                series.setdefault(r["method"], []).append(r)
+            for method, rs in series.items():
+                t = [r["t"] for r in rs]
+                e = [max(r["err"], FLOOR_ERR) for r in rs]
+                ax.loglog(t, e, "-" + LEVEL_MARK[d["level"][-1]], color=STYLE[method],
+                          label=f"{method} {d['level']} ({d['ndofs']} dofs)")
+            fm = d["floor"]["mumps"]["t"]
+            ax.axvline(fm, color="k", lw=0.5, ls=":")
+        h, lab = ax.get_legend_handles_labels()
+        uniq = dict(zip(lab, h, strict=True))
+        ax.legend(uniq.values(), uniq.keys(), fontsize=6, ncol=2)
+        ax.set_xlabel("wall time of the solve (s)")
+        ax.set_ylabel("max rel. error of u and λ vs exact solution on the same mesh")
+        ax.set_title(f"{problem}: error against time (dotted: MUMPS floor per mesh; "
+                     f"{FLOOR_ERR:g} = exact)", fontsize=8)
+        fig.tight_layout()
+        fig.savefig(OUT / f"{problem}_error_time.png", dpi=120)
+        plt.close(fig)
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+    for ax, problem in zip(axes, ("sphere", "hertz"), strict=True):
+        ds = [d for d in data if d["problem"] == problem]
+        by = {}
+        floors = {}
+        for d in ds:
+            for r in d["rows"]:
+                if r["err"] <= 1e-6 or r["method"] == "SNES-VI":
+                    key = (r["method"], d["ndofs"])
+                    by[key] = min(by.get(key, np.inf), r["t"])
+            for how in ("mumps", "gamg"):
+                k = (f"floor {how}", d["ndofs"])
+                floors[k] = min(floors.get(k, np.inf), d["floor"][how]["t"])
+        for src in (by, floors):
+            methods = sorted({m for m, _ in src})
+            for m in methods:
+                pts = sorted((n, t) for (mm, n), t in src.items() if mm == m)
+                style = "o-" if src is by else ("--" if "mumps" in m else ":")
+                ax.loglog([p[0] for p in pts], [p[1] for p in pts], style,
+                          color=STYLE.get(m, "k"), label=m)
+        ax.set_xlabel("free dofs")
+        ax.set_ylabel("time (s) to error <= 1e-6 (floor: one linear solve)")
+        ax.set_title(problem)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(OUT / "time_dofs.png", dpi=120)
+    plt.close(fig)
+
+
+def main() -> None:
+    data = load()
+    print(tables(data))
+    plots(data)
+    print(f"plots: {OUT}/sphere_error_time.png, {OUT}/hertz_error_time.png, {OUT}/time_dofs.png")
+
+
+if __name__ == "__main__":
+    main()
