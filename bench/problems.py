@@ -189,13 +189,14 @@ def squares2d_body_force(x):
 def squares2d(n: int, H: float | None) -> df.ContactProblem:
     """The plane-elasticity analogue of B1 (E = 1, ν = 0.3, plane strain).
 
-    B1's squares, mesh and H×H decomposition; the left square is clamped on x = 0, the right
-    one rests against it (node-to-node contact on x = 1, normal x) and is held vertically by
-    rollers on its bottom side (u_y = 0), so its horizontal motion and its rotation are
-    stopped by contact only. B1's loads act in-plane, along x: (−3, 0) on the left square's
-    top quarter pulls it away from the interface, (−1, 0) on the right square's bottom quarter
-    pushes that square onto it. The contact set is a proper part of the interface (as in B1).
-    H×H subdomains (H = None: one per body).
+    B1's squares and H×H decomposition, n×n squares per body cut into two triangles each; the
+    left square is clamped on x = 0, the right one rests against it (node-to-node contact on
+    x = 1, normal x) and is held by rollers on its bottom side (u_y = 0, which also stop its
+    rotation), so its horizontal motion is stopped by the contact only. B1's loads act
+    in-plane, along x: (−3, 0) on the left square's top quarter pulls it away from the
+    interface, (−1, 0) on the right square's bottom quarter pushes that square onto it. The
+    contact set is a proper part of the interface (as in B1). H×H subdomains (H = None: one
+    per body).
     """
     return df.ContactProblem(
         squares2d_mesh(n), df.Elasticity(1.0, 0.3, body_force=squares2d_body_force),
