@@ -21,7 +21,7 @@ Problems (``--problem``):
 Writes ``output/bench/b5_scalability.md`` and ``.png`` (``b5_scalability_elasticity.*`` for
 ``--problem elasticity``).
 
-Run: ``python bench/b5_scalability.py`` (5–6 minutes on 2 cores: everything up to
+Run: ``python bench/b5_scalability.py`` (5–9 minutes on 2 cores, with the load: everything up to
 2 130 048 primal dofs, i.e. H/h = 128 with H = 1/8; ``--max-primal 9e6`` adds H = 1/16 at
 H/h = 128, 8.5 M dofs, see docs/benchmarks.md for its memory and time);
 ``python bench/b5_scalability.py --problem elasticity`` (about 7 minutes, up to 1.1 M dofs);
