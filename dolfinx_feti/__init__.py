@@ -10,6 +10,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
     solution = dolfinx_feti.solve(problem, rtol=1e-8)
 """
 
+from .dual import DualQP, dual_qp
 from .errors import InputError, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
@@ -34,4 +35,5 @@ __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "
            "Dirichlet",
            "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
            "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
-           "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve"]
+           "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve",
+           "DualQP", "dual_qp"]

@@ -14,26 +14,18 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from .constraints import build_rows
 from .constraints.friction import friction_data
-from .errors import InputError
-from .feti import TotalFETI
+from .dual import DualQP, dual_qp
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
-from .mesh.decompose import decompose
 from .options import SolverOptions
 from .problem import ContactProblem
 from .qp import (
     ProjectedPreconditioner,
-    Projector,
-    RowBlockConstraint,
     cg,
-    estimate_norm,
-    homogenize,
     mpgp,
     mprgp,
-    orthonormalize,
     projected_operator,
     smalbe,
 )
@@ -41,8 +33,6 @@ from .report import Report
 from .solution import Solution
 from .timing import Timer
 
-#: ||N^T e|| / ||e|| above this means the load cannot be balanced (e ∉ Im G).
-BALANCE_TOL = 1e-8
 #: A converged solve whose KKT residuals exceed KKT_WARN · rtol gets a warning.
 KKT_WARN = 1e3
 
@@ -71,45 +61,28 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     progress = Progress(comm, opts.verbose)
     timer = Timer(progress.phase)
     report = Report()
-    with timer.phase("decomposition"):
-        dec = decompose(problem.mesh, problem.decomposition, comm)
-        rows = build_rows(problem, dec)
-    feti = TotalFETI(problem, dec, rows, comm, timer, opts.factor)
-    ineq = rows.inequality[feti.rows_local]
+    qp = dual_qp(problem, comm, factor=opts.factor, norm_rtol=opts.norm_rtol, timer=timer)
+    report.warnings.extend(qp.warnings)
+    feti, dec, rows, ocon, ineq = qp.feti, qp.dec, qp.rows, qp.constraint, qp.ineq
     n_ineq = int(rows.inequality.sum())
     fdata = friction_data(problem, rows)
     friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
 
-    with timer.phase("coarse problem"):
-        ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
-        _check_balance(ocon, feti, report)
-        lam_hat = feti.d.duplicate()
-        homogenize(ocon, lam_hat)
-        b = feti.d.duplicate()
-        feti.F.mult(lam_hat, b)
-        b_noise = 1e3 * np.finfo(float).eps * (feti.d.norm() + b.norm())  # round-off in b
-        b.aypx(-1.0, feti.d)  # b = d − F λ̂
-        projector = Projector(ocon)
-        Pb = b.duplicate()
-        projector.apply(b, Pb)
-        A = projected_operator(feti.F, ocon)
-        norm = estimate_norm(A, Pb, rtol=opts.norm_rtol)
-
     with timer.phase("preconditioner"):
         precond = make_preconditioner(opts.preconditioner, feti, opts.factor)
-    x = b.duplicate()
+    x = qp.b.duplicate()
     x.set(0.0)
     mults0 = feti.hessian_mults
     with timer.phase("iterations"):
         def run_qp():
-            return _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat,
-                           ineq, n_ineq, norm.value, b_noise, precond, friction)
-        res = run_qp() if friction is None else friction.run(run_qp, x, lam_hat, ineq, progress)
+            return _run_qp(opts, report, progress, qp, x, n_ineq, precond, friction)
+        res = run_qp() if friction is None else friction.run(run_qp, x, qp.lam_hat, ineq,
+                                                             progress)
     report.hessian_mults = feti.hessian_mults - mults0
 
     with timer.phase("recovery"):
         lam = x.copy()
-        lam.axpy(1.0, lam_hat)
+        lam.axpy(1.0, qp.lam_hat)
         at_bound = res.active if res.active is not None else np.zeros(ineq.size, dtype=bool)
         lam.array[ineq & at_bound] = 0.0  # exactly on the bound: λ = 0, not λ̂ − λ̂ rounded
         active = ~ineq | ~at_bound
@@ -134,7 +107,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     Glam = ocon.base.mult(lam)
     e_norm = float(np.linalg.norm(feti.e))
     report.G_lambda = float(np.linalg.norm(Glam - feti.e) / (e_norm if e_norm > 0 else 1.0))
-    report.norm_F = float(norm.value)
+    report.norm_F = qp.norm_A
     report.hessian_mults_total = feti.hessian_mults
     n_tang = 0 if fdata is None else int(fdata.rows.size)
     report.sizes = {"primal": feti.primal_size[1], "dual": rows.size, "inequality": n_ineq,
@@ -163,54 +136,53 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.timings["total"] = float(sum(report.timings.values()))
     report.extra["options"] = opts.to_dict()
     report.extra["history"] = res.history[-50:] if comm.rank == 0 else []
-    for v in (b, Pb, g, x, lam_hat):
+    for v in (qp.b, qp.lb, g, x, qp.lam_hat):
         v.destroy()
     return sol
 
 
-def _run_qp(opts, report, progress, feti, ocon, projector, A, Pb, x, lam_hat, ineq, n_ineq,
-            norm_A, b_noise, precond, friction=None):
+def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None):
     """The least machinery the problem needs (see the module docstring).
 
     With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
     """
+    feti, ocon, A, Pb, norm_A = dual.feti, dual.constraint, dual.A, dual.b, dual.norm_A
     if n_ineq == 0:
         report.solver = "cg"
         # When only prescribed values drive the problem, P b can be pure round-off: the floor
         # b_noise keeps CG from chasing it.
-        return cg(A, Pb, x, projector=projector, rtol=opts.rtol, atol=b_noise,
+        return cg(A, Pb, x, projector=dual.projector, rtol=opts.rtol, atol=dual.b_noise,
                   max_it=opts.max_it, monitor=progress.inner, preconditioner=precond)
-    lb = x.duplicate()
-    lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
+    lb = dual.lb.copy()
     ub = multiplier = None
-    qp = mprgp
+    solver = mprgp
     inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion,
              "alpha": opts.mprgp_alpha}
     if friction is None:
         x.array[:] = np.maximum(0.0, lb.array_r)
     else:
-        ub, discs, multiplier = friction.bounds(lb, lam_hat)
+        ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
         if discs is not None:  # MPGP: the fixed expansion only
-            qp, inner = mpgp, {"gamma": opts.mprgp_gamma, "discs": discs}
+            solver, inner = mpgp, {"gamma": opts.mprgp_gamma, "discs": discs}
     if ocon.m == 0:
-        report.solver = qp.__name__
-        return qp(feti.F, feti.d, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
-                  norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
+        report.solver = solver.__name__
+        return solver(feti.F, feti.d, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
+                      norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
-        report.solver = f"{qp.__name__} (dual penalty)"
+        report.solver = f"{solver.__name__} (dual penalty)"
         rho = opts.penalty_rho * norm_A
         Arho = projected_operator(feti.F, ocon, rho=rho)
         if precond is not None:
             precond = ProjectedPreconditioner(precond, ocon, rho)
-        res = qp(Arho, Pb, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
-                 norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
-                 **inner)
+        res = solver(Arho, Pb, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
+                     norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
+                     **inner)
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res
-    report.solver = "smalbe" if qp is mprgp else "smalbe (mpgp)"
+    report.solver = "smalbe" if solver is mprgp else "smalbe (mpgp)"
     # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
-    return smalbe(A, Pb, ocon, x, lb=lb, ub=ub, inner=qp.__name__, multiplier=multiplier,
+    return smalbe(A, Pb, ocon, x, lb=lb, ub=ub, inner=solver.__name__, multiplier=multiplier,
                   rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
                   eq_scale=norm_A, rho=opts.smalbe_rho * norm_A, M=opts.smalbe_M * norm_A,
                   eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
@@ -235,27 +207,6 @@ def _warn_loose_stop(report: Report, rtol: float) -> None:
             f"KKT residual is {worst:.1e}: ||b|| is dominated by data larger than the solution "
             "(e.g. the gaps of contact rows far out of reach); lower rtol for a more accurate "
             "solution")
-
-
-def _check_balance(ocon, feti: TotalFETI, report: Report) -> None:
-    """Refuse a load that the constraints cannot balance; warn about undetermined motions."""
-    N = ocon.null_space
-    if N.shape[1] == 0:
-        return
-    mesh, dec, k = feti.problem.mesh, feti.dec, feti.k
-    weight = np.sqrt(np.add.reduceat(N**2, np.arange(0, N.shape[0], k), axis=0)).max(axis=1)
-    subs = np.flatnonzero(weight > 1e-6 * weight.max())
-    bodies = sorted({mesh.body_names[b] for b in dec.sub_body[subs]})
-    if ocon.inconsistency > BALANCE_TOL:
-        raise InputError(
-            f"the load cannot be balanced: bodies {bodies} can move rigidly without meeting any "
-            "Dirichlet or contact condition, and the load has a component along that motion "
-            f"(relative size {ocon.inconsistency:.2e}), so the problem has no solution (e is "
-            "not in Im G). Add a Dirichlet condition or a contact surface that stops it, or "
-            "remove that load component")
-    report.warnings.append(
-        f"{N.shape[1]} rigid motion(s) of bodies {bodies} are not fixed by any condition (and "
-        "not loaded); the displacement returned has no component along them")
 
 
 __all__ = ["solve"]
