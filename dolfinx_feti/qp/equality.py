@@ -304,7 +304,13 @@ def projected_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float = 0.0) 
 def penalized_operator(A: PETSc.Mat, con: EqualityConstraint, rho: float) -> PETSc.Mat:
     """Return the shell ``A + rho D^T D`` (SMALBE's inner Hessian).
 
-    Counts its multiplications by ``A`` like :func:`projected_operator`.
+    Counts its multiplications by ``A`` like :func:`projected_operator`. When ``A`` is itself
+    ``projected_operator(F, con)`` (``P F P``, as in FETI) the result is
+    ``projected_operator(F, con, rho)``: the same operator, but ``D~ x`` is computed once per
+    product instead of twice (one reduction over the ranks less per multiplication).
     """
+    ctx = A.getPythonContext() if A.getType() == PETSc.Mat.Type.PYTHON else None
+    if isinstance(ctx, _ProjectedOperatorCtx) and ctx.con is con and ctx.rho == 0.0:
+        return projected_operator(ctx.A, con, ctx.rho + rho)
     vec = A.createVecRight()
     return python_shell(_PenalizedOperatorCtx(A, con, rho), vec)

@@ -125,3 +125,18 @@ def test_projector_and_operators():
     H.mult(make_vec(x), out)
     assert np.allclose(gather(out), (F + rho * (np.eye(n) - P)) @ x, atol=1e-10)
     assert H.getPythonContext().mults == 1 and ctx.calls == 2
+
+    # Penalizing P F P on its own constraint gives the fused P F P + rho Q: one product by F,
+    # the same values as the generic penalized operator.
+    Hf = penalized_operator(projected_operator(Fc, con), con, rho)
+    Hf.mult(make_vec(x), out)
+    assert np.allclose(gather(out), (P @ F @ P + rho * (np.eye(n) - P)) @ x, atol=1e-10)
+    assert Hf.getPythonContext().rho == rho and ctx.calls == 3
+    # projected on another constraint: not fused, still P2 F P2 + rho Q
+    D2 = rng.standard_normal((m, n))
+    other = orthonormalize(row_block_constraint(D2))
+    Hg = penalized_operator(projected_operator(Fc, other), con, rho)
+    Hg.mult(make_vec(x), out)
+    Q2, _ = np.linalg.qr(D2.T)
+    P2 = np.eye(n) - Q2 @ Q2.T
+    assert np.allclose(gather(out), (P2 @ F @ P2 + rho * (np.eye(n) - P)) @ x, atol=1e-10)
