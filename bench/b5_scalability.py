@@ -21,6 +21,10 @@ Problems (``--problem``):
 Writes ``output/bench/b5_scalability.md`` and ``.png`` (``b5_scalability_elasticity.*`` for
 ``--problem elasticity``).
 
+For ``b1`` the *linear floor* is solved too (``--no-linear`` skips it): the same mesh, load and
+subdomains with both contact surfaces clamped, so projected CG on the same ``P F P`` (without
+and with the Dirichlet preconditioner) gives the cost of one linear FETI solve to compare with.
+
 Run: ``python bench/b5_scalability.py`` (5–9 minutes on 2 cores, with the load: everything up to
 2 130 048 primal dofs, i.e. H/h = 128 with H = 1/8; ``--max-primal 9e6`` adds H = 1/16 at
 H/h = 128, 8.5 M dofs, see docs/benchmarks.md for its memory and time);
@@ -59,6 +63,9 @@ SEED = {(8, 2): (648, 87, 20), (8, 4): (2592, 447, 23), (8, 8): (10365, 1983, 27
 #: bench/solver_variants.py (see docs/benchmarks.md).
 BEST = "rho=10+optimal+dirichlet"
 
+#: The linear floor of a problem: the same mesh and decomposition without contact (projected CG).
+LINEAR = {"b1": P.b1_linear}
+
 BUILDERS = {
     "b1": (P.b1, P.membranes_mesh, 1, "B1 (two membranes, scalar)"),
     "elasticity": (P.squares2d, P.squares2d_mesh, 2,
@@ -85,6 +92,9 @@ def main() -> None:
     parser.add_argument("--variants", nargs="*", default=[BEST],
                         help="solvers besides the default: names of solver_variants.VARIANTS "
                              "or key=value,... (none given: the default only)")
+    parser.add_argument("--linear", action=argparse.BooleanOptionalAction, default=True,
+                        help="b1: also solve the linear floor (contact surfaces clamped, "
+                             "projected CG, default and Dirichlet-preconditioned)")
     parser.add_argument("--rtol", type=float, default=1e-6)
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench")
     args, _ = parser.parse_known_args()
@@ -105,27 +115,35 @@ def main() -> None:
             parts = df.Parts(4 * 4 ** k, method=args.parts_method)
             cases.append(("graded", col, functools.partial(
                 build, h_contact=0.05 / 2 ** k, h_far=1.0 / 2 ** k, decomposition=parts),
-                6000 * 4 ** k))
+                6000 * 4 ** k, None))
         groups = ["graded"]
+        linear_solvers = {}
     else:
         cols = [Fraction(h) for h in args.H]
         for ratio in args.ratios:
             for H in cols:
                 n = P.elements_per_unit(float(H), ratio)
+                linear = (functools.partial(LINEAR[args.problem], n, float(H))
+                          if args.linear and args.problem in LINEAR else None)
                 cases.append((ratio, H, functools.partial(build, n, float(H)),
-                              2 * (1 / H) ** 2 * (ratio + 1) ** 2 * value_size))
+                              2 * (1 / H) ** 2 * (ratio + 1) ** 2 * value_size, linear))
+        linear_solvers = {"linear": {}, "linear+dirichlet": {"preconditioner": "dirichlet"}}
         groups = list(args.ratios)
 
     rows = []  # (group, column, solver, record)
     skipped = []
-    for group, col, make, primal in cases:
+    for group, col, make, primal, make_linear in cases:
         if primal > max_primal:
             skipped.append((group, col, int(primal)))
             continue
         t0 = time.perf_counter()
         problem = make()
-        for name, opts in solvers.items():
-            rec = P.solve_record(problem, rtol=args.rtol, **opts)
+        runs = [(name, problem, opts) for name, opts in solvers.items()]
+        if make_linear is not None:
+            linear = make_linear()
+            runs += [(name, linear, opts) for name, opts in linear_solvers.items()]
+        for name, prob, opts in runs:
+            rec = P.solve_record(prob, rtol=args.rtol, **opts)
             rows.append((group, col, name, rec))
             if P.is_root():
                 print(f"H/h={group!s:6s} H={col!s:18s} {name:26s} primal={rec['primal']:8d} "
@@ -134,7 +152,7 @@ def main() -> None:
                       f"solve={rec['t_solve']:.2f}s total={rec['t_total']:.1f}s "
                       f"conv={rec['converged']} ({time.perf_counter() - t0:.0f} s)",
                       flush=True)
-        del problem
+        del problem, runs
         mesh_cache.cache_clear()
     elapsed = time.perf_counter() - t_start
     if not P.is_root():
@@ -183,7 +201,10 @@ def main() -> None:
           "iterations, recovery).", "",
           P.md_table(header, table), "",
           "Compact (the seed's layout): primal/dual, then outer·F-mults for "
-          + " / ".join(solvers) + (", then the seed's outer·CG iterations" if seed else ""),
+          + " / ".join(dict.fromkeys(name for _, _, name, _ in rows))
+          + (", then the seed's outer·CG iterations" if seed else "")
+          + ". linear = the same mesh and subdomains with the contact surfaces clamped "
+          "(projected CG, 0 outer iterations): the cost of one linear FETI solve.",
           "", P.md_table(grid_header, grid), ""]
     if skipped:
         md += ["Skipped (over --max-primal " f"{max_primal:.3g}): "
@@ -192,7 +213,8 @@ def main() -> None:
     stem = "b5_scalability" + ("" if args.problem == "b1" else "_" + args.problem)
     (args.out / f"{stem}.md").write_text("\n".join(md) + "\n")
     print("\n".join(md))
-    plot(rows, groups, list(solvers), seed, title, args.out / f"{stem}.png")
+    names = list(solvers) + ([n for n in linear_solvers] if any(c[4] for c in cases) else [])
+    plot(rows, groups, names, seed, title, args.out / f"{stem}.png")
 
 
 def plot(rows, ratios, solvers, seed, title, path) -> None:
@@ -204,15 +226,17 @@ def plot(rows, ratios, solvers, seed, title, path) -> None:
 
     fig, ax = plt.subplots(figsize=(7.5, 4.8))
     colors = plt.get_cmap("tab10")
-    styles = ["-o", "--s", "-.^"]
+    styles = ["-o", "--s", "-.^", (0, (1, 1)), (0, (3, 1, 1, 1))]
     for i, ratio in enumerate(ratios):
         for j, name in enumerate(solvers):
             pts = sorted((r["primal"], r["mults"]) for q, _, s, r in rows
                          if q == ratio and s == name)
             if pts:
                 x, y = zip(*pts, strict=True)
-                ax.plot(x, y, styles[j % 3], color=colors(i), ms=4,
-                        label=f"H/h = {ratio}, {name}")
+                style = styles[j % len(styles)]
+                kw = {"ls": style, "marker": "."} if isinstance(style, tuple) else {}
+                ax.plot(x, y, *([] if kw else [style]), color=colors(i), ms=4,
+                        label=f"H/h = {ratio}, {name}", **kw)
         pts = sorted((p, c) for (q, _), (p, _, c) in SEED.items() if q == ratio)
         if seed and pts:
             x, y = zip(*pts, strict=True)

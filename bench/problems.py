@@ -152,6 +152,19 @@ def b1(n: int, H: float | None) -> df.ContactProblem:
         decomposition=df.ByTags() if H is None else grid(H))
 
 
+def b1_linear(n: int, H: float | None) -> df.ContactProblem:
+    """B1's linear floor: the same mesh, load and decomposition, the contact surfaces clamped.
+
+    Both membranes are then fixed on one side and there is no inequality: the solve is
+    projected CG on P F P of the same subdomains, i.e. the cost of one linear FETI solve.
+    """
+    return df.ContactProblem(
+        membranes_mesh(n), df.Poisson(source=b1_source),
+        dirichlet=[df.Dirichlet("dirichlet"), df.Dirichlet("contact_left"),
+                   df.Dirichlet("contact_right")],
+        contact=[], decomposition=df.ByTags() if H is None else grid(H))
+
+
 def hertz2d(parts: int = 4, h_contact: float = 0.05, h_far: float = 1.0,
             decomposition=None) -> df.ContactProblem:
     """The 2D Hertz half model (disk R = 8 on a block, E = 200, ν = 0.3, P = 10)."""

@@ -1,8 +1,9 @@
 """Box constraints ``l <= x <= u`` on the local part of a distributed vector.
 
-All work here is elementwise NumPy on local arrays; the only communication is the global
-minimum in :meth:`Box.max_step` and the validation in the constructor. Infinite bounds are
-handled by IEEE arithmetic (``x - (-inf) = inf``), never by special cases.
+All work here is elementwise NumPy on local arrays, restricted to the entries with a finite
+bound (the others are never touched); the only communication is the global minimum in
+:meth:`Box.max_step` and the validation in the constructor. A one-sided bound is handled by
+IEEE arithmetic (``x - (-inf) = inf``), never by special cases.
 """
 
 from __future__ import annotations
@@ -56,10 +57,18 @@ class Box:
         problems = sorted(set(sum(self.comm.allgather(problems), [])))
         if problems:
             raise ValueError("infeasible or invalid bounds: " + "; ".join(problems))
+        # The work is done on the bounded entries only: in FETI most rows (the gluing ones)
+        # are unbounded, and on them every box operation is the identity.
+        bounded = np.flatnonzero(np.isfinite(self.l) | np.isfinite(self.u))
+        self._sel = slice(None) if bounded.size == self.l.size else bounded
+        self._l, self._u = self.l[self._sel], self.u[self._sel]
 
     def project(self, xa: np.ndarray) -> np.ndarray:
         """Return the projection of a local array onto the box."""
-        return np.clip(xa, self.l, self.u)
+        out = np.array(xa, dtype=np.float64)
+        sel = self._sel
+        out[sel] = np.clip(xa[sel], self._l, self._u)
+        return out
 
     def split(self, xa: np.ndarray, ga: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Return ``(phi, beta, active)``: free and chopped gradient, and the at-a-bound mask.
@@ -67,12 +76,17 @@ class Box:
         ``beta`` is ``min(g, 0)`` at a lower bound and ``max(g, 0)`` at an upper bound; an entry
         with ``l = u`` cannot move and contributes to neither.
         """
-        at_l = xa <= self.l
-        at_u = xa >= self.u
-        active = at_l | at_u
-        phi = np.where(active, 0.0, ga)
-        beta = np.where(at_l & ~at_u, np.minimum(ga, 0.0),
-                        np.where(at_u & ~at_l, np.maximum(ga, 0.0), 0.0))
+        sel, xs, gs = self._sel, xa[self._sel], ga[self._sel]
+        at_l = xs <= self._l
+        at_u = xs >= self._u
+        act = at_l | at_u
+        phi = np.array(ga, dtype=np.float64)
+        phi[sel] = np.where(act, 0.0, gs)
+        beta = np.zeros_like(phi)
+        beta[sel] = np.where(at_l & ~at_u, np.minimum(gs, 0.0),
+                             np.where(at_u & ~at_l, np.maximum(gs, 0.0), 0.0))
+        active = np.zeros(phi.shape, dtype=bool)
+        active[sel] = act
         return phi, beta, active
 
     def reduced_free(self, xa: np.ndarray, phi: np.ndarray, alpha: float) -> np.ndarray:
@@ -80,17 +94,21 @@ class Box:
 
         ``x - alpha * phi~`` equals ``P_box(x - alpha * phi)``.
         """
-        return np.where(phi > 0, np.minimum((xa - self.l) / alpha, phi),
-                        np.where(phi < 0, np.maximum((xa - self.u) / alpha, phi), 0.0))
+        sel, xs, ps = self._sel, xa[self._sel], phi[self._sel]
+        out = np.array(phi, dtype=np.float64)
+        out[sel] = np.where(ps > 0, np.minimum((xs - self._l) / alpha, ps),
+                            np.where(ps < 0, np.maximum((xs - self._u) / alpha, ps), 0.0))
+        return out
 
     def _ratios(self, xa: np.ndarray, pa: np.ndarray) -> np.ndarray:
-        """Step length at which each entry of ``x - t p`` meets its bound (inf if never)."""
-        ratios = np.full(xa.shape, np.inf)
-        down = pa > 0
-        up = pa < 0
-        ratios[down] = (xa[down] - self.l[down]) / pa[down]
-        ratios[up] = (xa[up] - self.u[up]) / pa[up]
-        return ratios
+        """Step lengths at which the bounded entries of ``x - t p`` meet their bounds.
+
+        ``inf`` where an entry never does; the unbounded entries are left out.
+        """
+        xs, ps = xa[self._sel], pa[self._sel]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(ps > 0, (xs - self._l) / ps,
+                            np.where(ps < 0, (xs - self._u) / ps, np.inf))
 
     def max_step(self, xa: np.ndarray, pa: np.ndarray) -> float:
         """Largest ``t >= 0`` with ``x - t p`` feasible, over all ranks (inf if unbounded)."""
@@ -103,9 +121,10 @@ class Box:
         Entries whose bound-hitting step is ``<= t`` are snapped (so the active set is exact
         despite rounding); the final clip removes rounding overshoots elsewhere.
         """
-        ratios = self._ratios(xa, pa)
+        sel, ps = self._sel, pa[self._sel]
+        hit = self._ratios(xa, pa) <= t
         new = xa - t * pa
-        hit = ratios <= t
-        new[hit & (pa > 0)] = self.l[hit & (pa > 0)]
-        new[hit & (pa < 0)] = self.u[hit & (pa < 0)]
-        return self.project(new)
+        ns = new[sel]
+        ns = np.where(hit & (ps > 0), self._l, np.where(hit & (ps < 0), self._u, ns))
+        new[sel] = np.clip(ns, self._l, self._u)
+        return new

@@ -20,6 +20,8 @@ from .shell import python_shell
 # Below this reciprocal condition number of D D^T the Cholesky route is abandoned for an
 # eigendecomposition: L^{-1} would amplify rounding in D~ D~^T = I by about 1/rcond.
 _CHOLESKY_RCOND = 1e-8
+#: Up to this many rows the Cholesky factor of D D^T is inverted once and applied as a product.
+_EXPLICIT_INVERSE_MAX = 1024
 
 
 def _mpi_comm(comm) -> MPI.Comm:
@@ -115,6 +117,12 @@ class OrthonormalConstraint:
         self.base = base
         self._L = L
         self._T = T
+        if L is not None and L.shape[0] <= _EXPLICIT_INVERSE_MAX:
+            # A small T = L^{-1} applied as a dense product: SciPy's per-call overhead of a
+            # triangular solve is several times the arithmetic at these sizes, and T is applied
+            # about five times per Hessian product. (L is well conditioned: see orthonormalize.)
+            self._T = sla.solve_triangular(L, np.eye(L.shape[0]), lower=True)
+            self._L = None
         self.method = "cholesky" if L is not None else "eigen"
         self.m = int(L.shape[0] if L is not None else T.shape[0])
         self.rank = self.m
