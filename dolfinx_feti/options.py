@@ -65,6 +65,10 @@ class SolverOptions:
             (see docs/solvers.md).
         smalbe_eta: SMALBE's η relative to ||b|| (None: the solver's default).
         smalbe_beta: SMALBE's divisor of M.
+        smalbe_acceleration: "none" (the plain multiplier update μ += ρG̃λ of the theory) or
+            "anderson" (Anderson acceleration of that update, memory reset when the active set
+            changes; see docs/solvers.md).
+        smalbe_depth: Memory of the Anderson acceleration (number of past updates).
         norm_rtol: Relative tolerance of the Lanczos estimate of ||PFP||.
         verbose: 0 quiet, 1 one line per phase, 2 also every iteration (rank 0 only).
     """
@@ -84,6 +88,8 @@ class SolverOptions:
     smalbe_M: float = 1.0
     smalbe_eta: float | None = None
     smalbe_beta: float = 2.0
+    smalbe_acceleration: str = "anderson"
+    smalbe_depth: int = 3
     norm_rtol: float = 1e-4
     verbose: int = 0
 
@@ -155,6 +161,11 @@ class SolverOptions:
             raise InputError(f"penalty_rho must be positive, got {self.penalty_rho}")
         if self.smalbe_beta <= 1:
             raise InputError(f"smalbe_beta must be > 1, got {self.smalbe_beta}")
+        if self.smalbe_acceleration not in ("none", "anderson"):
+            raise InputError("smalbe_acceleration must be 'none' or 'anderson', got "
+                             f"{self.smalbe_acceleration!r}")
+        if self.smalbe_depth < 1:
+            raise InputError(f"smalbe_depth must be >= 1, got {self.smalbe_depth}")
 
     def to_dict(self) -> dict:
         """Plain dict (for the JSON report)."""

@@ -188,7 +188,8 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
                   eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
                   beta=opts.smalbe_beta, norm_A=norm_A,
                   inner_options={**inner, "monitor": progress.inner}, preconditioner=precond,
-                  max_outer=opts.max_outer, max_it=opts.max_it, monitor=progress.outer)
+                  max_outer=opts.max_outer, max_it=opts.max_it, monitor=progress.outer,
+                  acceleration=opts.smalbe_acceleration, depth=opts.smalbe_depth)
 
 
 def _warn_loose_stop(report: Report, rtol: float) -> None:

@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .equality import EqualityConstraint, penalized_operator
@@ -24,6 +25,7 @@ from .result import QPResult
 _RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_it",
              "preconditioner")
 PRECONDITIONER_FORMS = ("projected", "plain")
+ACCELERATIONS = ("none", "anderson")
 
 
 def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, lb=None,
@@ -33,7 +35,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
            inner_options: dict[str, Any] | None = None, max_outer: int = 100,
            max_it: int = 10000, monitor: Callable[[int, dict], None] | None = None,
            eq_scale: float = 1.0, multiplier: np.ndarray | None = None,
-           preconditioner=None, preconditioner_form: str = "projected") -> QPResult:
+           preconditioner=None, preconditioner_form: str = "projected",
+           acceleration: str = "none", depth: int = 5) -> QPResult:
     """Solve ``min f(x)`` s.t. ``lb <= x <= ub``, ``D x = 0`` by SMALBE-M (collective).
 
     Outer iteration ``k``:
@@ -45,7 +48,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
        Because ``grad_x L(x, mu_k, rho) = A x - b + D^T (mu_k + rho D x)``, the first condition
        is the KKT residual of the *un*-augmented Lagrangian with the updated multiplier; the
        returned ``multiplier`` is that one.
-    3. ``mu_{k+1} = mu_k + rho D x``.
+    3. ``mu_{k+1} = mu_k + rho D x`` (or its Anderson-accelerated version, see ``acceleration``).
     4. ``M <- M / beta`` if ``L(x_k, mu_k, rho) < L(x_{k-1}, mu_{k-1}, rho) + rho/2 ||D x_k||^2``
        (the augmented Lagrangian did not increase enough).
 
@@ -101,6 +104,13 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         preconditioner: Optional ``M^{-1}`` (a PETSc Mat or PC, an object with ``mult(x, y)``
             or a callable ``f(x, y)``).
         preconditioner_form: ``'projected'`` or ``'plain'``, see above.
+        acceleration: ``'none'``: step 3 as above. ``'anderson'``: Anderson acceleration of
+            the fixed point ``mu -> mu + rho D x(mu)`` (type II, least squares over the last
+            ``depth`` differences), its memory cleared whenever the active set of the inner
+            result changes. Not covered by SMALBE's theory (the step 4 test and the stopping
+            test are unchanged, and the returned multiplier is always the plain update of the
+            final ``x``, i.e. the KKT multiplier).
+        depth: Memory of the Anderson acceleration.
 
     Returns:
         The result, with ``multiplier``, ``outer_iterations`` and one history record per outer
@@ -121,6 +131,9 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     if bad:
         raise ValueError(f"smalbe: inner_options may not set {bad} (SMALBE controls them; "
                          "pass a preconditioner as smalbe(preconditioner=...))")
+    if acceleration not in ACCELERATIONS or depth < 1:
+        raise ValueError(f"smalbe: acceleration must be one of {ACCELERATIONS} and depth >= 1, "
+                         f"got {acceleration!r}, {depth}")
     if preconditioner_form not in PRECONDITIONER_FORMS:
         raise ValueError(f"smalbe: preconditioner_form must be one of {PRECONDITIONER_FORMS}, "
                          f"got {preconditioner_form!r}")
@@ -160,6 +173,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     D.mult_transpose(mu, bk)
     bk.aypx(-1.0, b)  # b - D^T mu
     g_valid = False
+    anderson = _Anderson(depth) if acceleration == "anderson" else None
+    prev_active, comm = None, x.getComm().tompi4py()
     history: list[dict] = []
     total_it, L_prev, reason = 0, None, "max_outer"
     res = None
@@ -193,6 +208,15 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             monitor(k, record)
         # Update mu even at the end: the KKT multiplier of the final x is mu_k + rho D x.
         step = rho * Dx
+        if res.gP_norm <= tol_g and dx <= tol_e:
+            pass  # the final multiplier: the plain update (KKT), whatever the acceleration
+        elif anderson is not None:
+            # A new active set is a new affine map: the secant memory of the old one misleads.
+            if prev_active is None or comm.allreduce(
+                    bool(np.any(res.active != prev_active)), op=MPI.LOR):
+                anderson.reset()
+            step = anderson.step(mu, step)
+        prev_active = res.active.copy()
         mu += step
         D.mult_transpose(step, tmp)
         bk.axpy(-1.0, tmp)
@@ -212,3 +236,38 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
                     gP_norm=res.gP_norm, Dx_norm=dx, b_norm=b_norm, active=res.active,
                     active_count=res.active_count, history=history, multiplier=mu,
                     objective=f)
+
+
+class _Anderson:
+    """Anderson acceleration (type II) of the fixed point ``mu -> mu + rho D x(mu)``.
+
+    Once the active set has settled the map is affine in ``mu`` and its contraction
+    ``(I + rho S)^{-1}`` (``S`` the dual Schur complement on the free set) has only a few
+    eigenvalues away from 0 (one or two on B1), so a short secant memory removes them in a few
+    outer iterations where the plain update needs tens. ``mu`` and the residuals are
+    replicated and identical on every rank, so every rank takes the same step.
+    """
+
+    def __init__(self, depth: int) -> None:
+        self.depth = depth
+        self._mu: list[np.ndarray] = []  # mu_k
+        self._f: list[np.ndarray] = []   # f_k = rho D x_k (the plain step)
+
+    def reset(self) -> None:
+        """Forget the history."""
+        self._mu.clear()
+        self._f.clear()
+
+    def step(self, mu: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """Return the accelerated ``mu_{k+1} - mu_k`` from ``mu_k`` and the plain step ``f``."""
+        self._mu.append(mu.copy())
+        self._f.append(f.copy())
+        if len(self._f) > self.depth + 1:
+            self._mu.pop(0)
+            self._f.pop(0)
+        if len(self._f) < 2:
+            return f
+        dF = np.diff(np.array(self._f), axis=0).T           # columns f_i+1 - f_i
+        dG = dF + np.diff(np.array(self._mu), axis=0).T     # G(mu) = mu + f
+        gamma = np.linalg.lstsq(dF, f, rcond=1e-10)[0]
+        return f - dG @ gamma
