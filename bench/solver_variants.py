@@ -33,6 +33,7 @@ ROOT = Path(__file__).resolve().parent.parent
 #: name → keyword arguments of df.solve (on top of the defaults).
 VARIANTS: dict[str, dict] = {
     "default": {},
+    "plain": {"smalbe_acceleration": "none"},
     "expansion=optimal": {"mprgp_expansion": "optimal"},
     "expansion=projcg": {"mprgp_expansion": "projcg"},
     "alpha=bb": {"mprgp_alpha": "bb"},
