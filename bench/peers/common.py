@@ -40,6 +40,8 @@ HERTZ_P0, HERTZ_A = 6.6124, 0.96277
 #: Mesh levels: name -> (h, h_far, refine_radius) for the sphere, (h_contact, h_far) for Hertz.
 SPHERE_LEVELS = {"S1": (0.02, 0.1, 0.2), "S2": (0.01, 0.1, 0.2), "S3": (0.0065, 0.08, 0.2)}
 HERTZ_LEVELS = {"H1": (0.02, 1.0), "H2": (0.01, 1.0), "H3": (0.007, 1.0)}
+#: B1 (two membranes): name -> (n, H), n×n squares per membrane, H×H subdomains (H/h = 16)
+B1_LEVELS = {"M1": (64, 1 / 4), "M2": (128, 1 / 8), "M3": (256, 1 / 16)}
 
 
 def maxrss_mib() -> float:
@@ -88,6 +90,10 @@ def hertz_mesh(level: str) -> df.MeshData:
 def hertz_problem(level: str, parts: int) -> df.ContactProblem:
     return P.hertz2d(parts=parts, h_contact=HERTZ_LEVELS[level][0],
                      h_far=HERTZ_LEVELS[level][1])
+
+
+def b1_problem(level: str) -> df.ContactProblem:
+    return P.b1(*B1_LEVELS[level])
 
 
 # ------------------------------------------------------------------------------------------------
@@ -149,6 +155,18 @@ def hertz_monolithic(level: str) -> Monolithic:
     return mono
 
 
+def b1_monolithic(level: str) -> Monolithic:
+    """The undecomposed B1: −Δu = f on each membrane, u_left <= u_right on the interface."""
+    mesh = P.membranes_mesh(B1_LEVELS[level][0])
+    K, f = ref.assemble(mesh, 1, ref.poisson_forms(ref.membrane_source))
+    fixed = ref.dirichlet_dofs(mesh, 1, [("dirichlet", None)])
+    pairs = ref.match_pairs(mesh, "contact_left", "contact_right", (1,), 1, None)
+    mono = Monolithic(mesh, 1, K, f, fixed, pairs.B, pairs.g, pairs.slave,
+                      np.ones((pairs.slave.size, 1)))
+    mono.master = pairs.master
+    return mono
+
+
 def kkt(mono: Monolithic, u_full: np.ndarray, lam: np.ndarray) -> dict:
     """Relative KKT residuals of (u, λ) on the undecomposed problem (λ >= 0 per B row)."""
     fr = mono.free
@@ -196,7 +214,9 @@ def rigid_modes(x: np.ndarray, dofs: np.ndarray, bs: int):
     modes = []
     for c in range(bs):
         modes.append((comp == c).astype(float))
-    if bs == 2:
+    if bs == 1:
+        pass  # the constants
+    elif bs == 2:
         modes.append(np.where(comp == 0, -X[:, 1], X[:, 0]))
     else:
         for (a, b) in ((0, 1), (1, 2), (0, 2)):

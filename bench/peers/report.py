@@ -14,7 +14,8 @@ import numpy as np
 OUT = Path(__file__).resolve().parents[2] / "output" / "peers"
 RAW = OUT / "raw"
 FLOOR_ERR = 1e-15  # exact active-set results (error 0) are drawn here on the log scale
-STYLE = {"FETI": "C0", "SNES-VI": "C1", "penalty": "C2", "Clarabel": "C3", "OSQP": "C4"}
+STYLE = {"FETI": "C0", "FETI tuned": "C9", "SNES-VI": "C1", "penalty": "C2", "Clarabel": "C3",
+         "OSQP": "C4"}
 LEVEL_MARK = {"1": "o", "2": "s", "3": "^"}
 
 
@@ -28,7 +29,7 @@ def fmt(v, spec=".3g"):
 
 def tables(data: list[dict]) -> str:
     out = []
-    for problem in ("sphere", "hertz"):
+    for problem in ("sphere", "hertz", "b1"):
         ds = [d for d in data if d["problem"] == problem]
         if not ds:
             continue
@@ -56,7 +57,7 @@ def tables(data: list[dict]) -> str:
         for d in sorted(ds, key=lambda d: (d["level"], d["family"])):
             for r in d["rows"]:
                 its = r.get("its")
-                if r["method"] == "FETI":
+                if r["method"].startswith("FETI"):
                     its = f"{r['its']} ({r['mults']}), {r['parts']} parts"
                 out.append(
                     f"| {d['level']} | {d['ndofs']} | {r['method']} | {r['param']:.0e} | "
@@ -76,7 +77,7 @@ def plots(data: list[dict]) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    for problem in ("sphere", "hertz"):
+    for problem in ("sphere", "hertz", "b1"):
         ds = [d for d in data if d["problem"] == problem]
         if not ds:
             continue
@@ -103,8 +104,8 @@ def plots(data: list[dict]) -> None:
         fig.savefig(OUT / f"{problem}_error_time.png", dpi=120)
         plt.close(fig)
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, problem in zip(axes, ("sphere", "hertz"), strict=True):
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.5))
+    for ax, problem in zip(axes, ("sphere", "hertz", "b1"), strict=True):
         ds = [d for d in data if d["problem"] == problem]
         by = {}
         floors = {}
@@ -136,7 +137,7 @@ def main() -> None:
     data = load()
     print(tables(data))
     plots(data)
-    print(f"plots: {OUT}/sphere_error_time.png, {OUT}/hertz_error_time.png, {OUT}/time_dofs.png")
+    print(f"plots: {OUT}/{{sphere,hertz,b1}}_error_time.png, {OUT}/time_dofs.png")
 
 
 if __name__ == "__main__":

@@ -29,12 +29,18 @@ OUT = C.ROOT / "output" / "peers"
 RAW = OUT / "raw"
 REPEAT = int(os.environ.get("PEERS_REPEAT", "2"))
 
-FAMILIES = {"sphere": ["feti", "snes", "penalty"],
-            "hertz": ["feti", "clarabel", "osqp", "penalty"]}
+FAMILIES = {"sphere": ["feti", "feti_tuned", "snes", "penalty"],
+            "hertz": ["feti", "clarabel", "osqp", "penalty"],
+            "b1": ["feti", "clarabel", "penalty"]}
 TOLS = [1e-4, 1e-6, 1e-8, 1e-10]
 PENALTIES = [1e0, 1e2, 1e4, 1e6]  # × mean(diag K)
-FETI_PARTS = {"sphere": {"S1": 4, "S2": 8, "S3": 16}, "hertz": {"H1": 4, "H2": 8, "H3": 16}}
+FETI_PARTS = {"sphere": {"S1": 4, "S2": 8, "S3": 16}, "hertz": {"H1": 4, "H2": 8, "H3": 16},
+              "b1": {"M1": 32, "M2": 128, "M3": 512}}  # B1: H×H grid (C.B1_LEVELS)
 FETI_PRECOND = os.environ.get("PEERS_FETI_PRECOND", "none")
+#: "FETI tuned" (sphere): the setting chosen from bench/peers/feti_tuning.py (docs/peers.md):
+#: the lumped preconditioner and fewer, larger subdomains than FETI_PARTS at S3.
+FETI_TUNED = {"preconditioner": "lumped"}
+FETI_TUNED_PARTS = {"S1": 4, "S2": 8, "S3": 8}
 
 
 def best_of(fn, repeat=REPEAT):
@@ -63,6 +69,14 @@ def reference(problem: str, level: str, mono, rot=None) -> dict:
     if problem == "sphere":
         r = M.run_snes_vi(mono, rot, rtol=1e-14)
         u, lam = r["u"], r["lam"]
+    elif problem == "b1":
+        C.ref.CERT_TOL = 1e-10  # M3 (132k dofs): stationarity 2.1e-12 after the SuperLU solve
+        Pm = C.ref.MonolithicProblem(mono.mesh, 1, C.ref.poisson_forms(C.ref.membrane_source),
+                                     dirichlet=[("dirichlet", None)],
+                                     contact=("contact_left", "contact_right"), match_axes=(1,))
+        assert np.array_equal(Pm.pairs.slave, mono.nodes)
+        s = Pm.solve()
+        u, lam = s.u.ravel(), s.lam
     else:
         # tests/reference.py certifies its PDAS solve to 1e-12; at 77k+ dofs the stationarity
         # of the SuperLU solve ends at ~1.2-1.7e-12: accept 1e-10 (printed below).
@@ -89,6 +103,9 @@ def metrics(problem: str, mono, ref: dict, u: np.ndarray, lam: np.ndarray) -> di
         F, F_ref = 4 * float(np.sum(lam)), 4 * float(np.sum(ref["lam"]))
         out.update(F=F, F_ref=F_ref, err_F=abs(F - F_ref) / F_ref,
                    err_F_hertz=abs(F - C.SPHERE_F) / C.SPHERE_F)
+    elif problem == "b1":
+        F, F_ref = float(np.sum(lam)), float(np.sum(ref["lam"]))
+        out.update(F=F, F_ref=F_ref, err_F=abs(F - F_ref) / F_ref)
     else:
         F, F_ref = 2 * float(np.sum(lam)), 2 * float(np.sum(ref["lam"]))
         out.update(F=F, F_ref=F_ref, err_F=abs(F - F_ref) / F_ref)
@@ -102,12 +119,17 @@ def metrics(problem: str, mono, ref: dict, u: np.ndarray, lam: np.ndarray) -> di
 # ------------------------------------------------------------------------------------------------
 
 
-def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: str) -> dict:
+def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: str,
+             **options) -> dict:
     import dolfinx_feti as df
 
-    prob = (C.sphere_problem if problem == "sphere" else C.hertz_problem)(level, parts)
+    if problem == "b1":
+        prob = C.b1_problem(level)
+    else:
+        prob = (C.sphere_problem if problem == "sphere" else C.hertz_problem)(level, parts)
+    options.setdefault("preconditioner", precond)
     t = C.Clock()
-    sol = df.solve(prob, rtol=rtol, preconditioner=precond)
+    sol = df.solve(prob, rtol=rtol, **options)
     elapsed = t()
     u = sol.nodal_values().ravel()
     ct = sol.contact
@@ -119,7 +141,8 @@ def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: s
     out = {"t": elapsed, "its": r.iterations, "outer": r.outer_iterations,
            "mults": r.hessian_mults, "mults_total": r.hessian_mults_total,
            "converged": bool(r.converged), "timings": dict(r.timings), "u": u, "lam": lam,
-           "parts": parts, "precond": precond, "primal": r.sizes["primal"],
+           "parts": parts, "precond": options["preconditioner"], "options": options,
+           "primal": r.sizes["primal"],
            "dual": r.sizes["dual"]}
     del sol
     return out
@@ -136,6 +159,8 @@ def worker(problem: str, level: str, family: str) -> None:
     if problem == "sphere":
         mono = C.sphere_monolithic(level)
         rot = M.Rotated(mono)
+    elif problem == "b1":
+        mono, rot = C.b1_monolithic(level), None
     else:
         mono, rot = C.hertz_monolithic(level), None
     t_assemble = t()
@@ -157,6 +182,11 @@ def worker(problem: str, level: str, family: str) -> None:
         for tol in TOLS:
             record("FETI", tol, best_of(lambda tol=tol: run_feti(problem, level, mono, tol, parts,
                                                          FETI_PRECOND)))
+    elif family == "feti_tuned":
+        parts = FETI_TUNED_PARTS[level]
+        for tol in TOLS:
+            record("FETI tuned", tol, best_of(lambda tol=tol: run_feti(
+                problem, level, mono, tol, parts, FETI_TUNED["preconditioner"], **FETI_TUNED)))
     elif family == "snes":
         for tol in TOLS:
             record("SNES-VI", tol, best_of(lambda tol=tol: M.run_snes_vi(mono, rot, tol)))
@@ -202,7 +232,8 @@ def worker(problem: str, level: str, family: str) -> None:
 
 def run_all(only: list[str]) -> None:
     env = dict(os.environ, OMP_NUM_THREADS="1")
-    for problem, levels in (("sphere", C.SPHERE_LEVELS), ("hertz", C.HERTZ_LEVELS)):
+    for problem, levels in (("sphere", C.SPHERE_LEVELS), ("hertz", C.HERTZ_LEVELS),
+                            ("b1", C.B1_LEVELS)):
         for level in levels:
             for family in FAMILIES[problem]:
                 tag = f"{problem}_{level}_{family}"
