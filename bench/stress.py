@@ -71,8 +71,14 @@ def jumps() -> None:
     for ratio in (1.0, 1e2, 1e4, 1e6):
         ref = sc.composite_reference(mesh, ratio)
         for dec in ("tags", "grid"):
-            for pc in ("none", "lumped", "dirichlet"):
-                solved(g, "jumps", sc.coefficient_jump(mesh, ratio, dec, pc, reference=ref))
+            for pc, scaling in (("none", "multiplicity"), ("lumped", "multiplicity"),
+                                ("dirichlet", "multiplicity"), ("lumped", "stiffness"),
+                                ("dirichlet", "stiffness")):
+                case = sc.coefficient_jump(mesh, ratio, dec, pc, reference=ref,
+                                           preconditioner_scaling=scaling)
+                if scaling == "stiffness":
+                    case.name += " (stiffness scaling)"
+                solved(g, "jumps", case)
     for rtol in (1e-12, 1e-14):
         solved(g, "jumps", sc.coefficient_jump(mesh, 1e6, "tags", rtol=rtol),
                f", rtol {rtol:.0e}")

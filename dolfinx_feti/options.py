@@ -55,6 +55,9 @@ class SolverOptions:
             accepted only if the energy decreases; needs mprgp_expansion "fixed").
         preconditioner: "none", "lumped" (B K Bᵀ) or "dirichlet" (B S Bᵀ), applied projected
             in CG and in the face (free set) in MPRGP.
+        preconditioner_scaling: "multiplicity" (the orthonormal rows of B as they are) or
+            "stiffness" (Rixen–Farhat: Z B Δ S Δ Bᵀ Z with Δ = diag(K)⁻¹, Z = (B Δ Bᵀ)⁻¹; for
+            coefficient jumps, see docs/robustness.md).
         qp: "auto" (CG / SMALBE / MPRGP as the problem needs) or "penalty" (the dual penalty
             FETI-NCG_ρ: MPRGP on PFP + ρQ, the equality only approximated: ||Gλ|| = O(1/ρ)).
         penalty_rho: ρ of qp="penalty", relative to ||PFP||.
@@ -82,6 +85,7 @@ class SolverOptions:
     mprgp_expansion: str = "fixed"
     mprgp_alpha: str = "fixed"
     preconditioner: str = "none"
+    preconditioner_scaling: str = "multiplicity"
     qp: str = "auto"
     penalty_rho: float = 1e3
     smalbe_rho: float = 1.1
@@ -155,6 +159,9 @@ class SolverOptions:
         if self.preconditioner not in ("none", "lumped", "dirichlet"):
             raise InputError("preconditioner must be 'none', 'lumped' or 'dirichlet', got "
                              f"{self.preconditioner!r}")
+        if self.preconditioner_scaling not in ("multiplicity", "stiffness"):
+            raise InputError("preconditioner_scaling must be 'multiplicity' or 'stiffness', got "
+                             f"{self.preconditioner_scaling!r}")
         if self.qp not in ("auto", "penalty"):
             raise InputError(f"qp must be 'auto' or 'penalty', got {self.qp!r}")
         if not self.penalty_rho > 0:

@@ -69,7 +69,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
 
     with timer.phase("preconditioner"):
-        precond = make_preconditioner(opts.preconditioner, feti, opts.factor)
+        precond = make_preconditioner(opts.preconditioner, feti, opts.factor,
+                                      opts.preconditioner_scaling)
     x = qp.b.duplicate()
     x.set(0.0)
     mults0 = feti.hessian_mults

@@ -69,6 +69,7 @@ DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "none",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
+            "preconditioner_scaling": "multiplicity",
             "smalbe_depth": 3}
 
 

@@ -46,6 +46,9 @@ VARIANTS = [
     {"mprgp_expansion": "optimal"},
     {"mprgp_expansion": "projcg"},
     {"preconditioner": "dirichlet", "mprgp_alpha": "bb"},
+    {"preconditioner": "lumped", "preconditioner_scaling": "stiffness"},
+    {"preconditioner": "dirichlet", "preconditioner_scaling": "stiffness"},
+    {"smalbe_acceleration": "none"},
 ]
 
 
@@ -68,8 +71,9 @@ def test_dirichlet_preconditioner_saves_f_multiplications(hertz):
 
 
 @pytest.mark.parametrize("preconditioner", ["none", "lumped", "dirichlet"])
-def test_preconditioned_b1_is_exact(b1, preconditioner):
-    sol = df.solve(b1, rtol=1e-10, preconditioner=preconditioner)
+@pytest.mark.parametrize("scaling", ["multiplicity", "stiffness"])
+def test_preconditioned_b1_is_exact(b1, preconditioner, scaling):
+    sol = df.solve(b1, rtol=1e-10, preconditioner=preconditioner, preconditioner_scaling=scaling)
     assert sol.report.converged
     assert abs(sol.contact.force.sum() - 0.25) < 1e-8
     assert abs(sol.energy - (-0.26012652)) <= 1e-6 * 0.26012652

@@ -6,6 +6,13 @@ interface exactly. S_i is the Schur complement of K_i on the dofs that B touches
 interface, Dirichlet and contact dofs of the subdomain), applied with a sparse Cholesky
 factorization of the interior block.
 
+Stiffness scaling (``scaling="stiffness"``, Rixen & Farhat, IJNME 44 (1999) 489–516): with
+Δ = diag(K)⁻¹ (each dof weighted by the inverse of its own stiffness) the preconditioner is
+Z B Δ K Bᵀ Δ Z (lumped) or Z B Δ S Δ Bᵀ Z (Dirichlet), Z = (B Δ Bᵀ)⁻¹. Across a coefficient
+jump the stiff side then carries the interface, which multiplicity scaling cannot see. Z is
+applied with a sparse Cholesky factorization of the dual matrix B Δ Bᵀ (MUMPS, any number of
+ranks): two extra sparse solves of dual size per application.
+
 Both are applied as ``mult(x, y)`` objects on dual vectors; the QP solvers project and mask
 them as the constraints require.
 """
@@ -18,33 +25,94 @@ from petsc4py import PETSc
 from ..errors import SolveError
 from .kplus import SparseCholesky
 
+SCALINGS = ("multiplicity", "stiffness")
+
+
+class _DualScaling:
+    """Z = (B Δ Bᵀ)⁻¹ with Δ = diag(K)⁻¹: the stiffness scaling of the dual space."""
+
+    def __init__(self, feti) -> None:
+        diag = feti.K_local.diagonal()
+        if diag.size and not np.all(diag > 0):
+            raise SolveError("stiffness scaling: a subdomain matrix has a non-positive "
+                             "diagonal entry")
+        self.delta = 1.0 / diag
+        Bd = feti.B.duplicate(copy=True)
+        dvec = feti.B.createVecRight()
+        dvec.array[:] = self.delta
+        Bd.diagonalScale(R=dvec)  # B Δ
+        self._C = Bd.matTransposeMult(feti.B)  # B Δ Bᵀ
+        Bd.destroy()
+        dvec.destroy()
+        self._ksp = PETSc.KSP().create(feti.B.getComm())
+        self._ksp.setOperators(self._C)
+        self._ksp.setType("preonly")
+        pc = self._ksp.getPC()
+        pc.setType("cholesky")
+        pc.setFactorSolverType("mumps")
+        try:
+            self._ksp.setUp()
+        except PETSc.Error as e:
+            raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
+                             "rows of B redundant? use gluing='orthonormal')") from e
+        self._t = self._C.createVecRight()
+
+    def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = Z x."""
+        self._ksp.solve(x, y)
+        if self._ksp.getConvergedReason() < 0:
+            raise SolveError("stiffness scaling: the solve with B diag(K)⁻¹ Bᵀ failed")
+
+    def destroy(self) -> None:
+        self._ksp.destroy()
+        self._C.destroy()
+        self._t.destroy()
+
 
 class LumpedPreconditioner:
-    """M⁻¹ = B K Bᵀ: one sparse matrix-vector product with the rank's block-diagonal K (cheap)."""
+    """M⁻¹ = B K Bᵀ: one sparse matrix-vector product with the rank's block-diagonal K (cheap).
+
+    With ``scaling="stiffness"``: M⁻¹ = Z B Δ K Δ Bᵀ Z (see the module docstring).
+    """
 
     name = "lumped"
 
-    def __init__(self, feti) -> None:
+    def __init__(self, feti, scaling: str = "multiplicity") -> None:
         """Use the subdomain matrices of a :class:`~dolfinx_feti.feti.TotalFETI`."""
+        if scaling not in SCALINGS:
+            raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
+                             f"{scaling!r}")
         self.feti = feti
         self.count = 0
         self._w = feti.B.createVecRight()
         self._v = feti.B.createVecRight()
+        self._scale = _DualScaling(feti) if scaling == "stiffness" else None
+        self.scaling = scaling
 
     def _local(self, w: np.ndarray) -> np.ndarray:
         return self.feti.K_local @ w
 
     def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        """y = B K Bᵀ x (or B S Bᵀ x for the Dirichlet preconditioner)."""
+        """y = B K Bᵀ x (or B S Bᵀ x for the Dirichlet preconditioner), scaled if asked."""
         self.count += 1
-        self.feti.B.multTranspose(x, self._w)
-        self._v.array[:] = self._local(self._w.array_r)
-        self.feti.B.mult(self._v, y)
+        z = self._scale
+        if z is None:
+            self.feti.B.multTranspose(x, self._w)
+            self._v.array[:] = self._local(self._w.array_r)
+            self.feti.B.mult(self._v, y)
+            return
+        z.apply(x, z._t)
+        self.feti.B.multTranspose(z._t, self._w)
+        self._v.array[:] = z.delta * self._local(z.delta * self._w.array_r)
+        self.feti.B.mult(self._v, z._t)
+        z.apply(z._t, y)
 
     def destroy(self) -> None:
         """Free the PETSc objects."""
         self._w.destroy()
         self._v.destroy()
+        if self._scale is not None:
+            self._scale.destroy()
 
 
 class DirichletPreconditioner(LumpedPreconditioner):
@@ -55,9 +123,9 @@ class DirichletPreconditioner(LumpedPreconditioner):
 
     name = "dirichlet"
 
-    def __init__(self, feti, factor: str = "cholmod") -> None:
+    def __init__(self, feti, factor: str = "cholmod", scaling: str = "multiplicity") -> None:
         """Factor the interior blocks of the local subdomains."""
-        super().__init__(feti)
+        super().__init__(feti, scaling)
         rows, dec, bs = feti.rows, feti.dec, feti.bs
         mine = np.isin(rows.e_sub, np.fromiter(feti.R, dtype=np.int64))
         start = np.zeros(dec.num_subdomains, dtype=np.int64)  # local offset of each subdomain
@@ -95,12 +163,13 @@ class DirichletPreconditioner(LumpedPreconditioner):
             self._chol.destroy()
 
 
-def make_preconditioner(kind: str, feti, factor: str = "cholmod"):
-    """``"none"`` → None, ``"lumped"``, ``"dirichlet"``."""
+def make_preconditioner(kind: str, feti, factor: str = "cholmod",
+                        scaling: str = "multiplicity"):
+    """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module)."""
     if kind == "none":
         return None
     if kind == "lumped":
-        return LumpedPreconditioner(feti)
+        return LumpedPreconditioner(feti, scaling)
     if kind == "dirichlet":
-        return DirichletPreconditioner(feti, factor)
+        return DirichletPreconditioner(feti, factor, scaling)
     raise ValueError(f"unknown preconditioner {kind!r}: use 'none', 'lumped' or 'dirichlet'")
