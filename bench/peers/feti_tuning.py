@@ -10,8 +10,9 @@ header). Error = max(‖u − u*‖∞/‖u*‖∞, ‖λ − λ*‖∞/‖λ*�
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S1
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S2 --parts 8
 
-Writes output/bench/feti_tuning_<level>.md and .json (appends nothing: one file per command;
-``--tag`` names it).
+Writes output/bench/feti_tuning_<level>.md and .json (one file per command; ``--tag`` names
+it). ``--products`` only times one F and one PFP product per ``--parts`` value
+(output/bench/feti_products_<level>.md).
 """
 
 from __future__ import annotations
@@ -72,6 +73,28 @@ def solve_one(level: str, parts: int, rtol: float, options: dict, mono, ref: dic
     return best
 
 
+def time_products(level: str, parts_list, repeat: int = 20) -> list[str]:
+    """Wall time of one F and one P F P product (mean of ``repeat``) per number of parts."""
+    from mpi4py import MPI
+
+    lines = ["| parts | dual size | F (ms) | P F P (ms) |", "|---|---|---|---|"]
+    for parts in parts_list:
+        qp = df.dual_qp(C.sphere_problem(level, parts), MPI.COMM_SELF)
+        x, y = qp.b.copy(), qp.b.duplicate()
+        x.setRandom()
+        cells = []
+        for A in (qp.feti.F, qp.A):
+            A.mult(x, y)
+            t = C.Clock()
+            for _ in range(repeat):
+                A.mult(x, y)
+            cells.append(f"{1000 * t() / repeat:.1f}")
+        lines.append(f"| {parts} | {qp.b.getSize()} | {cells[0]} | {cells[1]} |")
+        print(lines[-1], flush=True)
+        del qp
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--level", default="S1", choices=list(C.SPHERE_LEVELS))
@@ -83,8 +106,18 @@ def main() -> None:
     parser.add_argument("--parts", nargs="*", type=int, default=[4, 8, 16])
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--tag", default="")
+    parser.add_argument("--products", action="store_true",
+                        help="only time one F and one PFP product per number of parts")
     args = parser.parse_args()
     t0 = time.perf_counter()
+    if args.products:
+        lines = time_products(args.level, args.parts)
+        md = [f"# One product on the rigid sphere {args.level}", "",
+              f"Machine: {C.P.machine()}. Code: {C.P.git_state()}.",
+              f"Command: `OMP_NUM_THREADS=1 python {' '.join(sys.argv)}`", "", *lines]
+        OUT.mkdir(parents=True, exist_ok=True)
+        (OUT / f"feti_products_{args.level}.md").write_text("\n".join(md) + "\n")
+        return
     mono = C.sphere_monolithic(args.level)
     ref = R.reference("sphere", args.level, mono, M.Rotated(mono))
     rows = []

@@ -2,6 +2,7 @@
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/run.py all      # every worker, then report
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/run.py worker sphere S2 snes
+    OMP_NUM_THREADS=1 .venv/bin/python bench/peers/run.py all b1     # only the matching cells
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/run.py report   # tables + plots from JSON
 
 Each worker is a fresh process (so its peak RSS is its own) that builds one mesh, assembles the
@@ -9,6 +10,8 @@ undecomposed problem, loads (or computes, the first time) the exact-constraint r
 mesh, times the floor (MUMPS Cholesky and CG+GAMG on the same mesh with the contact set fixed)
 and then one family of methods over its tolerance / penalty sweep, each run repeated and the
 minimum time kept. Results go to output/peers/raw/<problem>_<level>_<family>.json.
+Problems: sphere (S1–S3), hertz (H1–H3), b1 (M1–M3); families in FAMILIES ("feti_tuned": the
+setting FETI_TUNED chosen with bench/peers/feti_tuning.py).
 """
 
 from __future__ import annotations
