@@ -34,6 +34,9 @@ ROOT = Path(__file__).resolve().parent.parent
 VARIANTS: dict[str, dict] = {
     "default": {},
     "plain": {"smalbe_acceleration": "none"},
+    "lumped+stiffness": {"preconditioner": "lumped", "preconditioner_scaling": "stiffness"},
+    "dirichlet+stiffness": {"preconditioner": "dirichlet",
+                            "preconditioner_scaling": "stiffness"},
     "expansion=optimal": {"mprgp_expansion": "optimal"},
     "expansion=projcg": {"mprgp_expansion": "projcg"},
     "alpha=bb": {"mprgp_alpha": "bb"},

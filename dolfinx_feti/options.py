@@ -53,11 +53,12 @@ class SolverOptions:
         mprgp_expansion: "fixed", "optimal" or "projcg".
         mprgp_alpha: Expansion step length: "fixed" (ᾱ = 1.95/||A||) or "bb" (Barzilai–Borwein,
             accepted only if the energy decreases; needs mprgp_expansion "fixed").
-        preconditioner: "none", "lumped" (B K Bᵀ) or "dirichlet" (B S Bᵀ), applied projected
-            in CG and in the face (free set) in MPRGP.
-        preconditioner_scaling: "multiplicity" (the orthonormal rows of B as they are) or
-            "stiffness" (Rixen–Farhat: Z B Δ S Δ Bᵀ Z with Δ = diag(K)⁻¹, Z = (B Δ Bᵀ)⁻¹; for
-            coefficient jumps, see docs/robustness.md).
+        preconditioner: "none", "lumped" (B K Bᵀ, the default) or "dirichlet" (B S Bᵀ),
+            applied projected in CG and in the face (free set) in MPRGP.
+        preconditioner_scaling: "stiffness" (the default; Rixen–Farhat: Z B Δ K Δ Bᵀ Z with
+            Δ = diag(K)⁻¹, Z = (B Δ Bᵀ)⁻¹) or "multiplicity" (the orthonormal rows of B as they
+            are). Where B Δ Bᵀ is singular (redundant rows) the preconditioner falls back to
+            multiplicity scaling with a warning. Measured in docs/solvers.md.
         qp: "auto" (CG / SMALBE / MPRGP as the problem needs) or "penalty" (the dual penalty
             FETI-NCG_ρ: MPRGP on PFP + ρQ, the equality only approximated: ||Gλ|| = O(1/ρ)).
         penalty_rho: ρ of qp="penalty", relative to ||PFP||.
@@ -84,8 +85,8 @@ class SolverOptions:
     mprgp_gamma: float = 1.0
     mprgp_expansion: str = "fixed"
     mprgp_alpha: str = "fixed"
-    preconditioner: str = "none"
-    preconditioner_scaling: str = "multiplicity"
+    preconditioner: str = "lumped"
+    preconditioner_scaling: str = "stiffness"
     qp: str = "auto"
     penalty_rho: float = 1e3
     smalbe_rho: float = 1.1

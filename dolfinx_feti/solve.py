@@ -71,6 +71,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     with timer.phase("preconditioner"):
         precond = make_preconditioner(opts.preconditioner, feti, opts.factor,
                                       opts.preconditioner_scaling)
+        report.warnings.extend(getattr(precond, "notes", []))
     x = qp.b.duplicate()
     x.set(0.0)
     mults0 = feti.hessian_mults

@@ -67,9 +67,9 @@ def b1_solution(b1_problem):
 DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
             "factor": "cholmod", "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
-            "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "none",
+            "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
-            "preconditioner_scaling": "multiplicity",
+            "preconditioner_scaling": "stiffness",
             "smalbe_depth": 3}
 
 

@@ -103,7 +103,18 @@ class LumpedPreconditioner:
         self.count = 0
         self._w = feti.B.createVecRight()
         self._v = feti.B.createVecRight()
-        self._scale = _DualScaling(feti, factor) if scaling == "stiffness" else None
+        #: Notes for the report (a scaling that could not be applied).
+        self.notes: list[str] = []
+        self._scale = None
+        if scaling == "stiffness":
+            try:
+                self._scale = _DualScaling(feti, factor)
+            except SolveError as e:
+                # Redundant rows of B (gluing="redundant", two obstacles on one surface) make
+                # B Δ Bᵀ singular: keep the preconditioner, unscaled, and say so.
+                scaling = "multiplicity"
+                self.notes.append(f"{e}; the {self.name} preconditioner uses multiplicity "
+                                  "scaling instead")
         self.scaling = scaling
 
     def _local(self, w: np.ndarray) -> np.ndarray:
