@@ -38,10 +38,25 @@ HERTZ_E, HERTZ_NU, HERTZ_R, HERTZ_P = 200.0, 0.3, 8.0, 10.0
 HERTZ_P0, HERTZ_A = 6.6124, 0.96277
 
 #: Mesh levels: name -> (h, h_far, refine_radius) for the sphere, (h_contact, h_far) for Hertz.
-SPHERE_LEVELS = {"S1": (0.02, 0.1, 0.2), "S2": (0.01, 0.1, 0.2), "S3": (0.0065, 0.08, 0.2)}
+SPHERE_LEVELS = {"S1": (0.02, 0.1, 0.2), "S2": (0.01, 0.1, 0.2), "S3": (0.0065, 0.08, 0.2),
+                 "S4": (0.005, 0.08, 0.2)}
 HERTZ_LEVELS = {"H1": (0.02, 1.0), "H2": (0.01, 1.0), "H3": (0.007, 1.0)}
 #: B1 (two membranes): name -> (n, H), n×n squares per membrane, H×H subdomains (H/h = 16)
 B1_LEVELS = {"M1": (64, 1 / 4), "M2": (128, 1 / 8), "M3": (256, 1 / 16)}
+
+
+def code_state() -> str:
+    """The library the numbers were measured with.
+
+    The working tree's commit (``problems.git_state``), unless ``dolfinx_feti`` was imported
+    from a ``git archive`` export put first on PYTHONPATH (a shared tree with someone else's
+    uncommitted changes): then the commit written into the export's ``COMMIT`` file.
+    """
+    pkg = Path(df.__file__).resolve().parent
+    stamp = pkg.parent / "COMMIT"
+    if pkg.parent != ROOT and stamp.exists():
+        return f"export of {stamp.read_text().strip()} ({pkg})"
+    return P.git_state()
 
 
 def maxrss_mib() -> float:

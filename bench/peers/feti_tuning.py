@@ -1,14 +1,19 @@
-"""FETI options on the peers' 3D rigid-sphere problem: F-multiplications, time and error.
+"""FETI options on the peers' 3D rigid sphere (or 2D Hertz): F-multiplications, time, error.
 
-A factorial sweep of ``preconditioner`` × ``mprgp_expansion`` × ``smalbe_rho`` × ``Parts(k)``
+A factorial sweep of ``preconditioner`` × ``preconditioner_scaling`` × ``mprgp_expansion`` ×
+``smalbe_rho`` × ``Parts(k)``
 (``expansion`` ``bb`` = ``mprgp_expansion='fixed', mprgp_alpha='bb'``) on one mesh level of
 ``bench/peers/common.py`` at one rtol. The F-multiplication counts are deterministic; times
 are the minimum of ``--repeat`` solves on a shared machine (the load average is in the
-header). Error = max(‖u − u*‖∞/‖u*‖∞, ‖λ − λ*‖∞/‖λ*‖∞) against the SNES-VI reference of
-``run.py`` (computed and cached in output/peers/raw the first time).
+header). Error = max(‖u − u*‖∞/‖u*‖∞, ‖λ − λ*‖∞/‖λ*‖∞) against the reference of ``run.py``
+(sphere: SNES-VI at rtol 1e-14; Hertz: the PDAS solve of tests/reference.py; computed and
+cached in output/peers/raw the first time).
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S1
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S2 --parts 8
+    OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S3 --expansion fixed \
+        --rho 1.1 --scaling multiplicity stiffness --tag scaling
+    OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level H1 ...   # 2D Hertz
 
 Writes output/bench/feti_tuning_<level>.md and .json (one file per command; ``--tag`` names
 it). ``--products`` only times one F and one PFP product per ``--parts`` value
@@ -36,8 +41,11 @@ import dolfinx_feti as df  # noqa: E402
 OUT = C.ROOT / "output" / "bench"
 
 
-def feti_options(precond: str, expansion: str, rho: float) -> dict:
+def feti_options(precond: str, expansion: str, rho: float,
+                 scaling: str = "multiplicity") -> dict:
     opts = {"preconditioner": precond, "smalbe_rho": rho}
+    if precond != "none":
+        opts["preconditioner_scaling"] = scaling
     if expansion == "bb":
         opts.update(mprgp_expansion="fixed", mprgp_alpha="bb")
     else:
@@ -45,11 +53,16 @@ def feti_options(precond: str, expansion: str, rho: float) -> dict:
     return opts
 
 
+def make_problem(level: str, parts: int):
+    """The sphere (S*) or 2D Hertz (H*) problem of the peers suite with ``Parts(parts)``."""
+    return (C.hertz_problem if level.startswith("H") else C.sphere_problem)(level, parts)
+
+
 def solve_one(level: str, parts: int, rtol: float, options: dict, mono, ref: dict,
               repeat: int) -> dict:
     best = None
     for _ in range(max(1, repeat)):
-        prob = C.sphere_problem(level, parts)
+        prob = make_problem(level, parts)
         t = C.Clock()
         sol = df.solve(prob, rtol=rtol, **options)
         elapsed = t()
@@ -65,7 +78,8 @@ def solve_one(level: str, parts: int, rtol: float, options: dict, mono, ref: dic
                     "mults": r.hessian_mults, "its": r.iterations,
                     "outer": r.outer_iterations, "converged": bool(r.converged),
                     "reason": r.reason, "dual": r.sizes["dual"],
-                    **R.metrics("sphere", mono, ref, u, lam)}
+                    **R.metrics("hertz" if level.startswith("H") else "sphere", mono,
+                                ref, u, lam)}
         else:
             best["t"] = min(best["t"], elapsed)
             best["t_iter"] = min(best["t_iter"], sol.report.timings.get("iterations", 0.0))
@@ -79,7 +93,7 @@ def time_products(level: str, parts_list, repeat: int = 20) -> list[str]:
 
     lines = ["| parts | dual size | F (ms) | P F P (ms) |", "|---|---|---|---|"]
     for parts in parts_list:
-        qp = df.dual_qp(C.sphere_problem(level, parts), MPI.COMM_SELF)
+        qp = df.dual_qp(make_problem(level, parts), MPI.COMM_SELF)
         x, y = qp.b.copy(), qp.b.duplicate()
         x.setRandom()
         cells = []
@@ -97,12 +111,16 @@ def time_products(level: str, parts_list, repeat: int = 20) -> list[str]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--level", default="S1", choices=list(C.SPHERE_LEVELS))
+    parser.add_argument("--level", default="S1", choices=[*C.SPHERE_LEVELS, *C.HERTZ_LEVELS],
+                        help="S1-S3: the 3D rigid sphere; H1-H3: 2D Hertz (two bodies)")
     parser.add_argument("--rtol", type=float, default=1e-8)
     parser.add_argument("--precond", nargs="*", default=["none", "lumped", "dirichlet"])
     parser.add_argument("--expansion", nargs="*", default=["fixed", "optimal", "projcg", "bb"])
     parser.add_argument("--rho", nargs="*", type=float, default=[1.1, 10.0, 100.0],
                         help="smalbe_rho (relative to ||PFP||)")
+    parser.add_argument("--scaling", nargs="*", default=["multiplicity"],
+                        help="preconditioner_scaling (multiplicity, stiffness); "
+                             "ignored without a preconditioner")
     parser.add_argument("--parts", nargs="*", type=int, default=[4, 8, 16])
     parser.add_argument("--repeat", type=int, default=1)
     parser.add_argument("--tag", default="")
@@ -113,36 +131,50 @@ def main() -> None:
     if args.products:
         lines = time_products(args.level, args.parts)
         md = [f"# One product on the rigid sphere {args.level}", "",
-              f"Machine: {C.P.machine()}. Code: {C.P.git_state()}.",
+              f"Machine: {C.P.machine()}. Code: {C.code_state()}.",
               f"Command: `OMP_NUM_THREADS=1 python {' '.join(sys.argv)}`", "", *lines]
         OUT.mkdir(parents=True, exist_ok=True)
         (OUT / f"feti_products_{args.level}.md").write_text("\n".join(md) + "\n")
         return
-    mono = C.sphere_monolithic(args.level)
-    ref = R.reference("sphere", args.level, mono, M.Rotated(mono))
+    if args.level.startswith("H"):
+        mono = C.hertz_monolithic(args.level)
+        ref = R.reference("hertz", args.level, mono)
+    else:
+        mono = C.sphere_monolithic(args.level)
+        ref = R.reference("sphere", args.level, mono, M.Rotated(mono))
     rows = []
-    for parts, precond, expansion, rho in itertools.product(args.parts, args.precond,
-                                                            args.expansion, args.rho):
-        opts = feti_options(precond, expansion, rho)
+    load0 = C.P.machine()
+    for parts, precond, scaling, expansion, rho in itertools.product(
+            args.parts, args.precond, args.scaling, args.expansion, args.rho):
+        if precond == "none" and scaling != args.scaling[0]:
+            continue  # the scaling only acts on a preconditioner
+        opts = feti_options(precond, expansion, rho, scaling)
         r = solve_one(args.level, parts, args.rtol, opts, mono, ref, args.repeat)
+        scaling = scaling if precond != "none" else "-"
         row = {"level": args.level, "ndofs": mono.ndofs, "parts": parts, "precond": precond,
-               "expansion": expansion, "smalbe_rho": rho, "rtol": args.rtol, **r}
+               "scaling": scaling, "expansion": expansion, "smalbe_rho": rho,
+               "rtol": args.rtol, **r}
         rows.append(row)
-        print(f"{args.level} parts {parts:3d} {precond:9s} {expansion:8s} rho {rho:6g}: "
+        print(f"{args.level} parts {parts:3d} {precond:9s} {scaling:12s} {expansion:8s} "
+              f"rho {rho:6g}: "
               f"{r['mults']:5d} F-mults ({r['outer']} outer), {r['t']:6.2f} s "
               f"(iterations {r['t_iter']:.2f} s), err {r['err']:.1e}, "
               f"{'ok' if r['converged'] else 'NOT converged ' + r['reason']}", flush=True)
     OUT.mkdir(parents=True, exist_ok=True)
     name = f"feti_tuning_{args.level}{'_' + args.tag if args.tag else ''}"
-    header = ["parts", "preconditioner", "expansion", "smalbe_rho", "F-mults", "outer",
-              "time (s)", "iterations (s)", "error (u, λ)", "converged"]
-    table = [[r["parts"], r["precond"], r["expansion"], f"{r['smalbe_rho']:g}", r["mults"],
-              r["outer"], f"{r['t']:.2f}", f"{r['t_iter']:.2f}", f"{r['err']:.1e}",
+    header = ["parts", "preconditioner", "scaling", "expansion", "smalbe_rho", "F-mults",
+              "outer", "time (s)", "iterations (s)", "preconditioner (s)", "error (u, λ)",
+              "converged"]
+    table = [[r["parts"], r["precond"], r["scaling"], r["expansion"], f"{r['smalbe_rho']:g}",
+              r["mults"], r["outer"], f"{r['t']:.2f}", f"{r['t_iter']:.2f}",
+              f"{r['t_prec']:.2f}", f"{r['err']:.1e}",
               "yes" if r["converged"] else r["reason"]] for r in rows]
-    md = [f"# FETI options on the rigid sphere {args.level} ({mono.ndofs} free dofs), "
+    what = "2D Hertz" if args.level.startswith("H") else "the rigid sphere"
+    md = [f"# FETI options on {what} {args.level} ({mono.ndofs} free dofs), "
           f"rtol {args.rtol:g}", "",
-          f"Machine: {C.P.machine()}. Code: {C.P.git_state()}. Run time "
-          f"{(time.perf_counter() - t0) / 60:.1f} min.",
+          f"Machine at the start: {load0}; at the end: {C.P.machine()}. "
+          f"Code: {C.code_state()}. "
+          f"Run time {(time.perf_counter() - t0) / 60:.1f} min.",
           f"Command: `OMP_NUM_THREADS=1 python {' '.join(sys.argv)}`", "",
           C.P.md_table(header, table)]
     (OUT / f"{name}.md").write_text("\n".join(md) + "\n")

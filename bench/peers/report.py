@@ -1,6 +1,7 @@
 """Tables and plots of the peer benchmarks from the JSON of ``bench/peers/run.py``.
 
-Tables: markdown, printed and written to output/peers/tables.md. Plots: error against time per
+Tables: markdown, printed and written to output/peers/tables.md (every row) and
+output/peers/condensed.md (the tables of docs/peers.md). Plots: error against time per
 problem, time against dofs.
 """
 
@@ -14,9 +15,9 @@ import numpy as np
 OUT = Path(__file__).resolve().parents[2] / "output" / "peers"
 RAW = OUT / "raw"
 FLOOR_ERR = 1e-15  # exact active-set results (error 0) are drawn here on the log scale
-STYLE = {"FETI": "C0", "FETI tuned": "C9", "SNES-VI": "C1", "penalty": "C2", "Clarabel": "C3",
-         "OSQP": "C4"}
-LEVEL_MARK = {"1": "o", "2": "s", "3": "^"}
+STYLE = {"FETI": "C0", "FETI tuned": "C9", "FETI lib default": "C5", "SNES-VI": "C1",
+         "penalty": "C2", "Clarabel": "C3", "OSQP": "C4"}
+LEVEL_MARK = {"1": "o", "2": "s", "3": "^", "4": "D"}
 
 
 def load() -> list[dict]:
@@ -27,8 +28,19 @@ def fmt(v, spec=".3g"):
     return "–" if v is None else format(v, spec)
 
 
+def provenance(data: list[dict]) -> list[str]:
+    """Per worker: the commit of the code and the machine line (load average at its end)."""
+    out = ["\n### Provenance (one worker per problem × level × family)\n",
+           "| worker | code (the tree's HEAD, or the export's commit) | dolfinx_feti from | "
+           "machine at the end |", "|---|---|---|---|"]
+    for d in sorted(data, key=lambda d: (d["problem"], d["level"], d["family"])):
+        out.append(f"| {d['problem']} {d['level']} {d['family']} | {d.get('code', 'not recorded')}"
+                   f" | {d.get('feti_module') or '–'} | {d['machine']} |")
+    return out
+
+
 def tables(data: list[dict]) -> str:
-    out = []
+    out = provenance(data)
     for problem in ("sphere", "hertz", "b1"):
         ds = [d for d in data if d["problem"] == problem]
         if not ds:
@@ -68,6 +80,63 @@ def tables(data: list[dict]) -> str:
     text = "\n".join(out)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "tables.md").write_text(text + "\n")
+    return text
+
+
+def _cell(r: dict, mults: bool = True) -> str:
+    out = f"{r['t']:.2f} ({r['ratio_mumps']:.1f}×), {r['err']:.1e}"
+    return out + (f", {r['mults']}" if mults and "mults" in r else "")
+
+
+def _rows(data, problem, level, family):
+    for d in data:
+        if (d["problem"], d["level"], d["family"]) == (problem, level, family):
+            return d, {r["param"]: r for r in d["rows"]}
+    return None, {}
+
+
+def condensed(data: list[dict]) -> str:
+    """The condensed tables of docs/peers.md, from the same JSON as ``tables``.
+
+    Time in s (÷ MUMPS floor of the same process), error, F-multiplications (FETI).
+    """
+    out = ["\n### sphere (docs/peers.md)\n",
+           "| level | free dofs | floor MUMPS / GAMG (s), FETI's process | "
+           "SNES-VI (s) (÷ its floor) | FETI 1e-6: s (÷ floor), error, F-mults | FETI 1e-8 | "
+           "FETI 1e-10 | FETI tuned 1e-6 |"
+           " FETI tuned 1e-8 | FETI tuned 1e-10 |", "|---|---|---|---|---|---|---|---|---|---|"]
+    levels = sorted({d["level"] for d in data if d["problem"] == "sphere"})
+    for lv in levels:
+        df_, feti = _rows(data, "sphere", lv, "feti")
+        _, tuned = _rows(data, "sphere", lv, "feti_tuned")
+        _, snes = _rows(data, "sphere", lv, "snes")
+        if df_ is None:
+            continue
+        fl = df_["floor"]
+        sn = (f"{min(r['t'] for r in snes.values()):.2f}–{max(r['t'] for r in snes.values()):.2f}"
+              f" ({min(r['ratio_mumps'] for r in snes.values()):.1f}–"
+              f"{max(r['ratio_mumps'] for r in snes.values()):.1f}×)") if snes else "–"
+        cells = [_cell(feti[t]) if t in feti else "–" for t in (1e-6, 1e-8, 1e-10)]
+        cells += [_cell(tuned[t]) if t in tuned else "–" for t in (1e-6, 1e-8, 1e-10)]
+        out.append(f"| {lv} | {df_['ndofs']} | {fl['mumps']['t']:.3f} / {fl['gamg']['t']:.3f} | "
+                   f"{sn} | " + " | ".join(cells) + " |")
+    for problem, fams in (("hertz", ("feti", "feti_tuned", "feti_libdefault", "clarabel", "osqp",
+                                     "penalty")),
+                          ("b1", ("feti", "feti_libdefault", "clarabel", "penalty"))):
+        out += [f"\n### {problem} (docs/peers.md)\n",
+                "| level | free dofs | method | param | time (s) | ÷ MUMPS floor (same process) |"
+                " error (u, λ) | F-mults | parts |", "|---|---|---|---|---|---|---|---|---|"]
+        for lv in sorted({d["level"] for d in data if d["problem"] == problem}):
+            for fam in fams:
+                d, rows = _rows(data, problem, lv, fam)
+                if d is None:
+                    continue
+                for p, r in rows.items():
+                    out.append(f"| {lv} | {d['ndofs']} | {r['method']} | {p:.0e} | {r['t']:.2f} | "
+                               f"{r['ratio_mumps']:.1f} | {r['err']:.1e} | {r.get('mults', '–')} |"
+                               f" {r.get('parts', '–')} |")
+    text = "\n".join(out)
+    (OUT / "condensed.md").write_text(text + "\n")
     return text
 
 
@@ -136,6 +205,7 @@ def plots(data: list[dict]) -> None:
 def main() -> None:
     data = load()
     print(tables(data))
+    print(condensed(data))
     plots(data)
     print(f"plots: {OUT}/{{sphere,hertz,b1}}_error_time.png, {OUT}/time_dofs.png")
 

@@ -30,20 +30,29 @@ import methods as M  # noqa: E402
 
 OUT = C.ROOT / "output" / "peers"
 RAW = OUT / "raw"
-REPEAT = int(os.environ.get("PEERS_REPEAT", "2"))
+REPEAT = int(os.environ.get("PEERS_REPEAT", "2"))  # PEERS_TOLS: e.g. "1e-6,1e-8" (S4)
 
 FAMILIES = {"sphere": ["feti", "feti_tuned", "snes", "penalty"],
-            "hertz": ["feti", "clarabel", "osqp", "penalty"],
-            "b1": ["feti", "clarabel", "penalty"]}
-TOLS = [1e-4, 1e-6, 1e-8, 1e-10]
+            "hertz": ["feti", "feti_tuned", "feti_libdefault", "clarabel", "osqp", "penalty"],
+            "b1": ["feti", "feti_libdefault", "clarabel", "penalty"]}
+# "feti_libdefault": df.solve with the library's own default options (no preconditioner
+# passed), FETI_PARTS decomposition.
+TOLS = [float(t) for t in os.environ.get("PEERS_TOLS", "1e-4,1e-6,1e-8,1e-10").split(",")]
 PENALTIES = [1e0, 1e2, 1e4, 1e6]  # × mean(diag K)
-FETI_PARTS = {"sphere": {"S1": 4, "S2": 8, "S3": 16}, "hertz": {"H1": 4, "H2": 8, "H3": 16},
+FETI_PARTS = {"sphere": {"S1": 4, "S2": 8, "S3": 16, "S4": 16},
+              "hertz": {"H1": 4, "H2": 8, "H3": 16},
               "b1": {"M1": 32, "M2": 128, "M3": 512}}  # B1: H×H grid (C.B1_LEVELS)
+#: "FETI" rows: no preconditioner, passed explicitly (the library's default up to 21741fa;
+#: since be28a17 its default is lumped + stiffness scaling, the sphere's FETI_TUNED).
 FETI_PRECOND = os.environ.get("PEERS_FETI_PRECOND", "none")
-#: "FETI tuned" (sphere): the setting chosen from bench/peers/feti_tuning.py (docs/peers.md):
-#: the lumped preconditioner and fewer, larger subdomains than FETI_PARTS at S3.
-FETI_TUNED = {"preconditioner": "lumped"}
-FETI_TUNED_PARTS = {"S1": 4, "S2": 8, "S3": 8}
+#: "FETI tuned": per problem, the options and Parts(k) per level chosen with
+#: bench/peers/feti_tuning.py (docs/peers.md, "FETI options on the 3D sphere").
+#: Sphere: the least time at S3 (output/bench/feti_tuning_S3_stiffness_21741fa.md), the same
+#: setting on every level. Hertz: more, smaller subdomains without a preconditioner
+#: (feti_tuning_H1_confirm.md; 16 and 32 parts tie on time, 32 needs fewer F-mults).
+FETI_TUNED = {"sphere": {"preconditioner": "lumped", "preconditioner_scaling": "stiffness"},
+              "hertz": {"preconditioner": "none"}}
+FETI_TUNED_PARTS = {"sphere": {"S1": 4, "S2": 4, "S3": 4, "S4": 4}, "hertz": {"H1": 32}}
 
 
 def best_of(fn, repeat=REPEAT):
@@ -122,7 +131,7 @@ def metrics(problem: str, mono, ref: dict, u: np.ndarray, lam: np.ndarray) -> di
 # ------------------------------------------------------------------------------------------------
 
 
-def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: str,
+def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: str | None,
              **options) -> dict:
     import dolfinx_feti as df
 
@@ -130,7 +139,8 @@ def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: s
         prob = C.b1_problem(level)
     else:
         prob = (C.sphere_problem if problem == "sphere" else C.hertz_problem)(level, parts)
-    options.setdefault("preconditioner", precond)
+    if precond is not None:
+        options.setdefault("preconditioner", precond)
     t = C.Clock()
     sol = df.solve(prob, rtol=rtol, **options)
     elapsed = t()
@@ -144,7 +154,8 @@ def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: s
     out = {"t": elapsed, "its": r.iterations, "outer": r.outer_iterations,
            "mults": r.hessian_mults, "mults_total": r.hessian_mults_total,
            "converged": bool(r.converged), "timings": dict(r.timings), "u": u, "lam": lam,
-           "parts": parts, "precond": options["preconditioner"], "options": options,
+           "parts": parts, "precond": options.get("preconditioner", "library default"),
+           "options": options,
            "primal": r.sizes["primal"],
            "dual": r.sizes["dual"]}
     del sol
@@ -185,11 +196,16 @@ def worker(problem: str, level: str, family: str) -> None:
         for tol in TOLS:
             record("FETI", tol, best_of(lambda tol=tol: run_feti(problem, level, mono, tol, parts,
                                                          FETI_PRECOND)))
+    elif family == "feti_libdefault":
+        parts = FETI_PARTS[problem][level]
+        for tol in TOLS:
+            record("FETI lib default", tol, best_of(
+                lambda tol=tol: run_feti(problem, level, mono, tol, parts, None)))
     elif family == "feti_tuned":
-        parts = FETI_TUNED_PARTS[level]
+        parts, opts = FETI_TUNED_PARTS[problem][level], FETI_TUNED[problem]
         for tol in TOLS:
             record("FETI tuned", tol, best_of(lambda tol=tol: run_feti(
-                problem, level, mono, tol, parts, FETI_TUNED["preconditioner"], **FETI_TUNED)))
+                problem, level, mono, tol, parts, opts["preconditioner"], **dict(opts))))
     elif family == "snes":
         for tol in TOLS:
             record("SNES-VI", tol, best_of(lambda tol=tol: M.run_snes_vi(mono, rot, tol)))
@@ -225,7 +241,9 @@ def worker(problem: str, level: str, family: str) -> None:
     data = {"problem": problem, "level": level, "family": family, "ndofs": mono.ndofs,
             "ncontact": int(mono.nodes.size), "t_assemble": t_assemble, "rss_start": rss0,
             "rss_base": rss_base, "rss_method": rss_method, "floor": floors, "rows": rows,
-            "machine": C.P.machine()}
+            "machine": C.P.machine(), "code": C.code_state(),
+            "feti_module": str(Path(sys.modules["dolfinx_feti"].__file__).parent)
+            if "dolfinx_feti" in sys.modules else None}
     RAW.mkdir(parents=True, exist_ok=True)
     (RAW / f"{problem}_{level}_{family}.json").write_text(json.dumps(data, indent=1,
                                                                      default=float))
