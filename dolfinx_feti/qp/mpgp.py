@@ -51,9 +51,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .box import Box, check_finite
-from .norm import estimate_norm
 from .precond import Preconditioner
 from .result import QPResult
+from .start import Counter, feasible_start, step_length
 
 # A disc pair is on its circle when ||x - c|| >= (1 - _ON_CIRCLE) r: projections and snapped
 # steps put it there up to a few ulps. The projection leaves alone a pair outside by less than
@@ -239,15 +239,6 @@ class SeparableSet:
         return self.project(new)
 
 
-class _Counter:
-    def __init__(self, A: PETSc.Mat) -> None:
-        self.A, self.n = A, 0
-
-    def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        self.A.mult(x, y)
-        self.n += 1
-
-
 def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
          discs: Discs | None = None, rtol: float = 1e-6, atol: float = 0.0, gamma: float = 1.0,
          alpha_bar: float | None = None, norm_A: float | None = None, max_it: int = 10000,
@@ -286,36 +277,15 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
     S = SeparableSet(lb, ub, discs, x)
     check_finite(comm, "mpgp: b", b.array_r)
     check_finite(comm, "mpgp: the start x", x.array_r)
-    mult = _Counter(A)
+    mult = Counter(A)
     counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
     if prec is not None:
         counts["precond"] = 0
-    if alpha_bar is None:
-        if norm_A is None:
-            est = estimate_norm(A, x)
-            counts["norm"] = est.iterations
-            mult.n += est.iterations
-            norm_A = est.value
-        if not (math.isfinite(norm_A) and norm_A > 0):
-            raise ValueError(f"mpgp: ||A|| must be positive and finite, got {norm_A}")
-        alpha_bar = 1.95 / norm_A
-    if not (math.isfinite(alpha_bar) and alpha_bar > 0):
-        raise ValueError(f"mpgp: alpha_bar must be positive and finite, got {alpha_bar}")
-    scale_A = norm_A if norm_A is not None else 1.95 / alpha_bar
+    alpha_bar, scale_A = step_length("mpgp", mult, x, counts, alpha_bar, norm_A)
     if b_norm is None:
         b_norm = b.norm()
 
-    xa = x.array_r
-    xp = S.project(xa)
-    moved = comm.allreduce(bool(np.any(xp != xa)), op=MPI.LOR)
-    if moved:
-        x.array[:] = xp
-    if g is None:
-        g, g_valid = x.duplicate(), False
-    if not g_valid or moved:
-        mult(x, g)
-        g.axpy(-1.0, b)
-    check_finite(comm, "mpgp: the initial gradient A x - b", g.array_r)
+    g = feasible_start("mpgp", S.project, mult, x, b, g, g_valid, comm)
 
     phi, beta, p, Ap = x.duplicate(), x.duplicate(), x.duplicate(), x.duplicate()
     Hp = x.duplicate()  # (A + curvature) p

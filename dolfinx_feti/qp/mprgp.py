@@ -14,13 +14,12 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from .box import Box, check_finite
-from .norm import estimate_norm
 from .precond import Preconditioner
 from .result import QPResult
+from .start import Counter, feasible_start, step_length
 
 EXPANSIONS = ("fixed", "optimal", "projcg")
 ALPHAS = ("fixed", "bb")
@@ -30,18 +29,6 @@ _DESCENT_RTOL = 1e-12
 # p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
 # curvature of a PSD operator along a null direction tiny but positive, not zero.
 _CURVATURE_RTOL = 1e-14
-
-
-class _Counter:
-    """Multiplies by ``A`` and counts it: the count is the solver's figure of merit."""
-
-    def __init__(self, A: PETSc.Mat) -> None:
-        self.A = A
-        self.n = 0
-
-    def __call__(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        self.A.mult(x, y)
-        self.n += 1
 
 
 def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: float = 1e-6,
@@ -167,39 +154,17 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
     box = Box(lb, ub, x)
     check_finite(comm, "mprgp: b", b.array_r)
     check_finite(comm, "mprgp: the start x", x.array_r)
-    mult = _Counter(A)
+    mult = Counter(A)
     counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
     if expansion == "projcg" or alpha != "fixed":
         counts["rejected"] = 0
     if prec is not None:
         counts["precond"] = 0
-    if alpha_bar is None:
-        if norm_A is None:
-            est = estimate_norm(A, x)
-            counts["norm"] = est.iterations
-            mult.n += est.iterations
-            norm_A = est.value
-        if not (math.isfinite(norm_A) and norm_A > 0):
-            raise ValueError(f"mprgp: ||A|| must be positive and finite, got {norm_A}")
-        alpha_bar = 1.95 / norm_A
-    if not (math.isfinite(alpha_bar) and alpha_bar > 0):
-        raise ValueError(f"mprgp: alpha_bar must be positive and finite, got {alpha_bar}")
-    scale_A = norm_A if norm_A is not None else 1.95 / alpha_bar
+    alpha_bar, scale_A = step_length("mprgp", mult, x, counts, alpha_bar, norm_A)
     if b_norm is None:
         b_norm = b.norm()
 
-    # Project the start; a supplied gradient survives only if nothing moved.
-    xa = x.array_r
-    xp = box.project(xa)
-    moved = comm.allreduce(bool(np.any(xp != xa)), op=MPI.LOR)
-    if moved:
-        x.array[:] = xp
-    if g is None:
-        g, g_valid = x.duplicate(), False
-    if not g_valid or moved:
-        mult(x, g)
-        g.axpy(-1.0, b)
-    check_finite(comm, "mprgp: the initial gradient A x - b", g.array_r)
+    g = feasible_start("mprgp", box.project, mult, x, b, g, g_valid, comm)
 
     phi, beta, p, Ap = x.duplicate(), x.duplicate(), x.duplicate(), x.duplicate()
     z = phi if prec is None else x.duplicate()
@@ -314,7 +279,7 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
 
 
 def _expand(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, d: PETSc.Vec,
-            Ad: PETSc.Vec, mult: _Counter, alpha_bar: float, expansion: str,
+            Ad: PETSc.Vec, mult: Counter, alpha_bar: float, expansion: str,
             scale_A: float) -> bool:
     """Projected gradient step from the half-step ``x`` (updates ``x`` and ``g``).
 
@@ -346,7 +311,7 @@ def _expand(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, 
 
 
 def _projected_cg_step(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, p: PETSc.Vec,
-                       mult: _Counter, t_cg: float, t_f: float, gp: float, pAp: float) -> bool:
+                       mult: Counter, t_cg: float, t_f: float, gp: float, pAp: float) -> bool:
     """Try the projected full CG step ``x <- P(x - t_cg p)`` with a fresh gradient.
 
     It is kept if its energy is not above that of the half-step ``x - t_f p`` (known from
@@ -364,7 +329,7 @@ def _projected_cg_step(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, p: PE
     return False
 
 
-def _long_step(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, mult: _Counter,
+def _long_step(box: Box, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, mult: Counter,
                step: float) -> bool:
     """Try ``x <- P(x_h - step phi(x_h))`` from the half-step ``x_h`` with a fresh gradient.
 
