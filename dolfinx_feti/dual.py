@@ -71,9 +71,12 @@ class DualQP:
     b_noise: float
     warnings: list[str]
 
-    def start(self) -> PETSc.Vec:
-        """A feasible start: ``x = max(0, lb)`` (λ = λ̂ where that is feasible)."""
-        x = self.b.duplicate()
+    def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
+        """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
+
+        Written into ``out`` if given, else into a new Vec.
+        """
+        x = self.b.duplicate() if out is None else out
         x.array[:] = np.maximum(0.0, self.lb.array_r)
         return x
 

@@ -155,14 +155,15 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
         # b_noise keeps CG from chasing it.
         return cg(A, Pb, x, projector=dual.projector, rtol=opts.rtol, atol=dual.b_noise,
                   max_it=opts.max_it, monitor=progress.inner, preconditioner=precond)
-    lb = dual.lb.copy()
+    lb = dual.lb
     ub = multiplier = None
     solver = mprgp
     inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion,
              "alpha": opts.mprgp_alpha}
     if friction is None:
-        x.array[:] = np.maximum(0.0, lb.array_r)
+        dual.start(x)
     else:
+        lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
         if discs is not None:  # MPGP: the fixed expansion only
             solver, inner = mpgp, {"gamma": opts.mprgp_gamma, "discs": discs}

@@ -72,7 +72,6 @@ class _DualScaling:
         finally:
             for key in ("redundant_pc_type", "redundant_pc_factor_mat_solver_type"):
                 opts.delValue(f"{prefix}{key}")
-        self._t = self._C.createVecRight()
 
     def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = Z x."""
@@ -83,7 +82,6 @@ class _DualScaling:
     def destroy(self) -> None:
         self._ksp.destroy()
         self._C.destroy()
-        self._t.destroy()
 
 
 class LumpedPreconditioner:
@@ -105,10 +103,11 @@ class LumpedPreconditioner:
         self._v = feti.B.createVecRight()
         #: Notes for the report (a scaling that could not be applied).
         self.notes: list[str] = []
-        self._scale = None
+        self._scale = self._t = None
         if scaling == "stiffness":
             try:
                 self._scale = _DualScaling(feti, factor)
+                self._t = feti.B.createVecLeft()  # a dual work vector for Z
             except SolveError as e:
                 # Redundant rows of B (gluing="redundant", two obstacles on one surface) make
                 # B Δ Bᵀ singular: keep the preconditioner, unscaled, and say so.
@@ -129,11 +128,11 @@ class LumpedPreconditioner:
             self._v.array[:] = self._local(self._w.array_r)
             self.feti.B.mult(self._v, y)
             return
-        z.apply(x, z._t)
-        self.feti.B.multTranspose(z._t, self._w)
+        z.apply(x, self._t)
+        self.feti.B.multTranspose(self._t, self._w)
         self._v.array[:] = z.delta * self._local(z.delta * self._w.array_r)
-        self.feti.B.mult(self._v, z._t)
-        z.apply(z._t, y)
+        self.feti.B.mult(self._v, self._t)
+        z.apply(self._t, y)
 
     def destroy(self) -> None:
         """Free the PETSc objects."""
@@ -141,6 +140,7 @@ class LumpedPreconditioner:
         self._v.destroy()
         if self._scale is not None:
             self._scale.destroy()
+            self._t.destroy()
 
 
 class DirichletPreconditioner(LumpedPreconditioner):

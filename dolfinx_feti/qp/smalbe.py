@@ -216,7 +216,7 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
                     bool(np.any(res.active != prev_active)), op=MPI.LOR):
                 anderson.reset()
             step = anderson.step(mu, step)
-        prev_active = res.active.copy()
+            prev_active = res.active.copy()
         mu += step
         D.mult_transpose(step, tmp)
         bk.axpy(-1.0, tmp)
