@@ -30,6 +30,7 @@ from mpi4py import MPI
 from . import postprocess
 from .errors import InputError, SolveError
 from .log import Progress, logger
+from .options import option_value
 from .problemfile import ProblemFile, ProblemFileError, load
 
 PROG = "dolfinx-feti"
@@ -88,22 +89,14 @@ def split_feti_options(argv: Sequence[str]) -> tuple[list[str], list[str]]:
         token = argv[i]
         if token.startswith("-feti_"):
             feti.append(token)
-            nxt = argv[i + 1] if i + 1 < len(argv) else None
-            if nxt is not None and (not nxt.startswith("-") or _is_number(nxt)):
+            nxt = option_value(argv, i)
+            if nxt is not None:
                 feti.append(nxt)
                 i += 1
         else:
             own.append(token)
         i += 1
     return own, feti
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
 
 
 @contextmanager

@@ -9,11 +9,27 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
 
 from petsc4py import PETSc
 
 from .errors import InputError
+
+
+def option_value(tokens: Sequence[str], i: int) -> str | None:
+    """The value of the option at ``tokens[i]``, or None if it has none.
+
+    That is the next token, unless there is none or it is itself an option (it starts with "-"
+    and is not a number such as ``-1e-3``).
+    """
+    value = tokens[i + 1] if i + 1 < len(tokens) else None
+    if value is not None and value.startswith("-"):
+        try:
+            float(value)
+        except ValueError:
+            return None
+    return value
 
 
 def insert_command_line(argv: list[str] | None = None, prefix: str = "-feti_") -> None:
@@ -27,12 +43,7 @@ def insert_command_line(argv: list[str] | None = None, prefix: str = "-feti_") -
     for i, token in enumerate(argv):
         if not token.startswith(prefix):
             continue
-        value = argv[i + 1] if i + 1 < len(argv) else None
-        if value is not None and value.startswith("-"):
-            try:
-                float(value)
-            except ValueError:
-                value = None
+        value = option_value(argv, i)
         name = token[1:]
         if not opts.hasName(name):
             opts.setValue(name, "1" if value is None else value)

@@ -49,7 +49,7 @@ from petsc4py import PETSc
 from .errors import InputError
 from .fem import Elasticity, Poisson
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
-from .options import SolverOptions
+from .options import SolverOptions, option_value
 from .problem import (
     ContactProblem,
     Cylinder,
@@ -543,9 +543,7 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
     i = 0
     while i < len(tokens):
         name = tokens[i]
-        value = tokens[i + 1] if i + 1 < len(tokens) else None
-        if value is not None and value.startswith("-") and not _is_number(value):
-            value = None
+        value = option_value(tokens, i)
         i += 1 if value is None else 2
         key = f"command line {name}"
         if not name.startswith("-feti_"):
@@ -575,14 +573,6 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
             continue
         pairs.append((name, value))
     return pairs, faults
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-    except ValueError:
-        return False
-    return True
 
 
 class _Reader:
