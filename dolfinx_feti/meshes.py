@@ -262,6 +262,25 @@ def blocks3d(
 # ------------------------------------------------------------------------------------------------
 
 
+def _contact_zone_sizes(contact_curves: list[int], zone_points: list[int],
+                        contact_width: float, h_contact: float, h_far: float) -> None:
+    """Matching contact nodes and a graded mesh around the contact zone (the Hertz models).
+
+    One element per contact segment, so the nodes are exactly the given points on both
+    sides; size h_contact within 0.2 contact_width of the zone, then growing with the distance
+    to it (slope 0.2) up to h_far.
+    """
+    for curve in contact_curves:
+        gmsh.model.mesh.setTransfiniteCurve(curve, 2)
+    _threshold_field(
+        zone_points,
+        size_min=h_contact,
+        size_max=h_far,
+        dist_min=0.2 * contact_width,
+        dist_max=0.2 * contact_width + 5 * (h_far - h_contact),
+    )
+
+
 def _threshold_field(
     points: list[int], size_min: float, size_max: float, dist_min: float, dist_max: float
 ) -> int:
@@ -373,18 +392,8 @@ def hertz2d(
     block = geo.addPlaneSurface([block_loop])
     geo.synchronize()
 
-    # One element per contact segment: the nodes are exactly the points above.
-    for curve in disk_contact + block_contact:
-        gmsh.model.mesh.setTransfiniteCurve(curve, 2)
-    # Size h_contact within 0.2 contact_width of the contact zone, then growing with the
-    # distance to it (slope 0.2) up to h_far.
-    _threshold_field(
-        arc_points + top_points,
-        size_min=h_contact,
-        size_max=h_far,
-        dist_min=0.2 * contact_width,
-        dist_max=0.2 * contact_width + 5 * (h_far - h_contact),
-    )
+    _contact_zone_sizes(disk_contact + block_contact, arc_points + top_points, contact_width,
+                        h_contact, h_far)
 
     _add_group(2, [disk], 1, "disk")
     _add_group(2, [block], 2, "block")
@@ -533,15 +542,8 @@ def hertz2d_full(
     block = geo.addPlaneSurface([block_loop])
     geo.synchronize()
 
-    for curve in disk_contact + block_contact:
-        gmsh.model.mesh.setTransfiniteCurve(curve, 2)
-    _threshold_field(
-        arc_points + top_points,
-        size_min=h_contact,
-        size_max=h_far,
-        dist_min=0.2 * contact_width,
-        dist_max=0.2 * contact_width + 5 * (h_far - h_contact),
-    )
+    _contact_zone_sizes(disk_contact + block_contact, arc_points + top_points, contact_width,
+                        h_contact, h_far)
 
     _add_group(2, [disk], 1, "disk")
     _add_group(2, [block], 2, "block")
