@@ -8,11 +8,8 @@ was written there. A watchdog dumps the stacks and ends the process if a test ha
 from __future__ import annotations
 
 import dataclasses
-import faulthandler
 import math
 import os
-import shutil
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -21,28 +18,18 @@ import numpy as np
 import pytest
 import ufl
 from mpi4py import MPI
+from scratch import scratch_cwd_fixture
 
 import dolfinx_feti as df
 
 MESHES = Path(__file__).resolve().parents[1] / "meshes"
-HANG_SECONDS = 120
 
 # ------------------------------------------------------------------------------------------
 # Helpers
 # ------------------------------------------------------------------------------------------
 
 
-@pytest.fixture(autouse=True)
-def scratch_cwd(monkeypatch):
-    """Run each test in a fresh empty directory (this rank's own), with a hang watchdog."""
-    d = Path(tempfile.mkdtemp(prefix="feti-errors-"))
-    monkeypatch.chdir(d)
-    faulthandler.dump_traceback_later(HANG_SECONDS, exit=True)
-    try:
-        yield d
-    finally:
-        faulthandler.cancel_dump_traceback_later()
-        shutil.rmtree(d, ignore_errors=True)
+scratch_cwd = scratch_cwd_fixture("feti-errors-")
 
 
 @contextmanager

@@ -8,7 +8,6 @@ and read with ``read_gmsh``, the path a user's file takes.
 
 from __future__ import annotations
 
-import faulthandler
 import os
 import shutil
 import tempfile
@@ -20,26 +19,16 @@ import numpy as np
 import pytest
 import stress_cases as sc
 from mpi4py import MPI
+from scratch import scratch_cwd_fixture
 
 import dolfinx_feti as df
 from dolfinx_feti.cli import main
 
 COMM = MPI.COMM_WORLD
 MESHES = Path(__file__).resolve().parents[1] / "meshes"
-HANG_SECONDS = 120
 
 
-@pytest.fixture(autouse=True)
-def scratch_cwd(monkeypatch):
-    """Each test in a fresh empty directory of its own, with a hang watchdog."""
-    d = Path(tempfile.mkdtemp(prefix="feti-stress-input-"))
-    monkeypatch.chdir(d)
-    faulthandler.dump_traceback_later(HANG_SECONDS, exit=True)
-    try:
-        yield d
-    finally:
-        faulthandler.cancel_dump_traceback_later()
-        shutil.rmtree(d, ignore_errors=True)
+scratch_cwd = scratch_cwd_fixture("feti-stress-input-")
 
 
 @contextmanager
