@@ -54,6 +54,10 @@ class SolverOptions:
     """Parameters of the FETI solve.
 
     Attributes:
+        method: The FETI method: "tfeti" (Total FETI: Dirichlet conditions as rows of B, every
+            subdomain floats), "feti1" (Dirichlet conditions eliminated, kernels only for the
+            floating subdomains), "fetidp" (FETI-DP: corner dofs primal too; no coarse space
+            when every body is held) or "auto" (see :func:`dolfinx_feti.solve.choose_method`).
         rtol: Stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term).
         eq_rtol: Stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; default ``rtol``.
         max_it: Budget of inner iterations (all outer iterations together).
@@ -88,6 +92,7 @@ class SolverOptions:
         verbose: 0 quiet, 1 one line per phase, 2 also every iteration (rank 0 only).
     """
 
+    method: str = "tfeti"
     rtol: float = 1e-6
     eq_rtol: float | None = None
     max_it: int = 5000
@@ -157,6 +162,9 @@ class SolverOptions:
                 raise InputError(f"solver option {name} must be positive, got {v}")
         if self.eq_rtol is not None and not self.eq_rtol > 0:
             raise InputError(f"solver option eq_rtol must be positive, got {self.eq_rtol}")
+        if self.method not in ("tfeti", "feti1", "fetidp", "auto"):
+            raise InputError("method must be 'tfeti', 'feti1', 'fetidp' or 'auto', got "
+                             f"{self.method!r}")
         if self.max_it < 1 or self.max_outer < 1:
             raise InputError("solver options max_it and max_outer must be >= 1")
         if self.factor not in ("cholmod", "mumps", "petsc"):

@@ -1,4 +1,4 @@
-"""A generalized inverse K⁺ of the block-diagonal, singular K = diag(K_i) by fixing nodes.
+"""A generalized inverse K⁺ of the block-diagonal K = diag(K_i) by fixing nodes.
 
 All subdomains of a rank are factored together as one block-diagonal matrix, so applying K⁺
 costs one gather, one sparse Cholesky solve and one scatter per rank, whatever the number of
@@ -24,6 +24,8 @@ def choose_fixing_dofs(R: np.ndarray) -> np.ndarray:
     the directions already taken: for rigid modes that is nodes far apart, as the theory of the
     fixing-nodes inverse asks.
     """
+    if R.shape[1] == 0:  # a nonsingular block (held by Dirichlet conditions or corners)
+        return np.zeros(0, dtype=np.int64)
     _, _, piv = scipy.linalg.qr(R.T, pivoting=True, mode="economic")
     return np.sort(piv[: R.shape[1]])
 
@@ -83,7 +85,8 @@ class FixingNodesInverse:
 
     Args:
         K: The block-diagonal matrix diag(K_i) of a rank's subdomains.
-        kernels: R_i per block, in order (the block sizes are their row counts).
+        kernels: R_i per block, in order (the block sizes are their row counts); a block with
+            an empty kernel (no columns) is factored as it is, K_i⁺ = K_i⁻¹.
         factor: PETSc Cholesky package: "cholmod", "mumps" or "petsc".
         labels: Names of the blocks for error messages.
     """
