@@ -19,7 +19,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .constraints import build_rows
-from .errors import InputError
+from .errors import InputError, collective
 from .feti import TotalFETI
 from .mesh.decompose import decompose
 from .problem import ContactProblem
@@ -116,8 +116,10 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     """
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
-        dec = decompose(problem.mesh, problem.decomposition, comm)
-        rows = build_rows(problem, dec)
+        with collective(comm, "decomposition"):
+            dec = decompose(problem.mesh, problem.decomposition, comm)
+        with collective(comm, "constraints"):
+            rows = build_rows(problem, dec)
     feti = TotalFETI(problem, dec, rows, comm, timer, factor)
     ineq = rows.inequality[feti.rows_local]
     with timer.phase("coarse problem"):

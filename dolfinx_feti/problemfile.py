@@ -46,7 +46,7 @@ import ufl
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import InputError
+from .errors import InputError, SolveError, collective
 from .fem import Elasticity, Poisson
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
 from .options import SolverOptions, option_value
@@ -478,6 +478,11 @@ class ProblemFile:
                 else:
                     db.setValue(key, old)
 
+    def inputs(self) -> list[Path]:
+        """The run's input files: the problem file and the mesh file (never overwritten)."""
+        mesh = Path(self.mesh_source)
+        return [self.path] + ([mesh] if mesh.suffix == ".msh" else [])
+
     def summary(self) -> dict[str, Any]:
         """What was solved, for the report."""
         m = self.mesh
@@ -512,17 +517,14 @@ def load(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, *,
             missing in the mesh, the command-line options), on every rank.
     """
     path = Path(path)
-    text, err = None, None
-    if comm.rank == 0:
-        try:
-            text = path.read_bytes()
-        except FileNotFoundError:
-            err = "the problem file does not exist"
-        except OSError as e:
-            err = f"cannot read the problem file: {e.strerror or e}"
-    text, err = comm.bcast((text, err), root=0)
-    if err is not None:
-        raise ProblemFileError(path, [Fault("", err)])
+    text = None
+    try:
+        with collective(comm, "problem file"):
+            if comm.rank == 0:
+                text = _read_bytes(path)
+    except (InputError, SolveError) as e:
+        raise ProblemFileError(path, [Fault("", str(e))]) from None
+    text = comm.bcast(text, root=0)
     try:
         data = tomllib.loads(text.decode("utf-8"))
     except UnicodeDecodeError as e:
@@ -530,6 +532,15 @@ def load(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, *,
     except tomllib.TOMLDecodeError as e:
         raise ProblemFileError(path, [Fault("", f"TOML syntax error: {e}")]) from None
     return _Reader(path, data, comm, output_dir, list(command_line)).read()
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("the problem file does not exist") from None
+    except OSError as e:
+        raise InputError(f"cannot read the problem file: {e.strerror or e}") from None
 
 
 def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], list[Fault]]:
@@ -585,6 +596,7 @@ class _Reader:
         self.command_line = command_line
         self.c = _Check()
         self.mesh: MeshData | None = None
+        self.mesh_path: Path | None = None
         self.model: str | None = None
 
     # --- top level ---------------------------------------------------------------------
@@ -638,6 +650,7 @@ class _Reader:
                     f"'<name>', ...}}, got {_describe(self.data['mesh'])}")
             return ""
         mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
+        self.mesh_path = mesh_path
         exists = self.comm.bcast(mesh_path.is_file() if self.comm.rank == 0 else None, root=0)
         if not exists:
             c.fault("mesh", f"mesh file not found: {str(mesh_path)!r} (paths are relative to "
@@ -681,18 +694,14 @@ class _Reader:
         import gmsh
 
         err = None
-        if comm.rank == 0:
-            try:
-                gmsh.initialize()
-                gmsh.option.setNumber("General.Terminal", 0)
-                gens[name](**kwargs)
-            except Exception as e:  # noqa: BLE001 - reported as a fault on every rank
-                err = f"{type(e).__name__}: {e}"
-        err = comm.bcast(err, root=0)
         try:
-            if err is None:
-                self.mesh = read_gmsh(None, comm)
-        except InputError as e:
+            with collective(comm, "mesh"):
+                if comm.rank == 0:
+                    gmsh.initialize()
+                    gmsh.option.setNumber("General.Terminal", 0)
+                    gens[name](**kwargs)
+            self.mesh = read_gmsh(None, comm)
+        except (InputError, SolveError) as e:  # reported as a fault on every rank
             err = str(e)
         finally:
             if comm.rank == 0:
@@ -1152,6 +1161,10 @@ class _Reader:
         if len(set(paths)) != len(paths):
             c.fault("output", "two outputs have the same file name: "
                     f"{sorted({str(q) for q in paths if paths.count(q) > 1})}")
+        inputs = {self.path.resolve()} | ({self.mesh_path.resolve()} if self.mesh_path else set())
+        for q in sorted({str(q) for q in paths if q in inputs}):
+            c.fault("output", f"the output {q!r} is an input of this run (the problem file or "
+                    "its mesh): outputs never overwrite inputs")
         return spec
 
     def _plot(self, p: Any, directory: Path, stem: str, contact: list) -> PlotSpec | None:

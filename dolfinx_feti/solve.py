@@ -16,6 +16,7 @@ from mpi4py import MPI
 
 from .constraints.friction import friction_data
 from .dual import DualQP, dual_qp
+from .errors import collective
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
@@ -65,7 +66,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.warnings.extend(qp.warnings)
     feti, dec, rows, ocon, ineq = qp.feti, qp.dec, qp.rows, qp.constraint, qp.ineq
     n_ineq = int(rows.inequality.sum())
-    fdata = friction_data(problem, rows)
+    with collective(comm, "friction"):
+        fdata = friction_data(problem, rows)
     friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
 
     with timer.phase("preconditioner"):

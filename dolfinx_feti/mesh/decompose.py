@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import InputError
+from ..errors import InputError, collective
 from .gmsh_input import MeshData
 from .topology import facet_neighbours
 
@@ -135,10 +135,14 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
             cells = np.flatnonzero(mesh.cell_body == b)
             if how.method == "rcb":
                 part = rcb(midpoints[cells], int(n))
-            elif how.method == "ptscotch":
+            elif how.method == "ptscotch" and isinstance(comm, int):
                 part = graph_partition(mesh.cells[cells], int(n))
-                if not isinstance(comm, int):  # PT-Scotch may differ between processes
-                    part = comm.bcast(part, root=0)
+            elif how.method == "ptscotch":  # on rank 0: PT-Scotch may differ between processes
+                part = None
+                with collective(comm, "decomposition"):
+                    if comm.rank == 0:
+                        part = graph_partition(mesh.cells[cells], int(n))
+                part = comm.bcast(part, root=0)
             else:
                 raise InputError(f"Parts: unknown method {how.method!r}; use 'rcb' or 'ptscotch'")
             label[cells] = b * (1 << 32) + part
