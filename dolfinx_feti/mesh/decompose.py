@@ -16,8 +16,12 @@ from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
+from ..validation import Choice, Function, Integer, checked, per_body
 from .gmsh_input import MeshData
 from .topology import facet_neighbours
+
+#: The largest number of parts of one body that Parts accepts (it is also at most its cells).
+MAX_PARTS = 2**31 - 1
 
 
 @dataclass(frozen=True)
@@ -26,6 +30,7 @@ class ByTags:
 
 
 @dataclass(frozen=True)
+@checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"))
 class Parts:
     """Split every body into parts of (nearly) equal size.
 
@@ -43,6 +48,7 @@ class Parts:
 
 
 @dataclass(frozen=True)
+@checked(fn=Function("a function fn(midpoints (C, gdim)) -> (C,) integer labels"))
 class ByFunction:
     """Subdomains labelled by a function of the cell midpoints (e.g. a regular H×H grid).
 
@@ -126,13 +132,10 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
         label = np.empty(mesh.cells.shape[0], dtype=np.int64)
         for b, name in enumerate(mesh.body_names):
             n = how.n.get(name, 1) if isinstance(how.n, Mapping) else how.n
-            if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-                raise InputError(f"Parts: the number of parts of body {name!r} must be an "
-                                 f"integer >= 1, got {n!r}")
-            if int(n) < 1:
-                raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, "
-                                 f"got {n}")
             cells = np.flatnonzero(mesh.cell_body == b)
+            if n > cells.size:
+                raise InputError(f"Parts: {n} parts for body {name!r}, which has only "
+                                 f"{cells.size} cells")
             if how.method == "rcb":
                 part = rcb(midpoints[cells], int(n))
             elif how.method == "ptscotch" and isinstance(comm, int):
