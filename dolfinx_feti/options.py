@@ -15,6 +15,7 @@ from dataclasses import asdict, dataclass, fields
 from petsc4py import PETSc
 
 from .errors import InputError
+from .validation import Choice, Integer, Maybe, Real, checked
 
 
 def option_value(tokens: Sequence[str], i: int) -> str | None:
@@ -49,9 +50,25 @@ def insert_command_line(argv: list[str] | None = None, prefix: str = "-feti_") -
             opts.setValue(name, "1" if value is None else value)
 
 
+_TOL = Real(gt=0, lt=1)
+_COUNT = Integer(ge=1, le=10**9)
+
+
 @dataclass
+@checked("solver option", rtol=_TOL, eq_rtol=Maybe(_TOL), max_it=_COUNT, max_outer=_COUNT,
+         factor=Choice("cholmod", "mumps", "petsc"), mprgp_gamma=Real(gt=0),
+         mprgp_expansion=Choice("fixed", "optimal", "projcg"), mprgp_alpha=Choice("fixed", "bb"),
+         preconditioner=Choice("none", "lumped", "dirichlet"),
+         preconditioner_scaling=Choice("stiffness", "multiplicity"), qp=Choice("auto", "penalty"),
+         penalty_rho=Real(gt=0), smalbe_rho=Real(gt=0), smalbe_M=Real(gt=0),
+         smalbe_eta=Maybe(Real(gt=0)), smalbe_beta=Real(gt=1),
+         smalbe_acceleration=Choice("none", "anderson"), smalbe_depth=Integer(ge=1, le=100),
+         norm_rtol=_TOL, verbose=Integer(ge=0, le=2))
 class SolverOptions:
     """Parameters of the FETI solve.
+
+    Every field is checked when set (type, finiteness, range: tolerances in (0, 1), iteration
+    limits integers in [1, 1e9], penalties > 0), with an InputError naming the option.
 
     Attributes:
         rtol: Stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term).
@@ -150,41 +167,10 @@ class SolverOptions:
         return out
 
     def validate(self) -> None:
-        """Raise InputError for impossible values."""
-        for name in ("rtol", "norm_rtol", "mprgp_gamma"):
-            v = getattr(self, name)
-            if not v > 0:
-                raise InputError(f"solver option {name} must be positive, got {v}")
-        if self.eq_rtol is not None and not self.eq_rtol > 0:
-            raise InputError(f"solver option eq_rtol must be positive, got {self.eq_rtol}")
-        if self.max_it < 1 or self.max_outer < 1:
-            raise InputError("solver options max_it and max_outer must be >= 1")
-        if self.factor not in ("cholmod", "mumps", "petsc"):
-            raise InputError(f"factor must be 'cholmod', 'mumps' or 'petsc', got {self.factor!r}")
-        if self.mprgp_expansion not in ("fixed", "optimal", "projcg"):
-            raise InputError("mprgp_expansion must be 'fixed', 'optimal' or 'projcg', got "
-                             f"{self.mprgp_expansion!r}")
-        if self.mprgp_alpha not in ("fixed", "bb"):
-            raise InputError(f"mprgp_alpha must be 'fixed' or 'bb', got {self.mprgp_alpha!r}")
+        """Raise InputError for impossible values (each field is checked when it is set)."""
+        dataclasses.replace(self)  # the field checks of @checked
         if self.mprgp_alpha == "bb" and self.mprgp_expansion != "fixed":
             raise InputError("mprgp_alpha 'bb' needs mprgp_expansion 'fixed'")
-        if self.preconditioner not in ("none", "lumped", "dirichlet"):
-            raise InputError("preconditioner must be 'none', 'lumped' or 'dirichlet', got "
-                             f"{self.preconditioner!r}")
-        if self.preconditioner_scaling not in ("multiplicity", "stiffness"):
-            raise InputError("preconditioner_scaling must be 'multiplicity' or 'stiffness', got "
-                             f"{self.preconditioner_scaling!r}")
-        if self.qp not in ("auto", "penalty"):
-            raise InputError(f"qp must be 'auto' or 'penalty', got {self.qp!r}")
-        if not self.penalty_rho > 0:
-            raise InputError(f"penalty_rho must be positive, got {self.penalty_rho}")
-        if self.smalbe_beta <= 1:
-            raise InputError(f"smalbe_beta must be > 1, got {self.smalbe_beta}")
-        if self.smalbe_acceleration not in ("none", "anderson"):
-            raise InputError("smalbe_acceleration must be 'none' or 'anderson', got "
-                             f"{self.smalbe_acceleration!r}")
-        if self.smalbe_depth < 1:
-            raise InputError(f"smalbe_depth must be >= 1, got {self.smalbe_depth}")
 
     def to_dict(self) -> dict:
         """Plain dict (for the JSON report)."""

@@ -875,7 +875,13 @@ class _Reader:
                     s = None
                 elif s is not None and m is not None and mesh is not None:
                     sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
-                    if sb & mb:
+                    shared = np.intersect1d(mesh.facet_groups[s], mesh.facet_groups[m])
+                    if shared.size:
+                        c.fault(key, f"slave {s!r} and master {m!r} share {shared.size} nodes: "
+                                "the bodies are glued there (common nodes), not in contact; "
+                                "bodies in contact need their own nodes on the surfaces")
+                        s = None
+                    elif sb & mb:
                         c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
                                 f"{mesh.body_names[min(sb & mb)]!r}: node-to-node contact is "
                                 "between two bodies")

@@ -17,6 +17,7 @@ from mpi4py import MPI
 from .constraints.friction import friction_data
 from .dual import DualQP, dual_qp
 from .errors import collective
+from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
@@ -101,6 +102,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
             hint = -ocon.transform_transpose(res.multiplier - ocon.mult(g))
         alpha = feti.rigid_amplitudes(g, active, hint)
         u = feti.primal(lam, alpha)
+        remove_free_motions(feti, ocon.null_space, u)  # the same u for every decomposition
 
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
     report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"

@@ -251,6 +251,32 @@ def per_body(check: Check) -> Either:
                   f"→ {check.what}")
 
 
+def evaluate(fn: Callable, x: np.ndarray, what: str, shapes: Sequence[tuple[int, ...]]
+             ) -> np.ndarray:
+    """Call a user function of the node coordinates ``x`` and check the shape of its result.
+
+    Args:
+        fn: The user's function.
+        x: The node coordinates (n, gdim).
+        what: The function as the user knows it, for messages (``Dirichlet('top').value``).
+        shapes: The shapes the result may have.
+
+    Raises:
+        InputError: Naming the function, when it raises or returns another shape.
+    """
+    try:
+        out = np.asarray(fn(x), dtype=float)
+    except InputError:
+        raise
+    except Exception as e:  # the user's code: say which function failed
+        raise InputError(f"{what}(x) raised {type(e).__name__}: {e}") from e
+    if out.shape not in shapes:
+        raise InputError(f"{what}(x) must return an array of shape "
+                         f"{' or '.join(map(str, shapes))} for x of shape {x.shape}, got "
+                         f"{out.shape}")
+    return out
+
+
 def check_arguments(owner: str, specs: Mapping[str, Check], values: Mapping[str, Any]
                     ) -> dict[str, Any]:
     """Check ``values[name]`` against ``specs[name]``; the normalized values by name.
@@ -261,13 +287,14 @@ def check_arguments(owner: str, specs: Mapping[str, Check], values: Mapping[str,
     return {name: spec(values[name], f"{owner}.{name}") for name, spec in specs.items()}
 
 
-def checked(**specs: Check) -> Callable[[type], type]:
+def checked(label: str | None = None, /, **specs: Check) -> Callable[[type], type]:
     """Class decorator for a dataclass: check the fields named in ``specs`` when it is made.
 
     Put it below ``@dataclass`` (it adds the ``__post_init__`` that the dataclass's
     ``__init__`` then calls). The checks run first in ``__post_init__`` (before the class's
     own, if any); normalized values (e.g. a list of coordinates as a tuple of floats) replace
-    the given ones, also in a frozen dataclass.
+    the given ones, also in a frozen dataclass. Messages name ``<Class>.<field>``, or
+    ``<label> <field>`` when a ``label`` is given.
     """
 
     def decorate(cls: type) -> type:
@@ -280,7 +307,9 @@ def checked(**specs: Check) -> Callable[[type], type]:
             ids = [getattr(self, n) for n in names]
             owner = cls.__name__ + (f"({', '.join(map(repr, ids))})"
                                     if ids and all(isinstance(i, str) for i in ids) else "")
-            values = check_arguments(owner, specs, {name: getattr(self, name) for name in specs})
+            given = {name: getattr(self, name) for name in specs}
+            values = check_arguments(owner, specs, given) if label is None else \
+                {name: spec(given[name], f"{label} {name}") for name, spec in specs.items()}
             for name, value in values.items():
                 if value is not getattr(self, name):
                     object.__setattr__(self, name, value)
@@ -297,4 +326,4 @@ def checked(**specs: Check) -> Callable[[type], type]:
 
 __all__ = ["SAFE_MAGNITUDE", "Check", "Choice", "Either", "Function", "Instance", "Integer",
            "MappingOf", "Maybe", "Real", "SequenceOf", "Text", "Vector", "check_arguments",
-           "checked", "per_body"]
+           "checked", "evaluate", "per_body"]
