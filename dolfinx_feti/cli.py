@@ -171,9 +171,9 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
     try:  # before the solve: a folder that cannot be written is found now, not after it
         requested = [pf.output.directory / f"{pf.path.stem}_pressure.png"] if args.plot else []
         check_outputs(pf.output.paths() + requested, pf.inputs(), comm)
-    except InputError as e:
+    except (InputError, SolveError) as e:
         _error(f"{PROG}: {pf.path}: {e}")
-        return EXIT_USAGE
+        return EXIT_USAGE if isinstance(e, InputError) else EXIT_FAILED
 
     from .solve import solve
 

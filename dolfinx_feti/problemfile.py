@@ -658,7 +658,7 @@ class _Reader:
             return str(mesh_path)
         try:
             self.mesh = read_gmsh(mesh_path, self.comm)
-        except InputError as e:
+        except (InputError, SolveError) as e:
             c.fault("mesh", f"cannot use the mesh {str(mesh_path)!r}: {e}")
         return str(mesh_path)
 

@@ -155,7 +155,10 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
                 raise InputError(f"Parts: unknown bodies {sorted(unknown)}; the bodies are "
                                  f"{list(mesh.body_names)}")
     elif isinstance(how, ByFunction):
-        label = np.asarray(how.fn(midpoints))
+        try:
+            label = np.asarray(how.fn(midpoints))
+        except Exception as e:  # the user's labeller: say which function failed
+            raise InputError(f"ByFunction.fn(midpoints) raised {type(e).__name__}: {e}") from e
         if label.shape != (mesh.cells.shape[0],) or not np.issubdtype(label.dtype, np.integer):
             raise InputError("ByFunction: the function must return one integer label per cell "
                              f"(shape ({mesh.cells.shape[0]},)), got {label.dtype} {label.shape}")
