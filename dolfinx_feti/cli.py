@@ -7,12 +7,14 @@ Usage::
 
 The problem file is read and checked completely (every fault reported, with the file and the
 key) before anything heavy starts; then the problem is solved by Total FETI on all ranks of
-``MPI.COMM_WORLD`` and the outputs are written, each atomically (a temporary name in the target
-folder, renamed when complete), and only after a successful solve.
+``MPI.COMM_WORLD`` and the outputs are written, all or none: the output folder is checked before
+the solve, the files are staged beside their targets and moved into place together
+(:mod:`dolfinx_feti.staging`).
 
-Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, an
-output that cannot be written); 2 the command line or the problem file is wrong (nothing
-written); 3 the solver did not converge (only the JSON report is written).
+Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, outputs
+that could not be written: then none is); 2 the command line, the problem file or the output
+folder is wrong (nothing written); 3 the solver did not converge (only the JSON report is
+written).
 """
 
 from __future__ import annotations

@@ -197,3 +197,15 @@ def test_forms_raising_on_one_rank(block):
     msg = str(info.value)
     assert "RuntimeError: no forms here" in msg and "assembly" in msg
     assert COMM.allgather(msg) == [msg] * COMM.size
+
+
+@pytest.mark.parametrize("line", ['report = "p.toml"', 'report = "../p.toml"'])
+def test_outputs_never_overwrite_inputs(folder, line, capsys):
+    text = PROBLEM.replace('directory = "out"', f'directory = "out"\n{line}')
+    if "../" not in line:
+        text = text.replace('directory = "out"', 'directory = "."')
+    write_text(folder / "p.toml", text)
+    assert main([str(folder / "p.toml"), "--check", "-q"]) == 2
+    assert (folder / "p.toml").read_text() == text
+    if COMM.rank == 0:
+        assert "is an input of this run" in capsys.readouterr().err

@@ -414,11 +414,6 @@ def test_coordinates_that_do_not_fit_the_mesh(block, obstacle, words):
         sc.block_on_plane(block, obstacles=[df.RigidObstacle("block_bottom", obstacle())])
 
 
-@pytest.fixture(scope="module")
-def membranes():
-    return df.read_gmsh(MESHES / "membranes_8.msh")
-
-
 def shifted(mesh, body: str, dx: float) -> df.MeshData:
     x = mesh.x.copy()
     nodes = np.unique(mesh.cells[mesh.cell_body == mesh.body_index(body)])
@@ -496,18 +491,20 @@ def test_a_gmsh_script_is_never_run(name):
     assert not marker.exists()
 
 
-def _free_square_problem(decomposition):
-    """membranes' left square alone (the right one unloaded, both free), pulled apart by equal
-    and opposite tractions on x = 0 and x = 1: a self-equilibrated load."""
-    mesh = df.read_gmsh(MESHES / "membranes_8.msh")
-    x = mesh.x
+def with_edge(mesh: df.MeshData, name: str, x0: float) -> df.MeshData:
+    """The mesh with a new boundary group: the boundary edges on the line x = x0."""
     tri = mesh.cells
     edges = np.concatenate([tri[:, [1, 2]], tri[:, [0, 2]], tri[:, [0, 1]]])
     key, count = np.unique(np.sort(edges, axis=1), axis=0, return_counts=True)
     bnd = key[count == 1]
-    start = bnd[np.all(np.isclose(x[bnd][..., 0], 0.0), axis=1)]
-    mesh = df.MeshData(**{**mesh.__dict__, "facet_groups": {**mesh.facet_groups,
-                                                            "start": start}})
+    group = bnd[np.all(np.isclose(mesh.x[bnd][..., 0], x0), axis=1)]
+    return df.MeshData(**{**mesh.__dict__, "facet_groups": {**mesh.facet_groups, name: group}})
+
+
+def _free_square_problem(decomposition):
+    """membranes' left square alone (the right one unloaded, both free), pulled apart by equal
+    and opposite tractions on x = 0 and x = 1: a self-equilibrated load."""
+    mesh = with_edge(df.read_gmsh(MESHES / "membranes_8.msh"), "start", 0.0)
     return df.ContactProblem(mesh, sc.ConstElasticity(1.0, 0.3, tractions={
         "start": (-0.1, 0.0), "contact_left": (0.1, 0.0)}), decomposition=decomposition)
 
@@ -542,13 +539,7 @@ def test_self_equilibrated_load_on_a_free_body():
 def test_the_free_sliding_motion_does_not_depend_on_the_decomposition(membranes):
     """The right square pressed on the clamped left one along x can slide along y (frictionless):
     u_y on it differed by 9 % of max |u| between ByTags and Parts(3) before."""
-    tri = membranes.cells
-    edges = np.concatenate([tri[:, [1, 2]], tri[:, [0, 2]], tri[:, [0, 1]]])
-    key, count = np.unique(np.sort(edges, axis=1), axis=0, return_counts=True)
-    bnd = key[count == 1]
-    end = bnd[np.all(np.isclose(membranes.x[bnd][..., 0], 2.0), axis=1)]
-    mesh = df.MeshData(**{**membranes.__dict__, "facet_groups": {**membranes.facet_groups,
-                                                                 "end": end}})
+    mesh = with_edge(membranes, "end", 2.0)
     u = []
     for dec in (df.ByTags(), df.Parts(4), df.Parts(3)):
         sol = df.solve(df.ContactProblem(
