@@ -65,9 +65,10 @@ def _parser() -> _Parser:
         description="Solve a contact problem described in a TOML problem file by Total FETI "
                     "(SMALBE/MPRGP). Runs the same under mpirun -n N.",
         epilog="Solver options: any field of dolfinx_feti.SolverOptions as -feti_<name> VALUE "
-               "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1); these override the file's "
-               "[solver] table. Exit status: 0 solved, 1 solve failed, 2 bad command line or "
-               "problem file (nothing written), 3 not converged (only the report is written).")
+               "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1 -feti_smalbe_rho 2); these override "
+               "the file's [solver] table. Exit status: 0 solved, 1 solve failed (nothing "
+               "written), 2 bad command line, problem file or output folder (nothing written), "
+               "3 not converged (only the report is written).")
     p.add_argument("problem", type=Path, help="the problem file (TOML)")
     p.add_argument("-o", "--output-dir", type=Path, default=None,
                    help="write the outputs here instead of the file's output.directory")

@@ -23,6 +23,18 @@ class SolveError(RuntimeError):
     """A phase of the solve failed (e.g. a singular subdomain matrix)."""
 
 
+class NotConverged(SolveError):
+    """The solver did not converge, with ``error_if_not_converged`` set (raised on every rank).
+
+    Attributes:
+        solution: The solution reached (its report says why it stopped).
+    """
+
+    def __init__(self, message: str, solution=None) -> None:
+        super().__init__(message)
+        self.solution = solution
+
+
 #: The collective phases that run user code or rank-local I/O, by name (see :func:`collective`).
 SITES = {
     "problem file": "reading the problem file (rank 0)",

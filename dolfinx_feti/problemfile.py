@@ -44,12 +44,11 @@ from typing import Any
 import numpy as np
 import ufl
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from .errors import InputError, SolveError, collective
 from .fem import Elasticity, Poisson
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
-from .options import SolverOptions, option_value
+from .options import DECLARED, SolverOptions, kind, option_value, parse_text
 from .problem import (
     ContactProblem,
     Cylinder,
@@ -93,7 +92,7 @@ OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
-SOLVER_KEYS = tuple(f.name for f in fields(SolverOptions))
+SOLVER_KEYS = tuple(DECLARED)
 
 _ALONG = ("x", "y", "z", "arclength")
 _GLUING = ("orthonormal", "redundant", "nonredundant")
@@ -452,31 +451,16 @@ class ProblemFile:
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
-        """The solver options: defaults < ``[solver]`` < ``-feti_*`` options < overrides.
+        """The solver options, each source over the previous ones.
 
-        ``overrides`` that are None are ignored. The command-line pairs are put in PETSc's
-        options database for the call only (then the database is as before), so options given
-        to an in-process run do not leak into the next.
+        defaults < ``[solver]`` < the PETSc options database < the command line's ``-feti_*``
+        options < overrides. ``overrides`` that are None are ignored. Nothing is written into
+        PETSc's options database, so options given to an in-process run do not leak into the
+        next.
         """
-        db = PETSc.Options()
-        saved = {}
-        for name, value in self.command_line:
-            key = name.lstrip("-")
-            if key not in saved:
-                saved[key] = db.getString(key) if db.hasName(key) else None
-            db.setValue(key, value)
-        try:
-            feti = PETSc.Options("feti_")
-            kw = {k: v for k, v in {**(defaults or {}), **self.solver}.items()
-                  if not feti.hasName(k)}
-            kw.update({k: v for k, v in overrides.items() if v is not None})
-            return SolverOptions.create(**kw)
-        finally:
-            for key, old in saved.items():
-                if old is None:
-                    db.delValue(key)
-                else:
-                    db.setValue(key, old)
+        argv = [token for pair in self.command_line for token in pair]
+        return SolverOptions.create(argv=argv, defaults={**(defaults or {}), **self.solver},
+                                    **overrides)
 
     def inputs(self) -> list[Path]:
         """The run's input files: the problem file and the mesh file (never overwritten)."""
@@ -550,7 +534,7 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
         The (option, value) pairs and the faults (key ``command line -feti_<name>``).
     """
     pairs, faults = [], []
-    kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
+    kinds = {name: kind(name) for name in DECLARED}
     i = 0
     while i < len(tokens):
         name = tokens[i]
@@ -570,15 +554,8 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
         if value is None:
             faults.append(Fault(key, "expected a value after the option"))
             continue
-        kind = kinds[field_name]
         try:
-            typed = int(value) if "int" in kind else float(value) if "float" in kind else value
-        except ValueError:
-            faults.append(Fault(key, f"expected {'an integer' if 'int' in kind else 'a number'}"
-                                     f", got {value!r}"))
-            continue
-        try:
-            SolverOptions(**{field_name: typed}).validate()
+            SolverOptions(**{field_name: parse_text(field_name, value)}).validate()
         except InputError as e:
             faults.append(Fault(key, str(e)))
             continue
@@ -1106,17 +1083,19 @@ class _Reader:
         s = c.table(self.data.get("solver", {}), "solver", SOLVER_KEYS)
         if s is None:
             return {}
-        kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
         out = {}
         for k, v in s.items():
-            if k not in kinds:
+            if k not in DECLARED:
                 continue
             key = _key("solver", k)
-            kind = kinds[k]
-            if "int" in kind:
+            if kind(k) == "int":
                 v = c.number(v, key, "an integer", integer=True)
-            elif "float" in kind:
+            elif kind(k) == "float":
                 v = c.number(v, key, "a number")
+            elif kind(k) == "bool":
+                if not isinstance(v, bool):
+                    c.fault(key, f"expected true or false, got {_describe(v)}")
+                    v = None
             else:
                 v = c.string(v, key)
             if v is None:

@@ -112,6 +112,21 @@ class Integer(Check):
         return (ge is None or v >= ge) and (le is None or v <= le), v
 
 
+class Flag(Check):
+    """A boolean (``True``/``False``; from text: true/false, yes/no, 1/0, on/off)."""
+
+    what = "a boolean (true or false)"
+    _TEXT = {"true": True, "yes": True, "1": True, "on": True,
+             "false": False, "no": False, "0": False, "off": False}
+
+    def ok(self, value):  # noqa: D102
+        if isinstance(value, bool | np.bool_):
+            return True, bool(value)
+        if isinstance(value, str) and value.lower() in self._TEXT:
+            return True, self._TEXT[value.lower()]
+        return False, value
+
+
 class Choice(Check):
     """One of a few strings."""
 
@@ -324,6 +339,34 @@ def checked(label: str | None = None, /, **specs: Check) -> Callable[[type], typ
     return decorate
 
 
-__all__ = ["SAFE_MAGNITUDE", "Check", "Choice", "Either", "Function", "Instance", "Integer",
-           "MappingOf", "Maybe", "Real", "SequenceOf", "Text", "Vector", "check_arguments",
-           "checked", "evaluate", "per_body"]
+
+class Option:
+    """A setting of a solver: its default, its check and what it does (for docs and messages)."""
+
+    def __init__(self, default: Any, check: Check, doc: str) -> None:
+        self.default, self.check, self.doc = default, check, doc
+
+
+class OptionSet:
+    """The options of one solver, declared next to it, read under a nested prefix.
+
+    ``OptionSet("smalbe", rho=Option(...))`` is the option ``-<prefix>smalbe_rho`` of the PETSc
+    options database and the field ``smalbe_rho`` of :class:`~dolfinx_feti.SolverOptions`;
+    an empty ``name`` puts the options at the top level (``-<prefix>rtol``).
+    """
+
+    def __init__(self, name: str, doc: str, **options: Option) -> None:
+        self.name, self.doc, self.options = name, doc, options
+
+    def key(self, option: str) -> str:
+        """The flat name of an option: ``<name>_<option>`` (or ``<option>`` at the top)."""
+        return f"{self.name}_{option}" if self.name else option
+
+    def keys(self) -> dict[str, str]:
+        """Flat name → option name."""
+        return {self.key(k): k for k in self.options}
+
+
+__all__ = ["SAFE_MAGNITUDE", "Check", "Choice", "Either", "Flag", "Function", "Instance",
+           "Integer", "MappingOf", "Maybe", "Option", "OptionSet", "Real", "SequenceOf", "Text",
+           "Vector", "check_arguments", "checked", "evaluate", "per_body"]

@@ -153,7 +153,8 @@ MALFORMED = {
     "unknown -feti_ option": (BASE, ["-feti_rtoll", "1e-8"],
                               [("command line -feti_rtoll", "did you mean -feti_rtol")]),
     "bad -feti_ value": (BASE, ["-feti_max_it", "many"],
-                         [("command line -feti_max_it", "expected an integer, got 'many'")]),
+                         [("command line -feti_max_it",
+                           "max_it must be an integer >= 1 and <= 1000000000, got 'many'")]),
     "poisson model with an obstacle": (
         edit(('type = "elasticity"\nE = 200.0\nnu = 0.3\ntractions = { load = [0.0, -0.625] }',
               'type = "poisson"'), ('type = "node_to_node"\nslave = "disk_contact"\nmaster = '
