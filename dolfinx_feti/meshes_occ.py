@@ -31,6 +31,43 @@ def _size_in(entities: list[tuple[int, int]], h: float) -> None:
     gmsh.model.mesh.setSize(pts, h)
 
 
+def _graded_sizes(bodies: list[tuple[int, float]], dim: int, h_far: float, refine: float) -> None:
+    """Per body: size h within ``refine`` of the origin, growing to h_far (slope 0.2)."""
+    origin = [t for _, t in gmsh.model.getEntitiesInBoundingBox(
+        -_EPS, -_EPS, -_EPS, _EPS, _EPS, _EPS, 0)]
+    field = gmsh.model.mesh.field
+    fields = []
+    for ent, h in bodies:
+        dist = field.add("Distance")
+        field.setNumbers(dist, "PointsList", origin)
+        thr = field.add("Threshold")
+        field.setNumber(thr, "InField", dist)
+        field.setNumber(thr, "SizeMin", h)
+        field.setNumber(thr, "SizeMax", h_far)
+        field.setNumber(thr, "DistMin", refine)
+        field.setNumber(thr, "DistMax", refine + 5 * (h_far - h))
+        restrict = field.add("Restrict")
+        field.setNumber(restrict, "InField", thr)
+        below = gmsh.model.getBoundary([(dim, ent)], combined=False, oriented=False,
+                                       recursive=False)
+        if dim == 2:
+            field.setNumbers(restrict, "SurfacesList", [ent])
+            field.setNumbers(restrict, "CurvesList", [abs(t) for _, t in below])
+        else:
+            field.setNumbers(restrict, "VolumesList", [ent])
+            field.setNumbers(restrict, "SurfacesList", [abs(t) for _, t in below])
+            curves = gmsh.model.getBoundary(below, combined=False, oriented=False)
+            field.setNumbers(restrict, "CurvesList", sorted({abs(t) for _, t in curves}))
+        fields.append(restrict)
+    mini = field.add("Min")
+    field.setNumbers(mini, "FieldsList", fields)
+    field.setAsBackgroundMesh(mini)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h_far)
+
+
 def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
                    width: float = 1.0, height: float = 1.0, gap: float = 0.0) -> dict:
     """Two boxes, one on top of the other, meshed independently (non-matching interface).
@@ -121,49 +158,18 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     disk_curves = [abs(t) for _, t in gmsh.model.getBoundary([(2, disk)], oriented=False)]
     block_curves = [abs(t) for _, t in gmsh.model.getBoundary([(2, block)], oriented=False)]
 
-    def curve_where(curves, test) -> list[int]:
-        out = []
-        for c in curves:
-            x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(1, c)
-            if test(x0, y0, x1, y1):
-                out.append(c)
-        return out
+    def centre(c: int) -> tuple[float, float]:
+        cx, cy, _ = gmsh.model.occ.getCenterOfMass(1, c)
+        return cx, cy
 
-    arc = curve_where(disk_curves, lambda x0, y0, x1, y1: y1 - y0 > _EPS and x1 - x0 > _EPS)
-    load = curve_where(disk_curves, lambda x0, y0, x1, y1: abs(y0 - R) < _EPS
-                       and abs(y1 - R) < _EPS)
-    disk_sym = curve_where(disk_curves, lambda x0, y0, x1, y1: abs(x0) < _EPS and abs(x1) < _EPS)
-    top = curve_where(block_curves, lambda x0, y0, x1, y1: abs(y0) < _EPS and abs(y1) < _EPS)
-    block_sym = curve_where(block_curves, lambda x0, y0, x1, y1: abs(x0) < _EPS
-                            and abs(x1) < _EPS)
-    bottom = curve_where(block_curves, lambda x0, y0, x1, y1: abs(y0 + height) < _EPS
-                         and abs(y1 + height) < _EPS)
-    origin = [t for _, t in gmsh.model.getEntitiesInBoundingBox(
-        -_EPS, -_EPS, -_EPS, _EPS, _EPS, _EPS, 0)]
-    field = gmsh.model.mesh.field
-    fields = []
-    for surf, h in ((disk, h_contact_disk), (block, h_contact_block)):
-        dist = field.add("Distance")
-        field.setNumbers(dist, "PointsList", origin)
-        thr = field.add("Threshold")
-        field.setNumber(thr, "InField", dist)
-        field.setNumber(thr, "SizeMin", h)
-        field.setNumber(thr, "SizeMax", h_far)
-        field.setNumber(thr, "DistMin", refine)
-        field.setNumber(thr, "DistMax", refine + 5 * (h_far - h))
-        restrict = field.add("Restrict")
-        field.setNumber(restrict, "InField", thr)
-        field.setNumbers(restrict, "SurfacesList", [surf])
-        field.setNumbers(restrict, "CurvesList",
-                         [abs(t) for _, t in gmsh.model.getBoundary([(2, surf)], oriented=False)])
-        fields.append(restrict)
-    mini = field.add("Min")
-    field.setNumbers(mini, "FieldsList", fields)
-    field.setAsBackgroundMesh(mini)
-    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-    gmsh.option.setNumber("Mesh.MeshSizeMax", h_far)
+    tol = 1e-6 * max(R, width, height)
+    load = [c for c in disk_curves if abs(centre(c)[1] - R) < tol]
+    disk_sym = [c for c in disk_curves if abs(centre(c)[0]) < tol]
+    arc = [c for c in disk_curves if c not in load + disk_sym]
+    top = [c for c in block_curves if abs(centre(c)[1]) < tol]
+    block_sym = [c for c in block_curves if abs(centre(c)[0]) < tol]
+    bottom = [c for c in block_curves if abs(centre(c)[1] + height) < tol]
+    _graded_sizes([(disk, h_contact_disk), (block, h_contact_block)], 2, h_far, refine)
     _add_group(2, [disk], 1, "disk")
     _add_group(2, [block], 2, "block")
     _add_group(1, arc, 11, "disk_contact")
@@ -175,4 +181,57 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     return physical_groups()
 
 
-__all__ = ["disk_on_block", "stacked_blocks"]
+def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.25,
+                    h_far: float = 2.0, R: float = 8.0, width: float = 16.0,
+                    height: float = 8.0, refine: float = 1.5) -> dict:
+    """3D Hertz, quarter model: a hemisphere on a block, each meshed on its own.
+
+    The lower half of the ball of radius R centred at (0, 0, R), cut to x, y >= 0, touches the
+    top z = 0 of the block [0, width/2]² × [−height, 0] at the origin. Each body is an OCC
+    volume meshed with its own size near the contact (within ``refine`` of the origin),
+    growing to h_far; the meshes do not match.
+
+    Physical groups: "sphere" (3, 1), "block" (3, 2), "sphere_contact" (2, 11) = the whole
+    spherical surface, "block_contact" (2, 12) = the whole top of the block, "load" (2, 13) =
+    the flat top z = R of the hemisphere, "sym_x" (2, 14) = the faces x = 0, "sym_y" (2, 15)
+    = the faces y = 0, "bottom" (2, 16) = z = −height.
+    """
+    if not 0 < max(h_contact_sphere, h_contact_block) <= h_far or refine <= 0:
+        raise ValueError("sphere_on_block: need 0 < h_contact <= h_far and refine > 0")
+    gmsh.model.add("sphere_on_block")
+    _set_output_options()
+    occ = gmsh.model.occ
+    ball = occ.addSphere(0.0, 0.0, R, R)
+    box = occ.addBox(0.0, 0.0, 0.0, R, R, R)
+    (dt, _) = occ.intersect([(3, ball)], [(3, box)])
+    sphere = dt[0][1]
+    block = occ.addBox(0.0, 0.0, -height, width / 2, width / 2, height)
+    occ.synchronize()
+    tol = 1e-6 * max(R, width, height)
+
+    def faces(body: int) -> list[int]:
+        return [abs(t) for _, t in gmsh.model.getBoundary([(3, body)], oriented=False)]
+
+    def centre(f: int) -> tuple[float, float, float]:
+        return gmsh.model.occ.getCenterOfMass(2, f)
+
+    sym_x = [f for b in (sphere, block) for f in faces(b) if abs(centre(f)[0]) < tol]
+    sym_y = [f for b in (sphere, block) for f in faces(b) if abs(centre(f)[1]) < tol]
+    load = [f for f in faces(sphere) if abs(centre(f)[2] - R) < tol]
+    curved = [f for f in faces(sphere) if f not in sym_x + sym_y + load]
+    top = [f for f in faces(block) if abs(centre(f)[2]) < tol]
+    bottom = [f for f in faces(block) if abs(centre(f)[2] + height) < tol]
+    _graded_sizes([(sphere, h_contact_sphere), (block, h_contact_block)], 3, h_far, refine)
+    _add_group(3, [sphere], 1, "sphere")
+    _add_group(3, [block], 2, "block")
+    _add_group(2, curved, 11, "sphere_contact")
+    _add_group(2, top, 12, "block_contact")
+    _add_group(2, load, 13, "load")
+    _add_group(2, sym_x, 14, "sym_x")
+    _add_group(2, sym_y, 15, "sym_y")
+    _add_group(2, bottom, 16, "bottom")
+    gmsh.model.mesh.generate(3)
+    return physical_groups()
+
+
+__all__ = ["disk_on_block", "sphere_on_block", "stacked_blocks"]

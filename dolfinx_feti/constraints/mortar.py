@@ -40,10 +40,12 @@ from ..mesh.topology import facet_normals, nodal_normals_and_areas
 
 #: A slave node gets a row when Σ_k M_jk >= COVERAGE_MIN · D_j.
 COVERAGE_MIN = 0.5
-#: Coverage below 1 − COVERAGE_RIM_TOL marks a row on the rim of the master surface.
-COVERAGE_RIM_TOL = 1e-6
+#: Coverage below 1 − COVERAGE_FULL_TOL: the slave node's support is only partly covered.
+COVERAGE_FULL_TOL = 1e-6
 #: Facets whose normals satisfy n_s · n_m > −FACING_MIN do not face each other.
 FACING_MIN = 0.05
+#: A body's boundary goes on smoothly past a surface's rim where the normals agree this well.
+SMOOTH_COS = np.cos(np.radians(30.0))
 
 # Quadrature exact for degree 2: on [0, 1] (Gauss, 2 points) and on the reference triangle.
 _GAUSS_X = np.array([0.5 - 0.5 / np.sqrt(3.0), 0.5 + 0.5 / np.sqrt(3.0)])
@@ -62,7 +64,6 @@ class MortarCoupling:
         D: ∫ N_j over the slave surface (the lumped area) per slave node.
         M: Sparse (slave node × global master node) matrix of the integrals M_jk.
         coverage: Σ_k M_jk / D_j per slave node (1 where its support is fully covered).
-        rim: Per slave node: on the boundary of the slave surface, or partly covered.
         search_distance: The search distance used.
         pairs: Number of (slave facet, master facet) pairs with a non-empty overlap.
     """
@@ -72,7 +73,6 @@ class MortarCoupling:
     D: np.ndarray
     M: sp.csr_matrix
     coverage: np.ndarray
-    rim: np.ndarray
     search_distance: float
     pairs: int
 
@@ -122,6 +122,46 @@ def surface_rim(facets: np.ndarray) -> np.ndarray:
                     axis=1)
     uniq, count = np.unique(edges, axis=0, return_counts=True)
     return np.unique(uniq[count == 1])
+
+
+def open_rim(x: np.ndarray, cells: np.ndarray, group: np.ndarray, boundary: np.ndarray
+             ) -> np.ndarray:
+    """The rim nodes of a surface where the body's boundary goes on smoothly beyond it.
+
+    A surface that ends at an edge of its body (a corner in 2D) ends where the body does; one
+    that ends inside a smooth part of the body's boundary was cut short by whoever named it,
+    and contact may reach beyond it.
+
+    Args:
+        x: Node coordinates.
+        cells: Cells (to orient normals).
+        group: The surface's facets.
+        boundary: All boundary facets of the mesh.
+    """
+    rim = surface_rim(group)
+    if rim.size == 0:
+        return rim
+    nodes, normals, _ = nodal_normals_and_areas(x, cells, group)
+    n_rim = normals[np.searchsorted(nodes, rim)]
+    key = np.sort(group, axis=1)
+    others = boundary[~_rows_in(np.sort(boundary, axis=1), key)]
+    nb, _ = facet_normals(x, cells, others)
+    # Pairs (rim node, other boundary facet that contains it).
+    hit = np.isin(others, rim)
+    f_idx, v_idx = np.nonzero(hit)
+    r_idx = np.searchsorted(rim, others[f_idx, v_idx])
+    smooth = np.einsum("ij,ij->i", n_rim[r_idx], nb[f_idx]) > SMOOTH_COS
+    return np.unique(rim[r_idx[smooth]])
+
+
+def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Mask of the rows of ``a`` that are rows of ``b`` (both integer, rows sorted)."""
+    if b.shape[0] == 0:
+        return np.zeros(a.shape[0], dtype=bool)
+    width = a.shape[1]
+    va = np.ascontiguousarray(a, dtype=np.int64).view(np.dtype((np.void, 8 * width))).ravel()
+    vb = np.ascontiguousarray(b, dtype=np.int64).view(np.dtype((np.void, 8 * width))).ravel()
+    return np.isin(va, vb)
 
 
 def candidate_pairs(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np.ndarray,
@@ -297,6 +337,55 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     M.sum_duplicates()
     M.eliminate_zeros()
     coverage = np.asarray(M.sum(axis=1)).ravel() / D
-    rim = (coverage < 1.0 - COVERAGE_RIM_TOL) | np.isin(nodes, surface_rim(slave))
     return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          rim=rim, search_distance=float(search_distance), pairs=int(npairs))
+                          search_distance=float(search_distance), pairs=int(npairs))
+
+
+def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.ndarray,
+                facets: np.ndarray, depth: float) -> np.ndarray:
+    """How deep each point lies behind a surface (0 where it does not).
+
+    A point counts as behind a facet when its foot along the facet's normal falls inside the
+    facet, the point's own surface normal faces the facet, and it lies at most ``depth``
+    behind it (a point far behind is on the other side of the body, not in it).
+
+    Args:
+        p: Points (n, gdim), e.g. the deformed nodes of one surface.
+        normals: Outward unit normals of that surface at the points.
+        x: Coordinates of the other surface's mesh (deformed).
+        cells: Cells of that mesh (to orient its facets).
+        facets: The other surface's facets.
+        depth: The largest depth that counts.
+    """
+    if p.shape[0] == 0:
+        return np.zeros(0)
+    nf, _ = facet_normals(x, cells, facets)
+    centre = x[facets].mean(axis=1)
+    k = min(16, facets.shape[0])
+    _, cand = cKDTree(centre).query(p, k=k)
+    cand = cand.reshape(p.shape[0], k)
+    v = x[facets[cand]]  # (n, k, nv, gdim)
+    n = nf[cand]  # (n, k, gdim)
+    d = np.einsum("ikl,ikl->ik", p[:, None] - v[:, :, 0], n)  # signed distance, < 0 behind
+    foot = p[:, None] - d[..., None] * n
+    tol = 1e-8
+    if x.shape[1] == 2:
+        e = v[:, :, 1] - v[:, :, 0]
+        xi = np.einsum("ikl,ikl->ik", foot - v[:, :, 0], e) / np.einsum("ikl,ikl->ik", e, e)
+        inside = (xi >= -tol) & (xi <= 1.0 + tol)
+    else:
+        e1, e2, r = v[:, :, 1] - v[:, :, 0], v[:, :, 2] - v[:, :, 0], foot - v[:, :, 0]
+        a11 = np.einsum("ikl,ikl->ik", e1, e1)
+        a12 = np.einsum("ikl,ikl->ik", e1, e2)
+        a22 = np.einsum("ikl,ikl->ik", e2, e2)
+        b1, b2 = np.einsum("ikl,ikl->ik", r, e1), np.einsum("ikl,ikl->ik", r, e2)
+        det = a11 * a22 - a12**2
+        l1 = (b1 * a22 - b2 * a12) / det
+        l2 = (a11 * b2 - a12 * b1) / det
+        inside = (l1 >= -tol) & (l2 >= -tol) & (l1 + l2 <= 1.0 + tol)
+    facing = np.einsum("il,ikl->ik", normals, n) < -FACING_MIN
+    ok = inside & facing & (d >= -depth)
+    dist = np.where(ok, np.abs(d), np.inf)
+    best = np.argmin(dist, axis=1)
+    rows = np.arange(p.shape[0])
+    return np.where(ok[rows, best], np.maximum(-d[rows, best], 0.0), 0.0)

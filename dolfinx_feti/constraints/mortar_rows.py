@@ -20,10 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..mesh.checks import boundary_facets
 from ..mesh.gmsh_input import MeshData
 from ..problem import Mortar, Tie
 from .contact import surface
-from .mortar import MortarCoupling, mortar_coupling
+from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
 from .rows import Kind, Rows
 
 
@@ -64,6 +65,25 @@ def _coupling(mesh: MeshData, slave: str, master: str, search_distance) -> Morta
     surface(mesh, master)
     return mortar_coupling(mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master),
                            search_distance)
+
+
+def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
+    """The coupled slave nodes on an open rim (:func:`.mortar.open_rim`) of either surface.
+
+    A slave node is on the master's open rim when its support is only partly covered and it
+    is coupled to a node of that rim.
+    """
+    boundary, _ = boundary_facets(mesh)
+    s_rim = open_rim(mesh.x, mesh.cells, mesh.facets(slave), boundary)
+    m_rim = open_rim(mesh.x, mesh.cells, mesh.facets(master), boundary)
+    keep = coupling.coupled
+    nodes = coupling.slave_nodes
+    partial = coupling.coverage < 1.0 - COVERAGE_FULL_TOL
+    M = coupling.M.tocsr()
+    touches = np.asarray(M[:, m_rim].getnnz(axis=1) > 0).ravel() if m_rim.size else \
+        np.zeros(nodes.size, dtype=bool)
+    rim = np.isin(nodes, s_rim) | (partial & touches)
+    return nodes[keep & rim]
 
 
 def _bodies(mesh: MeshData, group: str) -> set[int]:
@@ -118,7 +138,7 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
                 spec=np.full(nr, index, dtype=np.int32))
     info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
                       rows=nr, uncoupled=int((~keep).sum()),
-                      rim_nodes=coupling.slave_nodes[keep & coupling.rim])
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling))
     return rows, info
 
 
@@ -158,6 +178,6 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
     rows = rows.permuted(np.lexsort((comp, rows.node)))  # node-major, like the gluing rows
     info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
                       rows=rows.size, uncoupled=int((~coupling.coupled).sum()),
-                      rim_nodes=coupling.slave_nodes[coupling.coupled & coupling.rim], tie=True)
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True)
     return rows, info
 
