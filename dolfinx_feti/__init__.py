@@ -11,7 +11,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 """
 
 from .dual import DualQP, dual_qp
-from .errors import InputError, SolveError
+from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
 from .options import SolverOptions
@@ -20,11 +20,13 @@ from .problem import (
                       Coulomb,
                       Cylinder,
                       Dirichlet,
+                      Mortar,
                       NodeToNode,
                       Plane,
                       RigidObstacle,
                       SignedDistance,
                       Sphere,
+                      Tie,
                       Tresca,
 )
 from .report import Report
@@ -32,8 +34,8 @@ from .solution import ContactData, Solution
 from .solve import solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
-           "Dirichlet",
-           "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
-           "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
-           "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve",
-           "DualQP", "dual_qp"]
+           "Dirichlet", "DualQP", "Elasticity", "InputError", "MeshData", "Mortar", "NodeToNode",
+           "NotConverged",
+           "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
+           "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
+           "dual_qp", "read_gmsh", "solve"]

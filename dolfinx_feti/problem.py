@@ -17,9 +17,28 @@ from .mesh.checks import (
 )
 from .mesh.decompose import ByFunction, ByTags, Parts
 from .mesh.gmsh_input import MeshData
+from .validation import (
+    Choice,
+    Either,
+    Function,
+    Instance,
+    Integer,
+    Maybe,
+    Real,
+    SequenceOf,
+    Text,
+    Vector,
+    checked,
+)
+
+_POINT_FUNCTION = "a function of the node coordinates x (n, gdim)"
 
 
 @dataclass(frozen=True)
+@checked(group=Text(),
+         value=Either(Real(), Vector(), Function(),
+                      what=f"a finite number, one per component, or {_POINT_FUNCTION}"),
+         components=Maybe(SequenceOf(Integer(ge=0), unique=True, nonempty=True)))
 class Dirichlet:
     """Prescribed values on a boundary group.
 
@@ -37,6 +56,8 @@ class Dirichlet:
 
 
 @dataclass(frozen=True)
+@checked(bound=Either(Real(ge=0, inf=True), Function(),
+                      what=f"a slip bound: a number >= 0, inf (no slip) or {_POINT_FUNCTION}"))
 class Tresca:
     """Given (Tresca) friction: the tangential traction is bounded by the slip bound ``g``.
 
@@ -53,19 +74,9 @@ class Tresca:
 
     bound: float | Callable[[np.ndarray], np.ndarray]
 
-    def __post_init__(self) -> None:
-        """Check a constant bound."""
-        if not callable(self.bound):
-            try:
-                g = float(self.bound)
-            except (TypeError, ValueError):
-                raise InputError(f"Tresca: the slip bound must be a number or a function of "
-                                 f"the node coordinates, got {self.bound!r}") from None
-            if np.isnan(g) or g < 0:
-                raise InputError(f"Tresca: the slip bound must be >= 0, got {self.bound}")
-
 
 @dataclass(frozen=True)
+@checked(coefficient=Real(ge=0), rtol=Real(gt=0, lt=1), max_steps=Integer(ge=1, le=10**6))
 class Coulomb:
     """Coulomb friction, solved by a fixed point on Tresca problems.
 
@@ -86,24 +97,14 @@ class Coulomb:
     rtol: float = 1e-6
     max_steps: int = 50
 
-    def __post_init__(self) -> None:
-        """Check the data."""
-        try:
-            f = float(self.coefficient)
-        except (TypeError, ValueError):
-            raise InputError(f"Coulomb: the coefficient must be a number, got "
-                             f"{self.coefficient!r}") from None
-        if not np.isfinite(f) or f < 0:
-            raise InputError(f"Coulomb: the coefficient must be finite and >= 0, got {f}")
-        if not self.rtol > 0 or int(self.max_steps) < 1:
-            raise InputError(f"Coulomb: need rtol > 0 and max_steps >= 1, got {self.rtol}, "
-                             f"{self.max_steps}")
-
 
 Friction = Tresca | Coulomb
+_FRICTION = Maybe(Instance(Tresca, Coulomb))
 
 
 @dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), gap=Maybe(Real()), match_tol=Real(gt=0, lt=1),
+         friction=_FRICTION)
 class NodeToNode:
     """Contact of two surfaces of different bodies with matching nodes.
 
@@ -117,7 +118,8 @@ class NodeToNode:
         slave: Boundary group of the slave side.
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
-        match_tol: Pairing tolerance relative to the mean edge length of the slave surface.
+        match_tol: Pairing tolerance relative to the mean edge length of the slave surface,
+            in (0, 1).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
             slip is the tangential part of u_slave − u_master.
     """
@@ -128,6 +130,71 @@ class NodeToNode:
     match_tol: float = 1e-4
     friction: Friction | None = None
 
+    @property
+    def group(self) -> str:
+        """The surface whose nodes carry the rows (the slave)."""
+        return self.slave
+
+
+@dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION)
+class Mortar:
+    """Contact of two surfaces of different bodies with independent (non-matching) meshes.
+
+    Segment-to-segment mortar with dual Lagrange multipliers on the slave side: one
+    non-penetration row and one bound λ_j >= 0 per slave node j, coupling it to the master
+    surface through the integrals of the slave's dual basis against the master's shape
+    functions over the overlap of each slave facet with the master facets projected onto it
+    (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
+    its facets' normals; the initial gap comes from the geometry (weighted).
+
+    The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
+    of facets are searched automatically; slave nodes with no master facet within
+    ``search_distance`` get no row (the report says how many), and after the solve every node
+    of both surfaces is checked against the other surface (the report warns about a
+    penetration, or about an active row on the rim of a candidate surface). Take as slave the
+    surface with the finer mesh, or the smaller one.
+
+    Args:
+        slave: Boundary group of the slave side.
+        master: Boundary group of the master side.
+        friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`; the slip is
+            the tangential part of u_slave − Σ_k w_k u_k (the weighted master point).
+        search_distance: How far apart two facets may be (along the slave normal, either
+            side) and still be coupled; by default twice the larger mean facet size of the
+            two surfaces, and at least 5 % of the slave surface's extent.
+    """
+
+    slave: str
+    master: str
+    friction: Friction | None = None
+    search_distance: float | None = None
+
+    @property
+    def group(self) -> str:
+        """The surface whose nodes carry the rows (the slave)."""
+        return self.slave
+
+
+@dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)))
+class Tie:
+    """Gluing of two surfaces with independent (non-matching) meshes by mortar equality rows.
+
+    For pieces of a body (or of several bodies) meshed on their own, e.g. gmsh volumes that
+    were not fragmented, or stiff inclusions meshed apart from the matrix: at each slave node
+    u_slave = Σ_k w_k u_k (the same dual-basis weights as :class:`Mortar`), per component.
+
+    Args:
+        slave: Boundary group of the slave side (preferably the finer mesh).
+        master: Boundary group of the master side.
+        search_distance: As for :class:`Mortar`.
+    """
+
+    slave: str
+    master: str
+    search_distance: float | None = None
+
 
 class Obstacle(Protocol):
     """A rigid obstacle as a signed distance: positive outside the obstacle."""
@@ -137,41 +204,57 @@ class Obstacle(Protocol):
 
 
 @dataclass(frozen=True)
+@checked(point=Vector(), normal=Vector(nonzero=True))
 class Plane:
-    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle."""
+    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle.
+
+    ``point`` and ``normal`` have one coordinate per dimension of the mesh.
+    """
 
     point: Sequence[float]
     normal: Sequence[float]
 
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"point": self.point, "normal": self.normal}
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        n = np.asarray(self.normal, dtype=float)[: x.shape[1]]
-        if not np.linalg.norm(n) > 0:
-            raise InputError(f"Plane: the normal {tuple(self.normal)} is zero or not finite")
+        n = np.asarray(self.normal, dtype=float)
         n = n / np.linalg.norm(n)
-        p = np.asarray(self.point, dtype=float)[: x.shape[1]]
+        p = np.asarray(self.point, dtype=float)
         return (x - p) @ n, np.broadcast_to(n, x.shape).copy()
 
 
 @dataclass(frozen=True)
+@checked(center=Vector(), radius=Real(gt=0))
 class Sphere:
     """A rigid ball (a disc in 2D) of radius ``radius`` centred at ``center``."""
 
     center: Sequence[float]
     radius: float
 
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"center": self.center}
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        d = x - np.asarray(self.center, dtype=float)[: x.shape[1]]
+        d = x - np.asarray(self.center, dtype=float)
         r = np.linalg.norm(d, axis=1)
         return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
 
 
 @dataclass(frozen=True)
+@checked(point=Vector(3), axis=Vector(3, nonzero=True), radius=Real(gt=0))
 class Cylinder:
     """A rigid infinite cylinder (3D) with an axis through ``point`` along ``axis``."""
 
     point: Sequence[float]
     axis: Sequence[float]
     radius: float
+
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"point": self.point, "axis": self.axis}
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         a = np.asarray(self.axis, dtype=float)
@@ -183,6 +266,7 @@ class Cylinder:
 
 
 @dataclass(frozen=True)
+@checked(fn=Function(f"{_POINT_FUNCTION} returning (phi (n,), grad (n, gdim))"))
 class SignedDistance:
     """A rigid obstacle given by a user signed distance ``fn(x) -> (phi, grad)``."""
 
@@ -193,6 +277,9 @@ class SignedDistance:
 
 
 @dataclass(frozen=True)
+@checked(group=Text(), obstacle=Instance(methods=("distance",), what="an obstacle (Plane, "
+                                         "Sphere, Cylinder, SignedDistance)"),
+         friction=_FRICTION)
 class RigidObstacle:
     """Contact of a body's boundary group with a rigid obstacle.
 
@@ -207,7 +294,19 @@ class RigidObstacle:
     friction: Friction | None = None
 
 
+#: The contact conditions; each has ``group``, the surface whose nodes carry its rows.
+Contact = NodeToNode | Mortar | RigidObstacle
+
+
 @dataclass
+@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh)"),
+         forms=Function("a function forms(V, sub) -> (a, L)"),
+         value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
+         contact=SequenceOf(Instance(object, what="a contact condition")),
+         decomposition=Instance(ByTags, Parts, ByFunction,
+                                what="a decomposition: ByTags(), Parts(n) or ByFunction(fn)"),
+         gluing=Choice("orthonormal", "redundant", "nonredundant"),
+         ties=SequenceOf(Instance(Tie)))
 class ContactProblem:
     """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
 
@@ -219,19 +318,22 @@ class ContactProblem:
         value_size: 1 for a scalar problem, the geometric dimension for elasticity; taken from
             ``forms.value_size`` when the helpers are used.
         dirichlet: Dirichlet conditions.
-        contact: Contact conditions (:class:`NodeToNode`, :class:`RigidObstacle`).
+        contact: Contact conditions (:class:`Mortar`, :class:`NodeToNode`,
+            :class:`RigidObstacle`).
         decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
+        ties: :class:`Tie` conditions gluing non-matching interfaces by mortar rows.
     """
 
     mesh: MeshData
     forms: Callable
     value_size: int | None = None
     dirichlet: Sequence[Dirichlet] = field(default_factory=list)
-    contact: Sequence[NodeToNode | RigidObstacle] = field(default_factory=list)
+    contact: Sequence[Contact] = field(default_factory=list)
     decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
     gluing: str = "orthonormal"
+    ties: Sequence[Tie] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
@@ -243,9 +345,6 @@ class ContactProblem:
                              "dimension for elasticity) when the forms are a plain function")
         if self.value_size not in (1, self.mesh.gdim):
             raise InputError(f"value_size must be 1 or {self.mesh.gdim}, got {self.value_size}")
-        if self.gluing not in ("orthonormal", "redundant", "nonredundant"):
-            raise InputError(f"gluing must be 'orthonormal', 'redundant' or 'nonredundant', "
-                             f"got {self.gluing!r}")
         check = getattr(self.forms, "check", None)
         if check is not None:
             check(self.mesh)
@@ -255,8 +354,14 @@ class ContactProblem:
             if any(int(c) < 0 or int(c) >= self.value_size for c in comps):
                 raise InputError(f"Dirichlet on {bc.group!r}: components {list(comps)} out of "
                                  f"range for a problem with {self.value_size} component(s)")
+        for t in self.ties:
+            if not isinstance(t, Tie):
+                raise InputError(f"ties must be df.Tie conditions, got {t!r}")
+            _check_pair(self.mesh, "tie", t)
         for c in self.contact:
-            if isinstance(c, NodeToNode):
+            if isinstance(c, Mortar):
+                _check_pair(self.mesh, "mortar contact", c)
+            elif isinstance(c, NodeToNode):
                 self.mesh.facets(c.slave)
                 self.mesh.facets(c.master)
                 if c.slave == c.master:
@@ -274,9 +379,44 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
-        _check_mesh(self.mesh, [g for c in self.contact for g in
-                                ((c.slave, c.master) if isinstance(c, NodeToNode) else (c.group,))],
+        check_dimensions(self)
+        _check_mesh(self.mesh, [g for c in [*self.contact, *self.ties] for g in
+                                ((c.group,) if isinstance(c, RigidObstacle) else
+                                 (c.slave, c.master))],
                     self.forms)
+
+
+def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
+    """The two groups of a mortar condition exist and differ; the search distance is sane."""
+    mesh.facets(c.slave)
+    mesh.facets(c.master)
+    if c.slave == c.master:
+        raise InputError(f"{what} {c.slave!r} with itself")
+    if mesh.tdim != mesh.gdim:
+        raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")
+    d = c.search_distance
+    if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
+        raise InputError(f"{what} {c.slave!r}/{c.master!r}: search_distance must be a finite "
+                         f"number > 0, got {d!r}")
+
+
+def check_dimensions(problem: ContactProblem) -> None:
+    """Vectors with one coordinate per dimension of the mesh, values one per component."""
+    gdim = problem.mesh.gdim
+    for bc in problem.dirichlet:
+        n = len(bc.components) if bc.components is not None else problem.value_size
+        if isinstance(bc.value, tuple) and len(bc.value) not in (1, n):
+            raise InputError(f"Dirichlet on {bc.group!r}: value has {len(bc.value)} numbers for "
+                             f"{n} constrained component(s); give one number or {n}")
+    for c in problem.contact:
+        vectors = getattr(getattr(c, "obstacle", None), "coordinates", dict)()
+        for name, v in vectors.items():
+            if len(v) != gdim:
+                kind = type(c.obstacle).__name__
+                raise InputError(f"obstacle on {c.group!r}: {kind}.{name} has {len(v)} "
+                                 f"coordinates, the mesh is {gdim}D"
+                                 + (" (a Cylinder is 3D only; use a Sphere, a disc, in 2D)"
+                                    if kind == "Cylinder" else ""))
 
 
 def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:

@@ -123,7 +123,7 @@ def assemble_subdomains(problem: ContactProblem, dec: Decomposition, comm: MPI.C
     mesh, bs = problem.mesh, problem.value_size
     local_subs = dec.local_subdomains(comm.rank)
     sub_offset = np.concatenate([[0], np.cumsum(bs * np.diff(dec.sub_ptr))]).astype(np.int64)
-    with timer.phase("assembly"), collective(comm):
+    with timer.phase("assembly"), collective(comm, "assembly"):
         facets = _subdomain_facets(mesh, dec)
         cells_of = _cells_by_subdomain(dec.cell_sub, local_subs)
         K_parts, f_parts = [], []

@@ -281,6 +281,14 @@ class EliminateCorners:
         K.destroy()
         return Kt
 
+    def map_primal(self, Z: np.ndarray) -> np.ndarray:
+        """Primal vectors (columns, local rows) of the child → of the parent: E Z."""
+        comm, n = self.parent.comm, self._n_local
+        Zc = comm.bcast(Z[n:] if comm.rank == 0 else None, root=0)
+        out = Z[:n].copy()
+        out[self.is_corner] = Zc[self.coarse[self.is_corner]]
+        return out
+
     def map_back(self, u: PETSc.Vec, lam: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
         """(u, λ) of the child → of the parent: u = E ũ, the removed rows' λ recovered."""
         up = self.parent.B.createVecRight()

@@ -169,6 +169,10 @@ class EliminateDirichlet:
         for obj in (uD, c, BuD, keep_col):
             obj.destroy()
 
+    def map_primal(self, Z: np.ndarray) -> np.ndarray:
+        """Homogeneous primal vectors (columns, local rows) of the child → of the parent."""
+        return Z
+
     def map_back(self, u: PETSc.Vec, lam: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
         """(u, λ) of the child → of the parent: u_D put back, the Dirichlet reactions recovered."""
         up = u.copy()
