@@ -54,6 +54,9 @@ from .timing import Timer
 #: (:func:`_unbalanced`), means the load cannot be balanced (e ∉ Im G).
 BALANCE_TOL = 1e-8
 
+#: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
+CORNERS_ON_CONTACT = True
+
 #: The FETI methods.
 METHODS = ("tfeti", "feti1", "fetidp")
 
@@ -203,7 +206,9 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             mesh, bs = problem.mesh, problem.value_size
             fixed, _ = dirichlet_mask(problem, mesh)
             with collective(comm, "constraints"):  # local work on global arrays
-                corners = choose_corners(mesh, dec, fixed, bs)
+                avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
+                    rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
+                corners = choose_corners(mesh, dec, fixed, bs, avoid)
                 modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
                                                  data.dof_comp, data.dof_sub)
             steps.append(EliminateCorners(steps[-1].child,

@@ -74,7 +74,7 @@ def _scaled(x: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
-                   bs: int) -> Corners:
+                   bs: int, avoid: np.ndarray | None = None) -> Corners:
     """The corners of a decomposition (see the module docstring).
 
     Args:
@@ -82,6 +82,8 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
         dec: The decomposition.
         fixed: (N, bs) mask of the components with Dirichlet conditions.
         bs: Components per node.
+        avoid: Nodes not to take as vertices; taken only where a pair of subdomains needs
+            them to be joined rigidly and no other shared node does it.
     """
     N = dec.num_nodes
     ptr, subs = dec.node_subdomains()
@@ -98,6 +100,10 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
     _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     corner = np.zeros(N, dtype=bool)
     corner[inter[count[inverse.ravel()] == 1]] = True
+    avoided = np.zeros(N, dtype=bool)
+    if avoid is not None:
+        avoided[avoid] = True
+        corner &= ~avoided
     vertices = int(corner.sum())
 
     # every pair of subdomains sharing a facet is joined rigidly by its shared corners
@@ -119,8 +125,9 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
             if cand.size == 0:
                 break
             score = np.linalg.norm(Y[cand] @ free, axis=(1, 2))
+            score[avoided[both[cand]]] *= 1e-6  # only if nothing else helps
             best = int(np.argmax(score))
-            if not score[best] > 1e-8:
+            if not score[best] > 1e-14:
                 break
             corner[both[cand[best]]] = True
             rows = np.concatenate([rows, Y[cand[best]]])

@@ -38,6 +38,8 @@ from .transforms import _drop_small, recover_multipliers, row_max, select_rows
 #: Entries of B̃ = B E below this times the largest entry of their row are cancellations
 #: (the two copies of a corner dof in a gluing row).
 CANCEL_RTOL = 1e-12
+#: Right-hand sides per batched solve when Ψ = K_rr⁺ K_rc is built (memory: n_local × this).
+_BATCH = 32
 
 
 def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
@@ -209,18 +211,21 @@ class EliminateCorners:
             self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
             n = self._n_local
             rows, cols, vals = [], [], []
-            y = np.empty(n)
-            for group in self._colours():
-                rhs = np.asarray(self.K_rc[:, group].sum(axis=1)).ravel()
-                self.Krr_plus.solve(rhs, y)
-                owner = np.full(len(parent.kernels), -1, dtype=np.int64)
-                for j in group:
-                    owner[self._blocks_of[int(j)]] = j
-                col = owner[self._block]
-                sel = np.flatnonzero((col >= 0) & (y != 0.0))
-                rows.append(sel)
-                cols.append(col[sel])
-                vals.append(y[sel])
+            groups = self._colours()
+            for first in range(0, len(groups), _BATCH):
+                batch = groups[first:first + _BATCH]
+                rhs = np.column_stack([np.asarray(self.K_rc[:, g].sum(axis=1)).ravel()
+                                       for g in batch])
+                Y = self.Krr_plus.solve_matrix(rhs)
+                for group, y in zip(batch, Y.T, strict=True):
+                    owner = np.full(len(parent.kernels), -1, dtype=np.int64)
+                    for j in group:
+                        owner[self._blocks_of[int(j)]] = j
+                    col = owner[self._block]
+                    sel = np.flatnonzero((col >= 0) & (y != 0.0))
+                    rows.append(sel)
+                    cols.append(col[sel])
+                    vals.append(y[sel])
             self.Psi = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
                                                            _cat(cols, np.int64))), shape=(n, nc))
             S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()

@@ -59,6 +59,22 @@ class SparseCholesky:
         if self._ksp is not None:
             self._ksp.solve(self.b, self.x)
 
+    def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
+        """A⁻¹ rhs for the columns of a dense (n × k) array: one batched solve (MatMatSolve)."""
+        n, k = rhs.shape
+        if self._ksp is None or k == 0:
+            return np.zeros((n, k))
+        B = PETSc.Mat().createDense((n, k), array=np.asfortranarray(rhs, dtype=float),
+                                    comm=PETSc.COMM_SELF)
+        X = PETSc.Mat().createDense((n, k), comm=PETSc.COMM_SELF)
+        X.setUp()
+        X.assemble()
+        self._ksp.getPC().getFactorMatrix().matSolve(B, X)
+        out = X.getDenseArray().copy()
+        B.destroy()
+        X.destroy()
+        return out
+
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A⁻¹ rhs as a new array."""
         self.b.array[:] = rhs
@@ -180,6 +196,12 @@ class FixingNodesInverse:
             self._chol.solve_in_place()
         finally:
             x.resetArray()
+
+    def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
+        """K⁺ applied to the columns of a dense (n × k) array (one batched solve)."""
+        b = np.array(rhs, dtype=float)
+        b[self.fixed] = 0.0
+        return self._chol.solve_matrix(b)
 
     def destroy(self) -> None:
         """Free the factorization."""
