@@ -102,6 +102,10 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
         lower = occ.addBox(0.0, 0.0, 0.0, width, width, height)
         upper = occ.addBox(0.0, 0.0, z1, width, width, height)
     occ.synchronize()
+    # Sizes from the points only (another model of the session may have changed the options).
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
     _size_in([(dim, lower)], h_lower)
     _size_in([(dim, upper)], h_upper)
     top = z1 + height
