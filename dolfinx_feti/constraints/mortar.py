@@ -173,32 +173,41 @@ def _near_normal_lines(cs: np.ndarray, ns: np.ndarray, rs: np.ndarray, cm: np.nd
     A pair survives :func:`candidate_pairs` only if the master centroid lies within
     rs_i + rm_j of the slave facet's normal line through cs_i (its projection must overlap
     the slave facet) and within distance + rm_j of the slave plane (a master vertex must lie
-    within ``distance``). That region is a cylinder, not a ball: a k-d tree query with a ball
-    of radius distance + rs + rm would return (distance / h)^(d−1) times too many pairs on
-    fine meshes. So the cylinder is covered by balls centred on the normal line, a few per
-    slave facet, and the master facets are split into size classes (factors of 2) so that the
-    radius fits the masters of each class on graded meshes.
+    within ``distance``). That region is a cylinder, not a ball: one k-d tree query with a
+    ball of radius distance + rs + rm returns (distance / h)^(d−1) times too many pairs on
+    fine meshes. So each slave facet's segment of the normal line is bisected, breadth
+    first, keeping the pieces whose enclosing ball holds a master centroid (a count, no
+    list) until a piece is no longer than the cylinder is wide; the balls of those pieces
+    give the pairs. The master facets are split into size classes (factors of 2) so that the
+    cylinder's radius fits the masters of each class on graded meshes.
     """
     slack = 1.0 + 1e-9
     cls = np.floor(np.log2(rm.max() / rm)).astype(np.int64)  # 0: the largest master facets
     found_i, found_j = [], []
     for c in np.unique(cls):  # a few size classes, not facets
         J = np.flatnonzero(cls == c)
+        tree = cKDTree(cm[J])
         r_c = rm[J].max()
-        R = (rs + r_c) * slack  # the cylinder's radius ...
-        L = np.full(cs.shape[0], (distance + r_c) * slack)  # ... and half-length
-        n = np.maximum(np.ceil(L / R), 1).astype(np.int64)  # balls per slave facet
-        step = 2.0 * L / n
-        rho = np.sqrt(R**2 + (0.5 * step) ** 2) * slack  # a ball covers a slice of length step
-        owner = np.repeat(np.arange(cs.shape[0]), n)
-        k = np.arange(owner.size) - np.repeat(np.cumsum(n) - n, n)
-        t = step[owner] * (k + 0.5) - L[owner]
-        hits = cKDTree(cm[J]).query_ball_point(cs[owner] + t[:, None] * ns[owner], rho[owner],
-                                               return_sorted=False)
-        count = np.fromiter(map(len, hits), dtype=np.int64, count=len(hits))
-        found_j.append(J[np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64,
-                                     count=int(count.sum()))])
-        found_i.append(np.repeat(owner, count))
+        R = (rs + r_c) * slack  # the cylinder's radius, per slave facet
+        # Pieces of the normal lines: owner slave facet, centre t, half-length.
+        owner = np.arange(cs.shape[0])
+        t = np.zeros(owner.size)
+        half = np.full(owner.size, (distance + r_c) * slack)
+        while owner.size:  # about log2(distance / h) rounds
+            ball = cs[owner] + t[:, None] * ns[owner]
+            rho = np.sqrt(R[owner] ** 2 + half**2) * slack  # the ball around a piece's slice
+            leaf = half <= R[owner]
+            hits = tree.query_ball_point(ball[leaf], rho[leaf], return_sorted=False)
+            count = np.fromiter(map(len, hits), dtype=np.int64, count=len(hits))
+            found_j.append(J[np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64,
+                                         count=int(count.sum()))])
+            found_i.append(np.repeat(owner[leaf], count))
+            split = np.flatnonzero(~leaf)
+            split = split[tree.query_ball_point(ball[split], rho[split],
+                                                return_length=True) > 0]
+            owner = np.repeat(owner[split], 2)
+            half = np.repeat(0.5 * half[split], 2)
+            t = np.repeat(t[split], 2) + np.tile([-1.0, 1.0], split.size) * half
     key = np.unique(np.concatenate(found_i) * cm.shape[0] + np.concatenate(found_j))
     return key // cm.shape[0], key % cm.shape[0]
 
