@@ -31,6 +31,14 @@ def _size_in(entities: list[tuple[int, int]], h: float) -> None:
     gmsh.model.mesh.setSize(pts, h)
 
 
+def _sizes_from_points() -> None:
+    """Mesh sizes from the points only (another model of the session may have changed this)."""
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
+
+
 def _graded_sizes(bodies: list[tuple[int, float]], dim: int, h_far: float, refine: float) -> None:
     """Per body: size h within ``refine`` of the origin, growing to h_far (slope 0.2)."""
     origin = [t for _, t in gmsh.model.getEntitiesInBoundingBox(
@@ -313,6 +321,7 @@ def slab_with_inclusions(h_matrix: float = 0.05, h_inclusion: float = 0.03,
         return [c for c in cs if abs(centre(1, c)[axis] - value) < tol]
 
     load = [c for c in on(straight, 1, thickness) if centre(1, c)[0] < load_length]
+    _sizes_from_points()
     if conforming:
         _size_in([(2, t) for t in matrix + inc], h_matrix)
         _size_in([(2, t) for t in inc], h_matrix)
