@@ -81,9 +81,10 @@ def api_problem(name: str) -> df.ContactProblem:
             mesh, forms, dirichlet=dirichlet,
             contact=[df.RigidObstacle("disk_contact", df.Plane((0.0, 0.0), (0.0, 1.0)))],
             decomposition=df.Parts({"disk": 2, "block": 1}))
-    if name == "hertz2d_mortar":
+    if name in ("hertz2d_mortar", "disk_block2d"):  # element sizes 1 : 1 and 1 : 1.7
+        msh = "disk_on_block.msh" if name == "hertz2d_mortar" else "disk_on_block_17.msh"
         return df.ContactProblem(
-            df.read_gmsh(MESHES / "disk_on_block.msh"),
+            df.read_gmsh(MESHES / msh),
             df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 2 / 8.0)}),
             dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
             contact=[df.Mortar(slave="disk_contact", master="block_contact")],
@@ -95,7 +96,7 @@ def api_problem(name: str) -> df.ContactProblem:
             dirichlet=[df.Dirichlet("bottom", components=[1]),
                        df.Dirichlet("sym0", components=[0])],
             ties=[df.Tie(slave="upper_bottom", master="lower_top")], decomposition=df.Parts(2))
-    if name in ("sphere_block3d", "disk_block2d", "inclusions"):
+    if name in ("sphere_block3d", "inclusions"):
         return _mortar_demo_problem(name)
     if name in ("membranes", "membranes_8"):
         n = 16 if name == "membranes" else 8
@@ -116,7 +117,7 @@ def api_problem(name: str) -> df.ContactProblem:
 
 
 def _mortar_demo_problem(name: str) -> df.ContactProblem:
-    """The problems of the mortar demos (sphere_block3d, disk_block2d, inclusions)."""
+    """The problems of the mortar demos sphere_block3d and inclusions."""
     if name == "sphere_block3d":
         return df.ContactProblem(
             df.read_gmsh(MESHES / "sphere_on_block.msh"),
@@ -124,13 +125,6 @@ def _mortar_demo_problem(name: str) -> df.ContactProblem:
             dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
                        df.Dirichlet("sym_y", components=[1])],
             contact=[df.Mortar(slave="sphere_contact", master="block_contact")],
-            decomposition=df.Parts(2))
-    if name == "disk_block2d":
-        return df.ContactProblem(
-            df.read_gmsh(MESHES / "disk_on_block_17.msh"),
-            df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 2 / 8.0)}),
-            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-            contact=[df.Mortar(slave="disk_contact", master="block_contact")],
             decomposition=df.Parts(2))
     return df.ContactProblem(
         df.read_gmsh(MESHES / "slab_with_inclusions.msh"),
