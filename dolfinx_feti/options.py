@@ -10,11 +10,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 from petsc4py import PETSc
 
 from .errors import InputError
+from .factor import check_factor, default_factor
 
 
 def option_value(tokens: Sequence[str], i: int) -> str | None:
@@ -59,7 +60,9 @@ class SolverOptions:
         max_it: Budget of inner iterations (all outer iterations together).
         max_outer: Budget of SMALBE outer iterations. Outer iterations with no inner work cost
             no F-multiplication; 2D elasticity with 512 subdomains needs 166 (docs/benchmarks.md).
-        factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc").
+        factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc");
+            a package this PETSc lacks is refused. Default: the best this PETSc has (CHOLMOD,
+            else PETSc's own; measured in docs/solvers.md).
         mprgp_gamma: MPRGP's proportioning parameter Γ.
         mprgp_expansion: "fixed", "optimal" or "projcg".
         mprgp_alpha: Expansion step length: "fixed" (ᾱ = 1.95/||A||) or "bb" (Barzilai–Borwein,
@@ -92,7 +95,7 @@ class SolverOptions:
     eq_rtol: float | None = None
     max_it: int = 5000
     max_outer: int = 1000
-    factor: str = "cholmod"
+    factor: str = field(default_factory=default_factor)
     mprgp_gamma: float = 1.0
     mprgp_expansion: str = "fixed"
     mprgp_alpha: str = "fixed"
@@ -159,8 +162,7 @@ class SolverOptions:
             raise InputError(f"solver option eq_rtol must be positive, got {self.eq_rtol}")
         if self.max_it < 1 or self.max_outer < 1:
             raise InputError("solver options max_it and max_outer must be >= 1")
-        if self.factor not in ("cholmod", "mumps", "petsc"):
-            raise InputError(f"factor must be 'cholmod', 'mumps' or 'petsc', got {self.factor!r}")
+        check_factor(self.factor)
         if self.mprgp_expansion not in ("fixed", "optimal", "projcg"):
             raise InputError("mprgp_expansion must be 'fixed', 'optimal' or 'projcg', got "
                              f"{self.mprgp_expansion!r}")

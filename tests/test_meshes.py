@@ -302,8 +302,9 @@ def test_committed_meshes_are_up_to_date(tmp_path):
 
 def test_membranes_msh_in_dolfinx():
     """The committed membranes mesh reads into DOLFINx on all ranks with its tags."""
-    from dolfinx.io import gmshio
     from mpi4py import MPI
+
+    from dolfinx_feti import compat
 
     comm = MPI.COMM_WORLD
     # gmshio.read_from_msh of DOLFINx 0.5.2 is broken on the reading rank: use model_to_mesh.
@@ -312,7 +313,7 @@ def test_membranes_msh_in_dolfinx():
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.open(str(MESH_DIR / "membranes_8.msh"))
     try:
-        mesh, cell_tags, facet_tags = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
+        mesh, cell_tags, facet_tags = compat.gmsh_model_to_mesh(gmsh.model, comm, 0, gdim=2)
     finally:
         if comm.rank == 0:
             gmsh.finalize()

@@ -24,6 +24,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..errors import SolveError
+from ..factor import default_factor, ordering, set_cholesky
 from .kplus import SparseCholesky
 
 SCALINGS = ("multiplicity", "stiffness")
@@ -32,7 +33,7 @@ SCALINGS = ("multiplicity", "stiffness")
 class _DualScaling:
     """Z = (B Δ Bᵀ)⁻¹ with Δ = diag(K)⁻¹: the stiffness scaling of the dual space."""
 
-    def __init__(self, feti, factor: str = "cholmod") -> None:
+    def __init__(self, feti, factor: str | None = None) -> None:
         diag = feti.K_local.diagonal()
         if diag.size and not np.all(diag > 0):
             raise SolveError("stiffness scaling: a subdomain matrix has a non-positive "
@@ -46,23 +47,26 @@ class _DualScaling:
         Bd.destroy()
         dvec.destroy()
         # B Δ Bᵀ is tiny and very sparse (rows couple only through shared dofs): factor it with
-        # the sequential package (CHOLMOD by default; MUMPS took 4 s and 45 ms per solve where
-        # CHOLMOD took 3 ms and 0.2 ms, 32 256 rows); on several ranks redundantly on each
-        # (PCREDUNDANT), which needs no parallel factorization.
+        # the sequential package (CHOLMOD 3 ms and 0.2 ms per solve where MUMPS took 4 s and
+        # 45 ms, 32 256 rows); on several ranks redundantly on each (PCREDUNDANT), which needs
+        # no parallel factorization.
+        factor = factor or default_factor()
         comm = feti.B.getComm()
         self._ksp = PETSc.KSP().create(comm)
         self._ksp.setOperators(self._C)
         self._ksp.setType("preonly")
         pc = self._ksp.getPC()
         opts, prefix = PETSc.Options(), f"feti_dualscale_{id(self)}_"
+        keys = {"redundant_pc_type": "cholesky", "redundant_pc_factor_mat_solver_type": factor}
+        if ordering(factor) is not None:
+            keys["redundant_pc_factor_mat_ordering_type"] = ordering(factor)
         if comm.getSize() == 1:
-            pc.setType("cholesky")
-            pc.setFactorSolverType(factor)
+            set_cholesky(pc, factor)
         else:
             self._ksp.setOptionsPrefix(prefix)
             pc.setType("redundant")
-            opts[f"{prefix}redundant_pc_type"] = "cholesky"
-            opts[f"{prefix}redundant_pc_factor_mat_solver_type"] = factor
+            for key, value in keys.items():
+                opts[f"{prefix}{key}"] = value
             self._ksp.setFromOptions()
         try:
             self._ksp.setUp()
@@ -70,7 +74,7 @@ class _DualScaling:
             raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
                              "rows of B redundant? use gluing='orthonormal')") from e
         finally:
-            for key in ("redundant_pc_type", "redundant_pc_factor_mat_solver_type"):
+            for key in keys:
                 opts.delValue(f"{prefix}{key}")
 
     def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -92,7 +96,7 @@ class LumpedPreconditioner:
 
     name = "lumped"
 
-    def __init__(self, feti, scaling: str = "multiplicity", factor: str = "cholmod") -> None:
+    def __init__(self, feti, scaling: str = "multiplicity", factor: str | None = None) -> None:
         """Use the subdomain matrices of a :class:`~dolfinx_feti.feti.TotalFETI`."""
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
@@ -151,7 +155,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
 
     name = "dirichlet"
 
-    def __init__(self, feti, factor: str = "cholmod", scaling: str = "multiplicity") -> None:
+    def __init__(self, feti, factor: str | None = None, scaling: str = "multiplicity") -> None:
         """Factor the interior blocks of the local subdomains."""
         super().__init__(feti, scaling, factor)
         rows, dec, bs = feti.rows, feti.dec, feti.bs
@@ -191,7 +195,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
             self._chol.destroy()
 
 
-def make_preconditioner(kind: str, feti, factor: str = "cholmod",
+def make_preconditioner(kind: str, feti, factor: str | None = None,
                         scaling: str = "multiplicity"):
     """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module)."""
     if kind == "none":

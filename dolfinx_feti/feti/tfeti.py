@@ -92,7 +92,7 @@ class TotalFETI:
     """
 
     def __init__(self, problem: ContactProblem, dec: Decomposition, rows: Rows,
-                 comm: MPI.Comm, timer: Timer, factor: str = "cholmod") -> None:
+                 comm: MPI.Comm, timer: Timer, factor: str | None = None) -> None:
         """Assemble, factor and build the dual operators (collective on ``comm``)."""
         self.comm, self.problem, self.dec, self.rows = comm, problem, dec, rows
         mesh, bs = problem.mesh, problem.value_size
