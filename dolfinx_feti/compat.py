@@ -51,13 +51,10 @@ def version_label() -> str:
 # Meshes: creation and numbering
 # ---------------------------------------------------------------------------------------------
 
-_UFL_CELL = {"triangle": "triangle", "tetrahedron": "tetrahedron"}
-
-
-def _coordinate_element(cell_type: str, gdim: int, degree: int = 1):
-    """The vector Lagrange element of the geometry."""
+def ufl_domain(cell_type: str, gdim: int, degree: int = 1) -> ufl.Mesh:
+    """The UFL domain of a Lagrange geometry (also for UFL expressions without a mesh)."""
     if VERSION >= (0, 9):
-        return basix.ufl.element("Lagrange", cell_type, degree, shape=(gdim,))
+        return ufl.Mesh(basix.ufl.element("Lagrange", cell_type, degree, shape=(gdim,)))
     return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell_type), degree, dim=gdim))
 
 
@@ -70,10 +67,10 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
     """
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     x = np.ascontiguousarray(x, dtype=np.float64)
-    element = _coordinate_element(_UFL_CELL[cell_type], x.shape[1])
+    domain = ufl_domain(cell_type, x.shape[1])
     if VERSION >= (0, 10):  # the element moved before the coordinates
-        return dolfinx.mesh.create_mesh(comm, cells, element, x)
-    return dolfinx.mesh.create_mesh(comm, cells, x, element)
+        return dolfinx.mesh.create_mesh(comm, cells, domain, x)
+    return dolfinx.mesh.create_mesh(comm, cells, x, domain)
 
 
 def geometry_dofmap(msh: dolfinx.mesh.Mesh) -> np.ndarray:

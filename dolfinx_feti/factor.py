@@ -21,22 +21,14 @@ from .errors import InputError
 #: Values of the option ``factor``, best first (the first one available is the default).
 FACTORS = ("cholmod", "petsc", "mumps")
 
-#: PETSc's factor ordering per package (None: the package orders the matrix itself). PETSc's
-#: own Cholesky keeps the matrix order unless told; nested dissection cuts its fill.
-_ORDERING = {"cholmod": None, "petsc": "nd", "mumps": None}
-
-
-def ordering(factor: str) -> str | None:
-    """The PETSc factor ordering used with ``factor``."""
-    return _ORDERING[factor]
-
-
 def set_cholesky(pc: PETSc.PC, factor: str) -> None:
-    """Make ``pc`` a Cholesky factorization by ``factor`` with that package's ordering."""
+    """Make ``pc`` a Cholesky factorization by the package ``factor``.
+
+    PETSc's own Cholesky orders the matrix by nested dissection (its default; the benchmark
+    shows the other orderings).
+    """
     pc.setType("cholesky")
     pc.setFactorSolverType(factor)
-    if _ORDERING[factor] is not None:
-        pc.setFactorOrdering(_ORDERING[factor])
 
 
 @functools.cache
@@ -84,5 +76,4 @@ def check_factor(factor: str) -> None:
                          f"available: {', '.join(available_factors())}")
 
 
-__all__ = ["FACTORS", "available_factors", "check_factor", "default_factor", "ordering",
-           "set_cholesky"]
+__all__ = ["FACTORS", "available_factors", "check_factor", "default_factor", "set_cholesky"]

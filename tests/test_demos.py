@@ -13,8 +13,8 @@ import subprocess
 import sys
 
 import pytest
-from launcher import mpi_launcher
 from mpi4py import MPI
+from stack import mpi_launcher
 
 #: Extra arguments that keep a demo short here (none needed today: each runs in seconds).
 QUICK: dict[str, list[str]] = {}

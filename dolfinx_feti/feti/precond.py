@@ -24,7 +24,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..errors import SolveError
-from ..factor import default_factor, ordering, set_cholesky
+from ..factor import default_factor
 from .kplus import SparseCholesky
 
 SCALINGS = ("multiplicity", "stiffness")
@@ -47,9 +47,9 @@ class _DualScaling:
         Bd.destroy()
         dvec.destroy()
         # B Δ Bᵀ is tiny and very sparse (rows couple only through shared dofs): factor it with
-        # the sequential package (CHOLMOD 3 ms and 0.2 ms per solve where MUMPS took 4 s and
-        # 45 ms, 32 256 rows); on several ranks redundantly on each (PCREDUNDANT), which needs
-        # no parallel factorization.
+        # the sequential package (CHOLMOD, else PETSc's own by default; MUMPS took 4 s and 45 ms
+        # per solve where CHOLMOD took 3 ms and 0.2 ms, 32 256 rows); on several ranks
+        # redundantly on each (PCREDUNDANT), which needs no parallel factorization.
         factor = factor or default_factor()
         comm = feti.B.getComm()
         self._ksp = PETSc.KSP().create(comm)
@@ -57,25 +57,46 @@ class _DualScaling:
         self._ksp.setType("preonly")
         pc = self._ksp.getPC()
         opts, prefix = PETSc.Options(), f"feti_dualscale_{id(self)}_"
-        keys = {"redundant_pc_type": "cholesky", "redundant_pc_factor_mat_solver_type": factor}
-        if ordering(factor) is not None:
-            keys["redundant_pc_factor_mat_ordering_type"] = ordering(factor)
         if comm.getSize() == 1:
-            set_cholesky(pc, factor)
+            pc.setType("cholesky")
+            pc.setFactorSolverType(factor)
         else:
             self._ksp.setOptionsPrefix(prefix)
             pc.setType("redundant")
-            for key, value in keys.items():
-                opts[f"{prefix}{key}"] = value
+            opts[f"{prefix}redundant_pc_type"] = "cholesky"
+            opts[f"{prefix}redundant_pc_factor_mat_solver_type"] = factor
             self._ksp.setFromOptions()
         try:
             self._ksp.setUp()
-        except PETSc.Error as e:
-            raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
-                             "rows of B redundant? use gluing='orthonormal')") from e
+            singular = not self._solves_accurately()
+        except PETSc.Error:
+            singular = True
         finally:
-            for key in keys:
+            for key in ("redundant_pc_type", "redundant_pc_factor_mat_solver_type"):
                 opts.delValue(f"{prefix}{key}")
+        if singular:
+            raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
+                             "rows of B redundant? use gluing='orthonormal')")
+
+    def _solves_accurately(self) -> bool:
+        """A trial solve with a random right-hand side (collective).
+
+        CHOLMOD refuses a singular B Δ Bᵀ while factoring it; PETSc's own Cholesky only flags a
+        zero pivot in the solve's converged reason, and round-off pivots pass unflagged, so
+        the residual decides: a regular matrix is solved to round-off, a singular one leaves the
+        part of a random vector outside its range (of order 1/sqrt(rows)).
+        """
+        b, y = self._C.createVecs()
+        r = b.duplicate()
+        b.array[:] = np.random.default_rng(b.getOwnershipRange()[0]).standard_normal(
+            b.getLocalSize())
+        self._ksp.solve(b, y)
+        self._C.mult(y, r)
+        r.axpy(-1.0, b)
+        ok = self._ksp.getConvergedReason() >= 0 and r.norm() <= 1e-6 * b.norm()
+        for v in (b, y, r):
+            v.destroy()
+        return bool(ok)
 
     def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = Z x."""

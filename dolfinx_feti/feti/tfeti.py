@@ -148,7 +148,7 @@ class TotalFETI:
             m_loc = self.k * self.local_subs.size
             self.coarse_size = (m_loc, self.k * dec.num_subdomains)
             if self.R:  # columns are global coarse indices: k per subdomain, in order
-                Rloc = sp.block_diag(list(self.R.values()), format="csr")
+                Rloc = sp.block_diag([sp.csr_matrix(R) for R in self.R.values()], format="csr")
                 Rloc = sp.csr_matrix((Rloc.data, Rloc.indices + self.k * int(self.local_subs[0]),
                                       Rloc.indptr), shape=(Rloc.shape[0], self.coarse_size[1]))
             else:

@@ -1,9 +1,14 @@
-"""How tests start other MPI programs: with the MPI of the Python that runs the tests."""
+"""What the environment that runs the tests has: its MPI launcher and its factor packages."""
 
 from __future__ import annotations
 
 import sys
 from pathlib import Path
+
+import pytest
+
+from dolfinx_feti import compat
+from dolfinx_feti.factor import available_factors
 
 
 def mpi_launcher(n: int) -> list[str]:
@@ -17,3 +22,10 @@ def mpi_launcher(n: int) -> list[str]:
     if own.exists():
         return [str(own), "-n", str(n)]
     return ["mpirun", "-n", str(n), "--allow-run-as-root", "--oversubscribe"]
+
+
+def factor_params(*names: str) -> list:
+    """``factor`` values for parametrize; a package this PETSc lacks is skipped, and says so."""
+    return [pytest.param(name, marks=pytest.mark.skipif(
+        name not in available_factors(),
+        reason=f"{name} is not in the PETSc of {compat.version_label()}")) for name in names]
