@@ -30,6 +30,9 @@ parser.add_argument("--parts", type=int, default=2, help="subdomains per body")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance of the solver")
 parser.add_argument("--out", type=Path, default=Path("output/hertz2d"), help="output folder")
 parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
+parser.add_argument("--mesh", type=Path, default=None,
+                    help="read this gmsh file instead of building the mesh (meshes/hertz2d.msh "
+                    "holds the default one: the same mesh whatever the installed gmsh)")
 args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
 comm = MPI.COMM_WORLD
 # -
@@ -40,12 +43,16 @@ comm = MPI.COMM_WORLD
 # matching node abscissae $x_k = k h$ on the two contact surfaces, as node-to-node contact
 # requires. Physical groups name the bodies (`disk`, `block`) and the boundary parts
 # (`disk_contact`, `block_contact`, `load`, `symmetry`, `bottom`). `build_mesh` runs the
-# generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file instead).
+# generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file instead:
+# `--mesh meshes/hertz2d.msh`, since gmsh versions mesh the disk slightly differently).
 
 # +
 R, P, E, nu = 8.0, 10.0, 200.0, 0.3
 t0 = time.perf_counter()
-mesh = df.build_mesh(meshes.hertz2d, h_contact=args.h, R=R, comm=comm)
+if args.mesh is None:
+    mesh = df.build_mesh(meshes.hertz2d, h_contact=args.h, R=R, comm=comm)
+else:
+    mesh = df.read_gmsh(args.mesh, comm=comm)
 t_mesh = time.perf_counter() - t0
 # -
 

@@ -139,8 +139,10 @@ class TotalFETI:
             self.c = self.B.createVecLeft()
             self.c.array[:] = rows.rhs[self.rows_local]
             self.f = self.B.createVecRight()
-            if f_parts:
-                self.f.array[:] = np.concatenate(f_parts)
+            # every rank writes (also an empty part): a write moves the Vec's state, and PETSc
+            # reuses a norm cached at the old state (VecSet caches one) on a rank that did not
+            # write, so that rank would skip the reduction of the next norm and hang the others
+            self.f.array[:] = np.concatenate(f_parts) if f_parts else 0.0
             self._shell = _DualShell(self)
             self.F = python_shell(self._shell, self.c)
 
