@@ -58,22 +58,22 @@ def ufl_domain(cell_type: str, gdim: int, degree: int = 1) -> ufl.Mesh:
     return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell_type), degree, dim=gdim))
 
 
-def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
-                cell_type: str) -> dolfinx.mesh.Mesh:
-    """A first-order simplex mesh from a cell-to-node array and node coordinates.
+def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str,
+                degree: int = 1) -> dolfinx.mesh.Mesh:
+    """A mesh of Lagrange geometry of ``degree`` from a cell-to-node array and coordinates.
 
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it.
     """
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     x = np.ascontiguousarray(x, dtype=np.float64)
-    domain = ufl_domain(cell_type, x.shape[1])
+    domain = ufl_domain(cell_type, x.shape[1], degree)
     if VERSION >= (0, 10):  # the element moved before the coordinates
         return dolfinx.mesh.create_mesh(comm, cells, domain, x)
     return dolfinx.mesh.create_mesh(comm, cells, x, domain)
 
 
-def geometry_dofmap(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     """The geometry nodes of each local cell (ghosts included): a (cells × nodes) array."""
     if VERSION >= (0, 10):  # one dofmap per coordinate element (mixed-topology meshes)
         return msh.geometry.dofmaps[0]
@@ -102,7 +102,7 @@ def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     tdim = msh.topology.dim
     c_to_v = msh.topology.connectivity(tdim, 0).array
     out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
-    out[geometry_dofmap(msh).ravel()] = c_to_v
+    out[cell_geometry_nodes(msh).ravel()] = c_to_v
     return out
 
 
@@ -140,14 +140,15 @@ def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
 # ---------------------------------------------------------------------------------------------
 
 
-def function_space(msh: dolfinx.mesh.Mesh, value_size: int) -> dolfinx.fem.FunctionSpace:
-    """The continuous P1 space, scalar (``value_size == 1``) or vector valued."""
+def function_space(msh: dolfinx.mesh.Mesh, value_size: int,
+                   degree: int = 1) -> dolfinx.fem.FunctionSpace:
+    """The continuous Lagrange space of ``degree``, scalar (``value_size == 1``) or vector."""
     if VERSION >= (0, 9):
         shape = () if value_size == 1 else (value_size,)
-        return dolfinx.fem.functionspace(msh, ("Lagrange", 1, shape))
+        return dolfinx.fem.functionspace(msh, ("Lagrange", degree, shape))
     if value_size == 1:
-        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", 1))
-    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=value_size)
+        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", degree))
+    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=value_size)
 
 
 def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
@@ -173,7 +174,7 @@ def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
     """
     n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     out = np.empty(n_dofs, dtype=np.int64)
-    out[cell_dofs(V).ravel()] = geometry_dofmap(V.mesh).ravel()
+    out[cell_dofs(V).ravel()] = cell_geometry_nodes(V.mesh).ravel()
     return out
 
 

@@ -88,7 +88,7 @@ def _body_mesh(mesh, b: int):
 def _dof_nodes(V, nodes: np.ndarray, x_global: np.ndarray) -> np.ndarray:
     """Global node of each (block) dof of the P1 space V, checked against the dof coordinates."""
     msh = V.mesh
-    geom = compat.geometry_dofmap(msh)
+    geom = compat.cell_geometry_nodes(msh)
     dofs = compat.cell_dofs(V)
     input_index = compat.node_input_indices(msh)
     ndofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts

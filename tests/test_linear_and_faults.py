@@ -61,7 +61,7 @@ def _monolithic(mesh: df.MeshData, E: float, nu: float, traction) -> np.ndarray:
     bc = dolfinx.fem.dirichletbc(np.zeros(2), dofs, V)
     uh = compat.solve_linear(a, L, [bc], {"ksp_type": "preonly", "pc_type": "lu"})
     node = compat.node_input_indices(msh)
-    geom = compat.geometry_dofmap(msh)
+    geom = compat.cell_geometry_nodes(msh)
     dofs_c = compat.cell_dofs(V)
     out = np.zeros((mesh.num_nodes, 2))
     out[node[geom.ravel()]] = uh.x.array.reshape(-1, 2)[dofs_c.ravel()]
