@@ -25,7 +25,7 @@ if [ "${1:-}" = "--dolfinx" ]; then
     [ $# -ge 2 ] || usage
     dolfinx="$2"
     shift 2
-elif [ "${1#--dolfinx=}" != "${1:-}" ]; then
+elif [[ "${1:-}" == --dolfinx=* ]]; then
     dolfinx="${1#--dolfinx=}"
     shift
 fi
