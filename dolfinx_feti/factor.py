@@ -3,11 +3,12 @@
 The subdomain matrices (K⁺) and the dual matrix of the stiffness scaling are factored once and
 solved with once or twice per F-multiplication, so the solve time counts more than the
 factorization time. Measured on the subdomain matrices of the test problems
-(``python bench/factor_packages.py``, docs/solvers.md): CHOLMOD solves fastest where PETSc has
-it (Debian's PETSc 3.18 beside DOLFINx 0.5.2); PETSc's own Cholesky with a nested-dissection
-ordering comes next and is the default where CHOLMOD is missing (the PETSc 3.25 of DOLFINx
-0.11's wheel); MUMPS, built for distributed matrices, pays a per-solve overhead that dominates
-on subdomain-sized matrices.
+(``python bench/factor_packages.py``, docs/solvers.md): CHOLMOD, where PETSc has it (Debian's
+PETSc 3.18 beside DOLFINx 0.5.2), factors fastest and solves as fast as the others or nearly;
+PETSc's own Cholesky (nested-dissection ordering) solves 2-9x faster than MUMPS and is the
+default where CHOLMOD is missing (the PETSc 3.25 of DOLFINx 0.11's wheel); MUMPS, built for
+distributed matrices, pays a per-solve overhead that dominates on subdomain-sized matrices,
+but factors large 3D subdomains fastest (``factor="mumps"`` for few large 3D subdomains).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from .errors import InputError
 
 #: Values of the option ``factor``, best first (the first one available is the default).
 FACTORS = ("cholmod", "petsc", "mumps")
+
 
 def set_cholesky(pc: PETSc.PC, factor: str) -> None:
     """Make ``pc`` a Cholesky factorization by the package ``factor``.
