@@ -17,6 +17,7 @@
 
 # +
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -37,7 +38,7 @@ parser.add_argument("--json", type=Path, default=None, help="write the solve rep
 parser.add_argument("--mesh", type=Path, default=None,
                     help="read this gmsh file instead of building the mesh (the same mesh "
                     "whatever the installed gmsh; meshes/disk_on_block.msh is the one of --h 0.1)")
-args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 # -
 
@@ -86,7 +87,7 @@ problem = df.ContactProblem(
 # Every subdomain floats (Total FETI); the dual problem has bound constraints (contact) and
 # equality constraints (the natural coarse space), so SMALBE-M with inner MPRGP is used.
 
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 report = solution.report
 
 # ## Comparison with Hertz

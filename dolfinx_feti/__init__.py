@@ -13,7 +13,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 # compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
 from . import compat  # noqa: F401
 from .dual import DualQP, dual_qp
-from .errors import InputError, SolveError
+from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
 from .options import SolverOptions
@@ -37,6 +37,7 @@ from .solve import solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
            "Dirichlet", "DualQP", "Elasticity", "InputError", "MeshData", "Mortar", "NodeToNode",
+           "NotConverged",
            "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
            "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
            "dual_qp", "read_gmsh", "solve"]

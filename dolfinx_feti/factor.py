@@ -71,7 +71,7 @@ def default_factor() -> str:
 def check_factor(factor: str) -> None:
     """Raise InputError unless ``factor`` names a package of this PETSc."""
     if factor not in FACTORS:
-        raise InputError(f"factor must be 'cholmod', 'mumps' or 'petsc', got {factor!r}")
+        raise InputError(f"factor must be one of 'cholmod', 'mumps', 'petsc', got {factor!r}")
     if factor not in available_factors():
         petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
         raise InputError(f"factor {factor!r} is not available in this PETSc ({petsc}); "
