@@ -13,7 +13,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 from .dual import DualQP, dual_qp
 from .errors import InputError, SolveError
 from .fem import Elasticity, Poisson, Subdomain
-from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
+from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
 from .options import SolverOptions
 from .problem import (
                       ContactProblem,
@@ -36,4 +36,4 @@ __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "
            "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
            "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
            "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve",
-           "DualQP", "dual_qp"]
+           "DualQP", "dual_qp", "from_dolfinx"]

@@ -20,12 +20,18 @@ from petsc4py import PETSc
 
 DOLFINX_VERSION = dolfinx.__version__
 
-_UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron}
+_UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron,
+             "quadrilateral": ufl.quadrilateral, "hexahedron": ufl.hexahedron}
+
+
+# ------------------------------------------------------------------------------------------
+# Meshes: creation and description
+# ------------------------------------------------------------------------------------------
 
 
 def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
                 cell_type: str) -> dolfinx.mesh.Mesh:
-    """A first-order simplex mesh from a cell-to-node array and node coordinates.
+    """A first-order mesh from a cell-to-node array (DOLFINx vertex order) and coordinates.
 
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it.
@@ -33,6 +39,53 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
     domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], 1, dim=x.shape[1]))
     return dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells, dtype=np.int64),
                                     np.ascontiguousarray(x, dtype=np.float64), domain)
+
+
+def is_mesh(obj) -> bool:
+    """Whether ``obj`` is a DOLFINx mesh."""
+    return isinstance(obj, dolfinx.mesh.Mesh)
+
+
+def describe_mesh(msh: dolfinx.mesh.Mesh) -> tuple[str, int, int]:
+    """``(cell type name, geometric dimension, degree of the coordinate element)``."""
+    return (msh.topology.cell_type.name, int(msh.geometry.dim),
+            int(msh.ufl_domain().ufl_coordinate_element().degree()))
+
+
+def cell_counts(msh: dolfinx.mesh.Mesh) -> tuple[int, int]:
+    """``(owned cells, owned + ghost cells)`` of this rank."""
+    im = msh.topology.index_map(msh.topology.dim)
+    return im.size_local, im.size_local + im.num_ghosts
+
+
+def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The geometry nodes of each local cell (owned and ghost), (C, nodes per cell).
+
+    For a first-order mesh these are its vertices in the reference (basix) order.
+    """
+    return msh.geometry.dofmap.array.reshape(cell_counts(msh)[1], -1)
+
+
+def geometry_x(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """Coordinates of the local geometry nodes, (nodes, gdim)."""
+    return msh.geometry.x[:, :msh.geometry.dim]
+
+
+def entity_geometry_nodes(msh: dolfinx.mesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The geometry nodes of local entities (e.g. facets), (n, nodes per entity).
+
+    The vertices of a quadrilateral facet come in the reference (tensor) order.
+    """
+    msh.topology.create_connectivity(dim, msh.topology.dim)
+    ents = np.ascontiguousarray(entities, dtype=np.int32)
+    return np.asarray(dolfinx.cpp.mesh.entities_to_geometry(msh._mesh, dim, ents, False),
+                      dtype=np.int64).reshape(ents.size, -1)
+
+
+def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
+    """``(dimension, local entity indices, values)`` of MeshTags."""
+    return int(tags.dim), np.asarray(tags.indices, dtype=np.int64), \
+        np.asarray(tags.values, dtype=np.int64)
 
 
 def node_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
@@ -45,34 +98,64 @@ def cell_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     return np.asarray(msh.topology.original_cell_index, dtype=np.int64)
 
 
-def function_space(msh: dolfinx.mesh.Mesh, value_size: int) -> dolfinx.fem.FunctionSpace:
-    """The continuous P1 space, scalar (``value_size == 1``) or vector valued."""
+# ------------------------------------------------------------------------------------------
+# Function spaces and their dof layout
+# ------------------------------------------------------------------------------------------
+
+
+def function_space(msh: dolfinx.mesh.Mesh, value_size: int,
+                   degree: int = 1) -> dolfinx.fem.FunctionSpace:
+    """The continuous Lagrange space of ``degree``, scalar (``value_size == 1``) or vector."""
     if value_size == 1:
-        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", 1))
-    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=value_size)
+        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", degree))
+    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=value_size)
+
+
+def space_mesh(V) -> dolfinx.mesh.Mesh:
+    """The mesh of a function space."""
+    return V.mesh
+
+
+def same_space(W, V) -> bool:
+    """Whether the UFL function space ``W`` is ``V`` (the same element on the same mesh)."""
+    return W is V or (W.ufl_element() == V.ufl_element()
+                      and getattr(W, "mesh", None) is V.mesh)
+
+
+def describe_space(W) -> str:
+    """A short description of a UFL function space, for messages."""
+    e = W.ufl_element()
+    mesh = getattr(W, "mesh", None)
+    return f"{e.family()} of degree {e.degree()} with {e.value_size()} component(s)" + (
+        "" if mesh is None else f" on a mesh of {cell_counts(mesh)[0]} local cells")
+
+
+def cell_dofs(V) -> np.ndarray:
+    """The (blocked) dofs of each local cell, (C, dofs per cell), in the reference order."""
+    return V.dofmap.list.array.reshape(cell_counts(V.mesh)[1], -1)
+
+
+def dof_entities(V) -> list[tuple[int, int]]:
+    """For each local dof of a cell, the reference entity (dim, local index) it sits on."""
+    layout = V.dofmap.dof_layout
+    tdim = V.mesh.topology.dim
+    out: dict[int, tuple[int, int]] = {}
+    for dim in range(tdim + 1):
+        n = dolfinx.cpp.mesh.cell_num_entities(V.mesh.topology.cell_type, dim)
+        for i in range(n):
+            for j in layout.entity_dofs(dim, i):
+                out[int(j)] = (dim, i)
+    return [out[j] for j in range(len(out))]
+
+
+def dof_count(V) -> int:
+    """Number of (blocked) dofs of this rank, owned and ghost."""
+    return V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
 
 
 def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
     """The piecewise constant scalar space (for cell-wise material data)."""
     return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
-
-
-def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
-    """For each (unblocked) dof of a P1 space, the geometry node it sits on.
-
-    P1 dofs and first-order geometry nodes are listed in the same order within each cell, so
-    the two cell-wise maps, read side by side, pair them.
-    """
-    msh = V.mesh
-    ncells = msh.topology.index_map(msh.topology.dim).size_local + \
-        msh.topology.index_map(msh.topology.dim).num_ghosts
-    nv = msh.geometry.dofmap.array.size // ncells
-    dofs = V.dofmap.list.array.reshape(-1, nv)
-    geom = msh.geometry.dofmap.array.reshape(-1, nv)
-    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
-    out = np.empty(n_dofs, dtype=np.int64)
-    out[dofs.ravel()] = geom.ravel()
-    return out
 
 
 def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
@@ -138,6 +221,11 @@ def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
     u = dolfinx.fem.Function(V)
     u.name = name
     return u
+
+
+def interpolate_expression(f: dolfinx.fem.Function, expr) -> None:
+    """Interpolate a UFL expression into ``f`` (at its element's interpolation points)."""
+    f.interpolate(dolfinx.fem.Expression(expr, f.function_space.element.interpolation_points()))
 
 
 def scatter_forward(u: dolfinx.fem.Function) -> None:

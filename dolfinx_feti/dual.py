@@ -116,7 +116,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     """
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
-        dec = decompose(problem.mesh, problem.decomposition, comm)
+        dec = decompose(problem.mesh, problem.decomposition, comm, problem.dof_points)
         rows = build_rows(problem, dec)
     feti = TotalFETI(problem, dec, rows, comm, timer, factor)
     ineq = rows.inequality[feti.rows_local]

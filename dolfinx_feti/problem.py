@@ -223,6 +223,8 @@ class ContactProblem:
         decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
+        degree: Degree of the Lagrange space ``V`` given to ``forms`` (1 or 2); taken from
+            ``forms.degree`` when the helpers are used, else 1.
     """
 
     mesh: MeshData
@@ -232,9 +234,15 @@ class ContactProblem:
     contact: Sequence[NodeToNode | RigidObstacle] = field(default_factory=list)
     decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
     gluing: str = "orthonormal"
+    degree: int | None = None
 
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
+        if not isinstance(self.mesh, MeshData):
+            raise InputError(f"ContactProblem takes the mesh as df.MeshData, got "
+                             f"{type(self.mesh).__name__}: use df.read_gmsh(...) or, for a "
+                             "DOLFINx mesh, df.from_dolfinx(mesh, cell_tags, facet_tags)")
+        self.degree = _degree(self.degree, self.forms)
         if self.value_size is None:
             vs = getattr(self.forms, "value_size", None)
             self.value_size = self.mesh.gdim if vs == "vector" else vs
@@ -274,9 +282,34 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
-        _check_mesh(self.mesh, [g for c in self.contact for g in
-                                ((c.slave, c.master) if isinstance(c, NodeToNode) else (c.group,))],
-                    self.forms)
+        contact_groups = [g for c in self.contact for g in
+                          ((c.slave, c.master) if isinstance(c, NodeToNode) else (c.group,))]
+        _check_mesh(self.mesh, contact_groups, self.forms)
+        if contact_groups and np.any(self.dof_points.facet_weights <= 0):
+            raise InputError(
+                f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
+                "cells is not supported: the vertex dofs of its quadratic triangular facets "
+                "have zero lumped area, so nodal contact rows give no consistent contact "
+                "pressure there; use degree 1 (or hexahedra, whose degree-2 facets work)")
+
+    @property
+    def dof_points(self):
+        """The global dof points of the space (:mod:`.mesh.dofpoints`): the vertices for P1."""
+        from .mesh.dofpoints import dof_points
+        return dof_points(self.mesh, self.degree)
+
+
+def _degree(degree, forms) -> int:
+    """The Lagrange degree from the problem or the forms helper (they must agree)."""
+    helper = getattr(forms, "degree", None)
+    if degree is None:
+        degree = 1 if helper is None else helper
+    elif helper is not None and helper != degree:
+        raise InputError(f"degree={degree} given to ContactProblem but the forms have "
+                         f"degree={helper}")
+    if isinstance(degree, bool) or degree not in (1, 2):
+        raise InputError(f"degree must be 1 or 2 (Lagrange elements), got {degree!r}")
+    return int(degree)
 
 
 def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:

@@ -113,7 +113,8 @@ def gmsh_model(name: str):
             gmsh.option.setNumber(k, v)
 
 
-def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool = False):
+def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool = False,
+                 order: int = 1):
     """A meshed unit square on rank 0: body "plate", boundary group "edge" (x = 0)."""
     s = gmsh.model.occ.addRectangle(0.0, 0.0, 0.0, 1.0, 1.0)
     gmsh.model.occ.synchronize()
@@ -131,6 +132,7 @@ def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool 
     gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
     gmsh.option.setNumber("Mesh.RecombineAll", 1 if quads else 0)
     gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(order)
 
 
 def assert_honest_failure(sol: df.Solution) -> None:
@@ -194,11 +196,16 @@ def test_no_physical_groups():
             df.read_gmsh(None)
 
 
-def test_quadrilateral_cells():
+def test_quadrilateral_cells_are_read_second_order_refused():
     with gmsh_model("quads") as root:
         if root:
             square_model(quads=True)
-        with input_error("'plate'", "quadrangle", "triangles"):
+        mesh = df.read_gmsh(None)
+    assert mesh.cell_type == "quadrilateral" and mesh.tdim == 2
+    with gmsh_model("quads2") as root:
+        if root:
+            square_model(quads=True, order=2)
+        with input_error("'plate'", "second-order quadrangle", "order 1", "degree=2"):
             df.read_gmsh(None)
 
 

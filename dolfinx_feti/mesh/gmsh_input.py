@@ -16,10 +16,19 @@ from mpi4py import MPI
 from ..errors import InputError
 
 #: gmsh element type → (cell name, topological dimension, number of nodes), first order only.
-_GMSH_CELLS = {2: ("triangle", 2, 3), 4: ("tetrahedron", 3, 4)}
-_GMSH_FACETS = {2: 1, 3: 2}  # tdim → gmsh element type of its facets (line, triangle)
-_UNSUPPORTED = {3: "quadrangle", 5: "hexahedron", 6: "prism", 7: "pyramid",
-                9: "second-order triangle", 11: "second-order tetrahedron"}
+_GMSH_CELLS = {2: ("triangle", 2, 3), 4: ("tetrahedron", 3, 4), 3: ("quadrilateral", 2, 4),
+               5: ("hexahedron", 3, 8)}
+#: gmsh's vertex order → DOLFINx's (tensor-product order for quadrilaterals and hexahedra).
+_GMSH_TO_DOLFINX = {"triangle": [0, 1, 2], "tetrahedron": [0, 1, 2, 3],
+                    "quadrilateral": [0, 1, 3, 2], "hexahedron": [0, 1, 3, 2, 4, 5, 7, 6]}
+#: cell type → (gmsh element type of its facets, facet vertex order gmsh → DOLFINx).
+_GMSH_FACETS = {"triangle": (1, [0, 1]), "quadrilateral": (1, [0, 1]),
+                "tetrahedron": (2, [0, 1, 2]), "hexahedron": (3, [0, 1, 3, 2])}
+_TDIM = {"triangle": 2, "quadrilateral": 2, "tetrahedron": 3, "hexahedron": 3}
+_UNSUPPORTED = {6: "prism", 7: "pyramid", 13: "second-order prism", 14: "second-order pyramid"}
+_SECOND_ORDER = {9: "second-order triangle", 11: "second-order tetrahedron",
+                 10: "second-order quadrangle", 16: "second-order (8-node) quadrangle",
+                 12: "second-order hexahedron", 17: "second-order (20-node) hexahedron"}
 
 
 @dataclass
@@ -28,13 +37,19 @@ class MeshData:
 
     Attributes:
         x: Node coordinates, shape (N, gdim).
-        cells: Cell-to-node connectivity, shape (C, tdim + 1), node indices into ``x``.
-        cell_type: ``"triangle"`` or ``"tetrahedron"``.
+        cells: Cell-to-vertex connectivity, shape (C, vertices per cell), node indices into
+            ``x``, in DOLFINx's vertex order (tensor-product order for quadrilaterals and
+            hexahedra).
+        cell_type: ``"triangle"``, ``"tetrahedron"``, ``"quadrilateral"`` or ``"hexahedron"``
+            (first-order cells: the nodes are the vertices).
         cell_body: For each cell, the index of its body in ``body_names``.
         body_names: The physical volume (surface in 2D) groups, in tag order.
-        facet_groups: Boundary physical groups: name → facets as (F, tdim) node indices.
+        facet_groups: Boundary physical groups: name → facets as (F, vertices per facet)
+            node indices (vertex facets, whatever the degree of the space).
         node_tags: The gmsh tag of each node (for messages).
         group_tags: name → gmsh physical tag, for every group (bodies and facet groups).
+        source: The DOLFINx mesh this data was made from by :func:`~dolfinx_feti.from_dolfinx`
+            (the solution is returned on it), else None.
     """
 
     x: np.ndarray
@@ -45,6 +60,7 @@ class MeshData:
     facet_groups: dict[str, np.ndarray]
     node_tags: np.ndarray
     group_tags: dict[str, int] = field(default_factory=dict)
+    source: object = field(default=None, repr=False, compare=False)
 
     @property
     def gdim(self) -> int:
@@ -54,7 +70,7 @@ class MeshData:
     @property
     def tdim(self) -> int:
         """Topological dimension of the cells."""
-        return self.cells.shape[1] - 1
+        return _TDIM[self.cell_type]
 
     @property
     def num_nodes(self) -> int:
@@ -94,8 +110,8 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
 
     Raises:
         InputError: If the file is missing, the model has no physical groups of cells,
-            the cells are not first-order simplices, a cell is in two bodies, or the data is
-            not finite.
+            the cells are not first-order triangles, quadrilaterals, tetrahedra or hexahedra
+            of one type, a cell is in two bodies, or the data is not finite.
     """
     data, err = None, None
     if comm.rank == 0:
@@ -177,6 +193,20 @@ def _group_name(gmsh, dim: int, tag: int) -> str:
     return gmsh.model.getPhysicalName(dim, tag) or str(tag)
 
 
+def _cell_type(gmsh_type: int, body: str) -> str:
+    """The cell type of a gmsh element type, or an error that says what is supported."""
+    if gmsh_type in _GMSH_CELLS:
+        return _GMSH_CELLS[gmsh_type][0]
+    if gmsh_type in _SECOND_ORDER:
+        raise InputError(f"body {body!r} has {_SECOND_ORDER[gmsh_type]} cells: only first-order "
+                         "(straight-sided) cells are supported; mesh with order 1 "
+                         "(gmsh.model.mesh.setOrder(1)) and ask for a degree-2 space instead "
+                         "(e.g. df.Elasticity(..., degree=2))")
+    kind = _UNSUPPORTED.get(gmsh_type, f"gmsh element type {gmsh_type}")
+    raise InputError(f"body {body!r} has {kind} cells: only first-order triangles and "
+                     "quadrilaterals (2D), tetrahedra and hexahedra (3D) are supported")
+
+
 def _extract_current(gmsh, gdim: int | None) -> MeshData:
     groups = gmsh.model.getPhysicalGroups()
     if not groups:
@@ -202,13 +232,13 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
             for t, nd in zip(types, nodes, strict=True):
-                if t not in _GMSH_CELLS:
-                    kind = _UNSUPPORTED.get(int(t), f"gmsh element type {t}")
-                    raise InputError(f"body {name!r} has {kind} cells: only first-order "
-                                     "triangles (2D) and tetrahedra (3D) are supported")
-                ct, _, nv = _GMSH_CELLS[int(t)]
+                ct = _cell_type(int(t), name)
+                if cell_type is not None and ct != cell_type:
+                    raise InputError(f"the mesh mixes {cell_type} and {ct} cells (body "
+                                     f"{name!r}): one cell type per mesh is supported")
                 cell_type = ct
-                block = tag_to_row[nd.astype(np.int64).reshape(-1, nv)]
+                nv = _GMSH_CELLS[int(t)][2]
+                block = tag_to_row[nd.astype(np.int64).reshape(-1, nv)][:, _GMSH_TO_DOLFINX[ct]]
                 cell_blocks.append(block)
                 body_blocks.append(np.full(block.shape[0], body, dtype=np.int32))
     if not cell_blocks:
@@ -238,7 +268,8 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
         raise InputError("the mesh has non-finite node coordinates (NaN or Inf)")
 
     facet_groups = {}
-    ftype = _GMSH_FACETS[tdim]
+    ftype, fperm = _GMSH_FACETS[cell_type]
+    nvf = len(fperm)
     for dim, tag in sorted(g for g in groups if g[0] == tdim - 1):
         name = _group_name(gmsh, dim, tag)
         if name in group_tags:
@@ -249,8 +280,12 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
             for t, nd in zip(types, nodes, strict=True):
                 if t == ftype:
-                    blocks.append(nd.astype(np.int64).reshape(-1, tdim))
-        f = np.concatenate(blocks) if blocks else np.empty((0, tdim), dtype=np.int64)
+                    blocks.append(nd.astype(np.int64).reshape(-1, nvf)[:, fperm])
+                elif t in _SECOND_ORDER or t in (8, 9, 10, 16):  # second-order lines, faces
+                    raise InputError(f"boundary group {name!r} has second-order facets: only "
+                                     "first-order meshes are read (mesh with order 1 and ask "
+                                     "for a degree-2 space instead)")
+        f = np.concatenate(blocks) if blocks else np.empty((0, nvf), dtype=np.int64)
         f = new_index[tag_to_row[f]]
         if np.any(f < 0):
             raise InputError(f"boundary group {name!r} has facets whose nodes belong to no cell "
