@@ -29,14 +29,17 @@ _UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron,
 # ------------------------------------------------------------------------------------------
 
 
-def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
-                cell_type: str) -> dolfinx.mesh.Mesh:
-    """A first-order mesh from a cell-to-node array (DOLFINx vertex order) and coordinates.
+def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str,
+                degree: int = 1) -> dolfinx.mesh.Mesh:
+    """A mesh from a cell-to-node array (DOLFINx node order) and node coordinates.
 
-    On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
+    ``degree`` is that of the geometry: 1 (straight-sided cells, the nodes are the vertices)
+    or 2 (curved cells: vertices, then edge, face and interior nodes in basix's order). On a
+    communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it.
     """
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], 1, dim=x.shape[1]))
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], degree,
+                                        dim=x.shape[1]))
     return dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells, dtype=np.int64),
                                     np.ascontiguousarray(x, dtype=np.float64), domain)
 
@@ -61,7 +64,8 @@ def cell_counts(msh: dolfinx.mesh.Mesh) -> tuple[int, int]:
 def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     """The geometry nodes of each local cell (owned and ghost), (C, nodes per cell).
 
-    For a first-order mesh these are its vertices in the reference (basix) order.
+    In basix's order: the vertices first (in the reference order), then for a second-order
+    mesh the nodes on edges, faces and the interior.
     """
     return msh.geometry.dofmap.array.reshape(cell_counts(msh)[1], -1)
 
@@ -74,7 +78,7 @@ def geometry_x(msh: dolfinx.mesh.Mesh) -> np.ndarray:
 def entity_geometry_nodes(msh: dolfinx.mesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
     """The geometry nodes of local entities (e.g. facets), (n, nodes per entity).
 
-    The vertices of a quadrilateral facet come in the reference (tensor) order.
+    The vertices come first, those of a quadrilateral facet in the reference (tensor) order.
     """
     msh.topology.create_connectivity(dim, msh.topology.dim)
     ents = np.ascontiguousarray(entities, dtype=np.int32)
@@ -184,11 +188,13 @@ def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
 
 
 def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The topological vertex of each geometry node (-1 for edge, face and interior nodes)."""
     tdim = msh.topology.dim
     c_to_v = msh.topology.connectivity(tdim, 0).array
-    geom = msh.geometry.dofmap.array
-    out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
-    out[geom] = c_to_v
+    nv = c_to_v.size // cell_counts(msh)[1]
+    geom = cell_geometry_nodes(msh)[:, :nv]
+    out = np.full(msh.geometry.x.shape[0], -1, dtype=np.int64)
+    out[geom.ravel()] = c_to_v
     return out
 
 

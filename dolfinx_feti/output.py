@@ -23,16 +23,20 @@ _PARENT_CACHE: dict[tuple[int, int], object] = {}
 
 
 def parent_mesh(mesh: MeshData, comm: MPI.Comm):
-    """The whole mesh as a DOLFINx mesh distributed over ``comm`` (built once per MeshData)."""
+    """The whole mesh as a DOLFINx mesh distributed over ``comm`` (built once per MeshData).
+
+    Its input nodes are the global vertices, or for a curved mesh the global dof points of
+    degree 2 (its geometry nodes).
+    """
     key = (id(mesh), comm.py2f())
     if key not in _PARENT_CACHE:
-        if comm.rank == 0:
-            cells, x = mesh.cells, mesh.x
-        else:
-            cells = np.empty((0, mesh.cells.shape[1]), dtype=np.int64)
-            x = np.empty((0, mesh.gdim))
+        degree = mesh.geometry_degree
+        points = dof_points(mesh, degree)
+        cells, x = points.cell_points, points.x
+        if comm.rank != 0:
+            cells, x = cells[:0], x[:0]
         _PARENT_CACHE.clear()  # keep at most one parent mesh alive
-        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type)
+        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type, degree)
     return _PARENT_CACHE[key]
 
 
@@ -88,8 +92,8 @@ def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm)
 def write_xdmf(path: str | os.PathLike, u, functions) -> None:
     """Write Functions on one mesh to XDMF; the files appear under their names only when done.
 
-    XDMF holds Functions of the mesh's own degree (1): pass degree-2 fields as their vertex
-    values (:func:`point_function` with ``degree=1``).
+    XDMF holds Lagrange Functions of the mesh's own geometry degree: on a straight-sided mesh
+    pass degree-2 fields as their vertex values (:func:`point_function` with ``degree=1``).
     """
     path = Path(path)
     comm = u.function_space.mesh.comm

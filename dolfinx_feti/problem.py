@@ -118,6 +118,9 @@ class NodeToNode:
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
         match_tol: Pairing tolerance relative to the mean edge length of the slave surface.
+            On a curved (second-order) mesh the edge nodes of the two sides are placed by
+            the mesher independently (on an arc at its mid-angle, on a segment at its
+            midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
             slip is the tangential part of u_slave − u_master.
     """
@@ -292,7 +295,8 @@ class ContactProblem:
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
         degree: Degree of the Lagrange space ``V`` given to ``forms`` (1 or 2); taken from
-            ``forms.degree`` when the helpers are used, else 1.
+            ``forms.degree`` when the helpers are used, else the degree of the mesh's geometry
+            (1, or 2 for a curved second-order mesh: isoparametric).
         ties: :class:`Tie` conditions gluing non-matching interfaces by mortar rows.
     """
 
@@ -312,7 +316,11 @@ class ContactProblem:
             raise InputError(f"ContactProblem takes the mesh as df.MeshData, got "
                              f"{type(self.mesh).__name__}: use df.read_gmsh(...) or, for a "
                              "DOLFINx mesh, df.from_dolfinx(mesh, cell_tags, facet_tags)")
-        self.degree = _degree(self.degree, self.forms)
+        self.degree = _degree(self.degree, self.forms, self.mesh.geometry_degree)
+        if self.mesh.geometry_degree == 2 and self.degree != 2:
+            raise InputError("the mesh is of second order (curved cells): it needs a degree-2 "
+                             "space (isoparametric), e.g. df.Elasticity(..., degree=2); a "
+                             "degree-1 space on curved cells does not hold the rigid motions")
         if self.value_size is None:
             vs = getattr(self.forms, "value_size", None)
             self.value_size = self.mesh.gdim if vs == "vector" else vs
@@ -383,11 +391,11 @@ class ContactProblem:
         return dof_points(self.mesh, self.degree)
 
 
-def _degree(degree, forms) -> int:
+def _degree(degree, forms, default: int) -> int:
     """The Lagrange degree from the problem or the forms helper (they must agree)."""
     helper = getattr(forms, "degree", None)
     if degree is None:
-        degree = 1 if helper is None else helper
+        degree = default if helper is None else helper
     elif helper is not None and helper != degree:
         raise InputError(f"degree={degree} given to ContactProblem but the forms have "
                          f"degree={helper}")

@@ -224,14 +224,16 @@ class Solution:
         Fields: the displacement (``u`` for a scalar problem), ``contact_pressure`` (zero off
         contact), ``subdomain`` (DG0) and, for :class:`~dolfinx_feti.Elasticity`,
         ``von_mises`` (DG0; see :mod:`dolfinx_feti.postprocess`). XDMF holds fields of the
-        mesh's degree: for a degree-2 problem the displacement and the pressure are written
-        by their values at the vertices (``solution.u`` keeps the whole field).
+        mesh's geometry degree: for a degree-2 problem on a straight-sided mesh the
+        displacement and the pressure are written by their values at the vertices
+        (``solution.u`` keeps the whole field).
         """
         from .output import write_xdmf
         from .postprocess import output_functions
-        u = self.u if self.problem.degree == 1 else self._point_function(
-            self.nodal_values(), self.u.name, degree=1)
-        write_xdmf(path, u, [u, self.pressure_function(degree=1), *output_functions(self)])
+        degree = self.problem.mesh.geometry_degree
+        u = self.u if self.problem.degree == degree else self._point_function(
+            self.nodal_values(), self.u.name, degree=degree)
+        write_xdmf(path, u, [u, self.pressure_function(degree=degree), *output_functions(self)])
 
     def multipliers(self, kind: Kind | None = None) -> np.ndarray:
         """Physical multipliers (nodal forces) of all rows, or of one kind, on every rank."""

@@ -14,6 +14,16 @@ def _group(dim, ents, tag, name):
     gmsh.model.setPhysicalName(dim, tag, name)
 
 
+def _structured_hexahedra(volume: int, n: int) -> None:
+    """Ask gmsh for n³ hexahedra in a box-shaped volume (transfinite and recombined)."""
+    for _, c in gmsh.model.getEntities(1):
+        gmsh.model.mesh.setTransfiniteCurve(c, n + 1)
+    for _, s in gmsh.model.getEntities(2):
+        gmsh.model.mesh.setTransfiniteSurface(s)
+        gmsh.model.mesh.setRecombine(2, s)
+    gmsh.model.mesh.setTransfiniteVolume(volume)
+
+
 def rectangle(quads: bool = False, h: float = 0.35, lx: float = 2.0, ly: float = 1.0):
     """[0, lx] × [0, ly], unstructured triangles or recombined (general) quadrilaterals.
 
@@ -49,12 +59,7 @@ def box(hexes: bool = False, n: int = 3, h: float = 0.4):
         ents = [e for _, e in gmsh.model.getEntitiesInBoundingBox(*lo, *hi, 2)]
         _group(2, ents, 11 + k, "xyz"[axis] + str(side))
     if hexes:
-        for _, c in gmsh.model.getEntities(1):
-            gmsh.model.mesh.setTransfiniteCurve(c, n + 1)
-        for _, s in gmsh.model.getEntities(2):
-            gmsh.model.mesh.setTransfiniteSurface(s)
-            gmsh.model.mesh.setRecombine(2, s)
-        gmsh.model.mesh.setTransfiniteVolume(v)
+        _structured_hexahedra(v, n)
     else:
         gmsh.option.setNumber("Mesh.MeshSizeMax", h)
     gmsh.model.mesh.generate(3)
@@ -90,3 +95,57 @@ def distorted_hexahedra(n: int = 3, shake: float = 0.2, seed: int = 0) -> df.Mes
     return df.MeshData(x=x, cells=cells, cell_type="hexahedron",
                        cell_body=np.zeros(cells.shape[0], dtype=np.int32), body_names=("body",),
                        facet_groups=groups, node_tags=np.arange(x.shape[0]))
+
+
+def plate_with_hole(quads: bool = False, h: float = 0.3, order: int = 2):
+    """[0, 2] × [0, 1] with a hole of radius 0.25 at (1, 0.5), meshed with curved cells.
+
+    Groups: "body"; "outer" (the rectangle's sides), "hole".
+    """
+    occ = gmsh.model.occ
+    r = occ.addRectangle(0, 0, 0, 2, 1)
+    d = occ.addDisk(1, 0.5, 0, 0.25, 0.25)
+    occ.cut([(2, r)], [(2, d)])
+    occ.synchronize()
+    s = [e for _, e in gmsh.model.getEntities(2)]
+    _group(2, s, 1, "body")
+    curves = gmsh.model.getBoundary([(2, e) for e in s], oriented=False)
+    hole = [c for _, c in curves if np.isclose(gmsh.model.occ.getCenterOfMass(1, c)[0], 1.0)
+            and np.isclose(gmsh.model.occ.getCenterOfMass(1, c)[1], 0.5, atol=0.1)]
+    _group(1, [c for _, c in curves if c not in hole], 11, "outer")
+    _group(1, hole, 12, "hole")
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.option.setNumber("Mesh.RecombineAll", 1 if quads else 0)
+    gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(order)
+    return physical_groups()
+
+
+def box_with_hole(hexes: bool = False, h: float = 0.35, order: int = 2, n: int = 2):
+    """Second-order 3D meshes: tetrahedra of a unit cube with a cylindrical hole (curved), or
+    n³ structured hexahedra of the unit cube (27-node, straight).
+
+    Groups: "body"; "outer" (the cube's faces), and "hole" for the tetrahedra.
+    """
+    occ = gmsh.model.occ
+    b = occ.addBox(0, 0, 0, 1, 1, 1)
+    if not hexes:
+        c = occ.addCylinder(0.5, 0.5, -0.1, 0, 0, 1.2, 0.2)
+        occ.cut([(3, b)], [(3, c)])
+    occ.synchronize()
+    vols = [e for _, e in gmsh.model.getEntities(3)]
+    _group(3, vols, 1, "body")
+    faces = [f for _, f in gmsh.model.getBoundary([(3, v) for v in vols], oriented=False)]
+    hole = [f for f in faces
+            if np.hypot(*(np.array(occ.getCenterOfMass(2, f))[:2] - 0.5)) < 0.3
+            and 0.1 < occ.getCenterOfMass(2, f)[2] < 0.9]
+    _group(2, [f for f in faces if f not in hole], 11, "outer")
+    if hole:
+        _group(2, hole, 12, "hole")
+    if hexes:
+        _structured_hexahedra(vols[0], n)
+    else:
+        gmsh.option.setNumber("Mesh.MeshSizeMax", h)
+    gmsh.model.mesh.generate(3)
+    gmsh.model.mesh.setOrder(order)
+    return physical_groups()

@@ -32,8 +32,9 @@ def cell_dof_points(V, vertex_id: np.ndarray, points: DofPoints
     """The dofs of each local cell of ``V`` and the global dof points they sit on.
 
     Args:
-        V: A Lagrange space of degree ``points.degree`` on a first-order mesh.
-        vertex_id: The global vertex number of each local geometry node of V's mesh.
+        V: A Lagrange space of degree ``points.degree``.
+        vertex_id: The global vertex number of each local geometry node of V's mesh (only the
+            entries of vertices are read).
         points: The global dof points.
 
     Returns:
@@ -43,10 +44,12 @@ def cell_dof_points(V, vertex_id: np.ndarray, points: DofPoints
         ValueError: If an entity of the mesh has no dof point (the mesh is not the one the
             points were made for).
     """
-    cv = np.asarray(vertex_id, dtype=np.int64)[compat.cell_geometry_nodes(compat.space_mesh(V))]
+    local = _local_entities(points.cell_type)
+    nv = len(local[0])
+    geom = compat.cell_geometry_nodes(compat.space_mesh(V))[:, :nv]  # the vertices come first
+    cv = np.asarray(vertex_id, dtype=np.int64)[geom]
     dofs = compat.cell_dofs(V)
     layout = compat.dof_entities(V)
-    local = _local_entities(points.cell_type)
     pts = np.empty(dofs.shape, dtype=np.int64)
     for dim in sorted({d for d, _ in layout}):
         cols = [j for j, (d, _) in enumerate(layout) if d == dim]

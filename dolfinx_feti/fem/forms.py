@@ -44,14 +44,16 @@ class Elasticity:
         nu: Poisson's ratio, in (−1, 0.5): one number or body name → number.
         tractions: Boundary group → traction vector (force per area) applied there.
         body_force: A constant vector, or ``body_force(x)`` of the UFL spatial coordinate.
-        degree: Degree of the Lagrange space of the displacement (1 or 2).
+        degree: Degree of the Lagrange space of the displacement (1 or 2); by default the
+            degree of the mesh's geometry (2 on a curved second-order mesh, else 1).
     """
 
     value_size = "vector"
 
     def __init__(self, E: Scalar, nu: Scalar, *,
                  tractions: Mapping[str, Sequence[float]] | None = None,
-                 body_force: Sequence[float] | Callable | None = None, degree: int = 1) -> None:
+                 body_force: Sequence[float] | Callable | None = None,
+                 degree: int | None = None) -> None:
         self.E, self.nu, self.degree = E, nu, degree
         self.tractions = dict(tractions or {})
         self.body_force = body_force
@@ -118,13 +120,13 @@ class Poisson:
         source: f: a number, or ``source(x)`` of the UFL spatial coordinate.
         flux: Boundary group → g (a number or a function of x).
         k: Conductivity: a number or body name → number (positive).
-        degree: Degree of the Lagrange space (1 or 2).
+        degree: Degree of the Lagrange space (1 or 2); by default that of the mesh's geometry.
     """
 
     value_size = 1
 
     def __init__(self, source: float | Callable = 0.0, *, flux: Mapping | None = None,
-                 k: Scalar = 1.0, degree: int = 1) -> None:
+                 k: Scalar = 1.0, degree: int | None = None) -> None:
         self.source, self.flux, self.k, self.degree = source, dict(flux or {}), k, degree
         self._k = None
 

@@ -80,14 +80,17 @@ class Subdomain:
         self._points = dof_points(mesh, 1) if points is None else points
         self.degree = self._points.degree
         self.nodes = np.concatenate(nodes)
-        # The vertices come first among the sorted dof points of a subdomain.
-        verts = [n[:np.searchsorted(n, mesh.num_nodes)] for n in nodes]
+        # The mesh's input nodes: the vertices (they come first among the sorted dof points of
+        # a subdomain), or all dof points of a curved mesh (its geometry nodes: degree 2).
+        curved = mesh.geometry_degree == 2
+        verts = nodes if curved else [n[:np.searchsorted(n, mesh.num_nodes)] for n in nodes]
+        conn, xg = (self._points.cell_points, self._points.x) if curved else (mesh.cells, mesh.x)
         offsets = np.cumsum([0] + [v.size for v in verts[:-1]])
-        self._vertex_global = np.concatenate(verts)  # mesh input node → global vertex
-        local_cells = np.concatenate([np.searchsorted(v, mesh.cells[c]) + o
+        self._input_global = np.concatenate(verts)  # mesh input node → global dof point
+        local_cells = np.concatenate([np.searchsorted(v, conn[c]) + o
                                       for c, v, o in zip(cells, verts, offsets, strict=True)])
-        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, mesh.x[self._vertex_global],
-                                       mesh.cell_type)
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, xg[self._input_global],
+                                       mesh.cell_type, mesh.geometry_degree)
         self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → input node
         cell_input = compat.cell_input_indices(self.mesh)
         block = np.repeat(np.arange(len(cells)), [c.size for c in cells])
@@ -176,7 +179,7 @@ class Subdomain:
 
     def _canonical_points(self, V) -> np.ndarray:
         """For each (blocked) dof of V, its index in the canonical order of the dof points."""
-        dofs, pts = cell_dof_points(V, self._vertex_global[self._node_of_geom], self._points)
+        dofs, pts = cell_dof_points(V, self._input_global[self._node_of_geom], self._points)
         # The block of a cell says which copy of a shared dof point its dofs are.
         key_nodes = np.repeat(np.arange(len(self._node_ptr) - 1), np.diff(self._node_ptr)) \
             * np.int64(self._points.num_points) + self.nodes

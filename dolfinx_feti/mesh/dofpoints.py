@@ -9,8 +9,9 @@ carry one dof of basix's Lagrange element of degree 2. An entity is known by the
 numbers of its vertices; the points of one dimension are numbered in the order of those keys, so
 the numbering is the same on every rank and for every number of ranks, and each rank could
 compute the numbers of its own entities from distributed data. The coordinates are the entity
-midpoints: on first-order cells (straight edges, bilinear faces) the image of the reference
-dof point.
+midpoints on first-order cells (straight edges, bilinear faces: the image of the reference dof
+point), and the mesh's own geometry nodes on a second-order (curved) mesh, where the degree-2
+space is isoparametric.
 """
 
 from __future__ import annotations
@@ -22,6 +23,12 @@ import numpy as np
 from ..errors import InputError
 from .gmsh_input import MeshData
 from .topology import FACET_TYPE, REFERENCE, _row_keys, locate_facets
+
+
+def degree2_entities(cell_type: str) -> tuple[tuple[int, tuple[tuple[int, ...], ...]], ...]:
+    """The entities with a dof of degree 2 besides the vertices: ((dim, local vertex lists),)."""
+    return _DEGREE2_ENTITIES[cell_type]
+
 
 #: Entities with a dof of degree 2 besides the vertices: cell type → (dim, local vertex lists).
 _DEGREE2_ENTITIES = {
@@ -156,11 +163,26 @@ def _build(mesh: MeshData, degree: int) -> DofPoints:
         flat = v.reshape(-1, v.shape[2])
         keys, first, inv = np.unique(_row_keys(flat, N), return_index=True, return_inverse=True)
         parts.append(offset + inv.reshape(C, v.shape[1]))
-        xs.append(mesh.x[flat[first]].mean(axis=1))
+        xs.append(_positions(mesh, dim, flat[first], keys))
         entities[dim] = (keys, offset)
         offset += keys.size
     return DofPoints(2, mesh.cell_type, np.concatenate(xs), np.concatenate(parts, axis=1), N,
                      entities)
+
+
+def _positions(mesh: MeshData, dim: int, vertices: np.ndarray, keys: np.ndarray) -> np.ndarray:
+    """The dof points of entities (sorted by ``keys``): their curved-geometry node, or midpoint."""
+    if mesh.high_order is None:
+        return mesh.x[vertices].mean(axis=1)
+    ent, pos = mesh.high_order.get(dim, (np.zeros((0, vertices.shape[1]), dtype=np.int64),
+                                         np.zeros((0, mesh.gdim))))
+    k = _row_keys(ent, mesh.num_nodes)
+    order = np.argsort(k)
+    at = np.searchsorted(k[order], keys)
+    at = np.minimum(at, max(k.size - 1, 0))
+    if k.size == 0 or np.any(k[order][at] != keys):
+        raise InputError("the second-order mesh lacks the geometry node of some edge or face")
+    return pos[order][at]
 
 
 __all__ = ["DofPoints", "dof_points"]

@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import compat
 from ..errors import InputError
+from .dofpoints import degree2_entities
 from .gmsh_input import MeshData
 from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
 
@@ -60,6 +61,8 @@ class LocalPart:
         node_x: Their coordinates.
         facet_nodes: Input node indices of the vertices of the tagged local facets.
         facet_tag: Their tags.
+        high_nodes: For a second-order mesh, the input index of each owned cell's geometry
+            nodes beyond its vertices (basix's order: edges, faces, interior), else (c, 0).
     """
 
     cell_index: np.ndarray
@@ -69,6 +72,7 @@ class LocalPart:
     node_x: np.ndarray
     facet_nodes: np.ndarray
     facet_tag: np.ndarray
+    high_nodes: np.ndarray
 
 
 def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
@@ -81,8 +85,9 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
     returned data is a Function on ``mesh`` itself (``solution.u``).
 
     Args:
-        mesh: A first-order DOLFINx mesh of triangles, quadrilaterals, tetrahedra or
-            hexahedra whose geometric dimension is its cells' (a 2D mesh with ``gdim=2``).
+        mesh: A DOLFINx mesh of triangles, quadrilaterals, tetrahedra or hexahedra of
+            geometry degree 1 or 2 (curved cells; the problem then takes a degree-2 space),
+            whose geometric dimension is its cells' (a 2D mesh with ``gdim=2``).
             An object with ``mesh``, ``cell_tags``, ``facet_tags`` and ``physical_groups``
             (the result of ``dolfinx.io.gmsh.model_to_mesh`` in DOLFINx ≥ 0.10) is accepted
             whole, its names taken from the physical groups.
@@ -111,10 +116,9 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         raise InputError(f"from_dolfinx: {cell_type} cells are not supported: only triangles, "
                          "quadrilaterals, tetrahedra and hexahedra")
     tdim = REFERENCE[cell_type].tdim
-    if degree != 1:
-        raise InputError(f"from_dolfinx: the mesh has curved cells (coordinate element of "
-                         f"degree {degree}); only first-order (straight-sided) meshes are "
-                         "supported: mesh with order 1 and ask for a degree-2 space instead")
+    if degree not in (1, 2):
+        raise InputError(f"from_dolfinx: the mesh's coordinate element has degree {degree}; "
+                         "meshes of order 1 and 2 are supported")
     if gdim != tdim:
         raise InputError(f"from_dolfinx: the mesh of {cell_type} cells has geometric dimension "
                          f"{gdim}; a {tdim}D problem needs gdim={tdim} (e.g. "
@@ -132,23 +136,26 @@ def local_part(mesh, cell_tags, facet_tags) -> LocalPart:
     """This rank's part of the mesh in global (input) numbers; no communication."""
     owned, _ = compat.cell_counts(mesh)
     gin = compat.node_input_indices(mesh)
-    cell_nodes = gin[compat.cell_geometry_nodes(mesh)[:owned]]
+    ref = REFERENCE[compat.describe_mesh(mesh)[0]]
+    geom = gin[compat.cell_geometry_nodes(mesh)[:owned]]
+    cell_nodes, high = geom[:, :ref.num_vertices], geom[:, ref.num_vertices:]
     tag = np.full(owned, -1, dtype=np.int64)
     _, idx, val = compat.tags_data(cell_tags)
     mine = idx < owned
     tag[idx[mine]] = val[mine]
     if facet_tags is not None:
         dim, fidx, fval = compat.tags_data(facet_tags)
-        width = len(REFERENCE[compat.describe_mesh(mesh)[0]].facets[0])
-        fnodes = gin[compat.entity_geometry_nodes(mesh, dim, fidx)] if fidx.size else \
-            np.zeros((0, width), dtype=np.int64)
+        width = len(ref.facets[0])  # the vertices come first among a facet's nodes
+        fnodes = gin[compat.entity_geometry_nodes(mesh, dim, fidx)[:, :width]] if fidx.size \
+            else np.zeros((0, width), dtype=np.int64)
     else:
         fnodes = np.zeros((0, 2), dtype=np.int64)
         fval = np.zeros(0, dtype=np.int64)
     return LocalPart(cell_index=compat.cell_input_indices(mesh)[:owned].astype(np.int64),
                      cell_nodes=cell_nodes.astype(np.int64), cell_tag=tag,
                      node_index=gin.astype(np.int64), node_x=compat.geometry_x(mesh).copy(),
-                     facet_nodes=fnodes.astype(np.int64), facet_tag=fval)
+                     facet_nodes=fnodes.astype(np.int64), facet_tag=fval,
+                     high_nodes=high.astype(np.int64))
 
 
 def gather(part: LocalPart, mesh, cell_type: str,
@@ -197,6 +204,19 @@ def gather(part: LocalPart, mesh, cell_type: str,
         for v in facet_values:
             facet_groups[facet_name[int(v)]] = fglob[fval_u == v]
 
+    high_order = None
+    if cat["high_nodes"].shape[1]:  # curved cells: the node of each edge, face, interior
+        high_order = {}
+        hx = cat["node_x"][first][np.searchsorted(uidx, cat["high_nodes"][order])]
+        col = 0
+        for dim, local in degree2_entities(cell_type):
+            ents = cells[:, np.array(local)]  # (C, ne, nve)
+            ne = ents.shape[1]
+            flat = ents.reshape(-1, ents.shape[2])
+            _, one = np.unique(_row_keys(flat, used.size), return_index=True)
+            high_order[dim] = (flat[one], hx[:, col:col + ne].reshape(-1, hx.shape[2])[one])
+            col += ne
+
     group_tags = {body_name[int(v)]: int(v) for v in cell_values}
     group_tags.update({facet_name[int(v)]: int(v) for v in facet_values})
     from .checks import check_mesh  # degenerate or inverted cells
@@ -206,7 +226,7 @@ def gather(part: LocalPart, mesh, cell_type: str,
                     body_names=tuple(body_name[int(v)] for v in cell_values),
                     facet_groups=facet_groups, node_tags=used.astype(np.int64),
                     group_tags=group_tags,
-                    source=DolfinxSource(mesh, used, input_cells))
+                    source=DolfinxSource(mesh, used, input_cells), high_order=high_order)
     check_mesh(data)
     return data
 
