@@ -19,6 +19,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import dolfinx.fem
@@ -40,7 +41,7 @@ parser.add_argument("--h", type=float, default=0.02, help="element size at the c
 parser.add_argument("--parts", type=int, default=4, help="subdomains")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance")
 parser.add_argument("--out", type=Path, default=Path("output/gmshio"), help="output folder")
-args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 R, P, E, nu = 1.0, 0.5, 100.0, 0.3
 # -
@@ -122,7 +123,7 @@ problem = df.ContactProblem(
     dirichlet=[df.Dirichlet("symmetry", components=[0])],
     contact=[df.RigidObstacle("arc", plane)],
     decomposition=df.Parts(args.parts))
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 # -
 
 # ## Back in DOLFINx: the solution is a Function on the user's mesh

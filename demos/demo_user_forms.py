@@ -25,6 +25,7 @@
 
 # +
 import argparse
+import sys
 
 import gmsh
 import numpy as np
@@ -39,7 +40,7 @@ parser.add_argument("--h", type=float, default=0.1, help="element size")
 parser.add_argument("--degree", type=int, default=2, help="Lagrange degree (1 or 2)")
 parser.add_argument("--parts", type=int, default=4, help="subdomains")
 parser.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance")
-args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 E, nu, theta = 100.0, 0.3, 1e-3  # theta = alpha * Delta T
 mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
@@ -105,7 +106,7 @@ problem = df.ContactProblem(
     dirichlet=[df.Dirichlet("left", components=[0]), df.Dirichlet("bottom", components=[1])],
     contact=[df.RigidObstacle("right", wall)],
     decomposition=df.Parts(args.parts))
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 # -
 
 # ## Check against the exact state

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import reference as ref
 import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401 - sp.linalg.norm
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
@@ -373,3 +374,19 @@ def test_sphere_on_block_3d():
     radius = r[c.pressure > 1e-6 * c.pressure.max()].max()
     assert abs(radius - a_hertz) < 0.25, (radius, a_hertz)  # within one element
     assert not sol.report.warnings, sol.report.warnings
+
+
+def test_tie_rows_are_nearly_orthonormal(blocks):
+    """Unit-norm tie rows: B Bᵀ stays well conditioned (docs/theory.md: why they are not
+    orthonormalized); worst with the finer side as slave."""
+    from dolfinx_feti.constraints.mortar_rows import tie_rows
+    dim, mesh = blocks
+    n = mesh.num_nodes
+    for slave, master in (("upper_bottom", "lower_top"), ("lower_top", "upper_bottom")):
+        rows, _ = tie_rows(mesh, df.Tie(slave, master), 0, np.arange(n + 1),
+                           np.zeros(n, dtype=np.int32), np.zeros((n, dim), dtype=bool), dim)
+        B = sp.csr_matrix((rows.e_coef, (rows.e_row, dim * rows.e_node + rows.e_comp)),
+                          shape=(rows.size, dim * n))
+        assert np.allclose(sp.linalg.norm(B, axis=1), 1.0)
+        ev = np.linalg.eigvalsh((B @ B.T).toarray())
+        assert ev.max() / ev.min() < (2.0 if slave == "upper_bottom" else 5.0)
