@@ -119,9 +119,9 @@ class NodeToNode:
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
         match_tol: Pairing tolerance relative to the mean edge length of the slave surface,
-            in (0, 1). On a curved (second-order) mesh the edge nodes of the two sides are placed by
-            the mesher independently (on an arc at its mid-angle, on a segment at its
-            midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
+            in (0, 1). On a curved (second-order) mesh the edge nodes of the two sides are
+            placed by the mesher independently (on an arc at its mid-angle, on a segment at
+            its midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
             slip is the tangential part of u_slave − u_master.
     """
@@ -391,6 +391,7 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
+        check_dimensions(self)
         contact_groups = [g for c in [*self.contact, *self.ties] for g in
                           ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
         _check_mesh(self.mesh, contact_groups, self.forms)
