@@ -83,7 +83,7 @@ def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm)
     msh, _, cell = output_mesh(mesh, comm)
     V = compat.dg0_space(msh)
     f = compat.function(V, name)
-    dofs = V.dofmap.list.array  # one dof per local cell, in cell order
+    dofs = compat.cell_dofs(V).ravel()  # one dof per local cell, in cell order
     n = min(dofs.size, cell.size)
     f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cell[:n]]
     compat.scatter_forward(f)

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import gmsh
-from dolfinx.io import gmshio
 from mpi4py import MPI
 
 import dolfinx_feti as df
+from dolfinx_feti import compat
 
 
 def gmsh_both(generator, *args, gdim: int, comm: MPI.Comm = MPI.COMM_WORLD, **kwargs):
@@ -24,7 +24,7 @@ def gmsh_both(generator, *args, gdim: int, comm: MPI.Comm = MPI.COMM_WORLD, **kw
     try:
         names = comm.bcast(names, root=0)
         data = df.read_gmsh(None, comm, gdim)
-        msh, ct, ft = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=gdim)
+        msh, ct, ft = compat.gmsh_model_to_mesh(gmsh.model, comm, 0, gdim)
     finally:
         if comm.rank == 0:
             gmsh.finalize()

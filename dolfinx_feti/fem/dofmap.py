@@ -49,7 +49,7 @@ def cell_dof_points(V, vertex_id: np.ndarray, points: DofPoints
     geom = compat.cell_geometry_nodes(compat.space_mesh(V))[:, :nv]  # the vertices come first
     cv = np.asarray(vertex_id, dtype=np.int64)[geom]
     dofs = compat.cell_dofs(V)
-    layout = compat.dof_entities(V)
+    layout = compat.dof_entities(V, {dim: len(ents) for dim, ents in local.items()})
     pts = np.empty(dofs.shape, dtype=np.int64)
     for dim in sorted({d for d, _ in layout}):
         cols = [j for j, (d, _) in enumerate(layout) if d == dim]
