@@ -1,11 +1,22 @@
-"""Every call that depends on the DOLFINx version lives here (Debian bookworm: DOLFINx 0.5.2).
+"""Every call that depends on the DOLFINx version lives here: 0.5.2 (Debian 12) and 0.11.
 
-A port to a newer DOLFINx (0.9/0.10 renamed ``VectorFunctionSpace``, ``Mesh._mesh``, the
-``dolfinx.fem.petsc`` helpers and the mesh constructors) should only touch this module.
+Nothing else in the package, its tests, demos or benchmarks calls version-specific DOLFINx API;
+they call the functions below. The module is organized by topic (imports and versions, meshes,
+tags, spaces and Functions, forms and assembly, linear solves, files); each branch names the
+version that changed the call. Between 0.5 and 0.11 DOLFINx renamed the function space
+constructors (``FunctionSpace``/``VectorFunctionSpace`` → ``functionspace``), the coordinate
+elements (``ufl.VectorElement`` → ``basix.ufl.element``), the argument order of
+``mesh.create_mesh``, the dofmap layouts (AdjacencyList → 2D array), the gmsh module
+(``io.gmshio`` → ``io.gmsh``, returning a ``MeshData``) and a few keyword names.
 """
 
 from __future__ import annotations
 
+# DOLFINx 0.11's PyPI wheel finds its MPI library only once mpi4py.MPI has loaded it: import it
+# before dolfinx and petsc4py. (Harmless on 0.5.2.)
+from mpi4py import MPI  # isort: skip
+
+import re
 from pathlib import Path
 
 import dolfinx
@@ -15,24 +26,103 @@ import dolfinx.io
 import dolfinx.mesh
 import numpy as np
 import ufl
-from mpi4py import MPI
 from petsc4py import PETSc
 
+# ---------------------------------------------------------------------------------------------
+# Versions
+# ---------------------------------------------------------------------------------------------
+
 DOLFINX_VERSION = dolfinx.__version__
+#: (major, minor) of DOLFINx, e.g. (0, 5) or (0, 11).
+VERSION = tuple(int(p) for p in re.match(r"(\d+)\.(\d+)", DOLFINX_VERSION).groups())
 
-_UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron}
+if VERSION >= (0, 9):
+    import basix.ufl
+    import dolfinx.graph
 
 
-def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
-                cell_type: str) -> dolfinx.mesh.Mesh:
-    """A first-order simplex mesh from a cell-to-node array and node coordinates.
+def version_label() -> str:
+    """'DOLFINx 0.11.0 (PETSc 3.25.5)': for messages that depend on the installed stack."""
+    petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
+    return f"DOLFINx {DOLFINX_VERSION} (PETSc {petsc})"
 
+
+# ---------------------------------------------------------------------------------------------
+# Meshes: creation and numbering
+# ---------------------------------------------------------------------------------------------
+
+def ufl_domain(cell_type: str, gdim: int, degree: int = 1) -> ufl.Mesh:
+    """The UFL domain of a Lagrange geometry (also for UFL expressions without a mesh)."""
+    if VERSION >= (0, 9):
+        return ufl.Mesh(basix.ufl.element("Lagrange", cell_type, degree, shape=(gdim,)))
+    return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell_type), degree, dim=gdim))
+
+
+def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str,
+                degree: int = 1) -> dolfinx.mesh.Mesh:
+    """A mesh of Lagrange geometry of ``degree`` from a cell-to-node array and coordinates.
+
+    ``cells`` in DOLFINx's node order: the vertices (tensor-product order for quadrilaterals
+    and hexahedra), then for ``degree`` 2 the edge, face and interior nodes in basix's order.
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it.
     """
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], 1, dim=x.shape[1]))
-    return dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells, dtype=np.int64),
-                                    np.ascontiguousarray(x, dtype=np.float64), domain)
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    domain = ufl_domain(cell_type, x.shape[1], degree)
+    if VERSION >= (0, 10):  # the element moved before the coordinates
+        return dolfinx.mesh.create_mesh(comm, cells, domain, x)
+    return dolfinx.mesh.create_mesh(comm, cells, x, domain)
+
+
+def is_mesh(obj) -> bool:
+    """Whether ``obj`` is a DOLFINx mesh."""
+    return isinstance(obj, dolfinx.mesh.Mesh)
+
+
+def describe_mesh(msh: dolfinx.mesh.Mesh) -> tuple[str, int, int]:
+    """``(cell type name, geometric dimension, degree of the coordinate element)``."""
+    return (msh.topology.cell_type.name, int(msh.geometry.dim),
+            int(msh.geometry.cmap.degree))
+
+
+def cell_counts(msh: dolfinx.mesh.Mesh) -> tuple[int, int]:
+    """``(owned cells, owned + ghost cells)`` of this rank."""
+    im = msh.topology.index_map(msh.topology.dim)
+    return im.size_local, im.size_local + im.num_ghosts
+
+
+def geometry_x(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """Coordinates of the local geometry nodes, (nodes, gdim)."""
+    return msh.geometry.x[:, :msh.geometry.dim]
+
+
+def entity_geometry_nodes(msh: dolfinx.mesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The geometry nodes of local entities (e.g. facets), (n, nodes per entity).
+
+    The vertices come first, those of a quadrilateral facet in the reference (tensor) order.
+    """
+    msh.topology.create_connectivity(dim, msh.topology.dim)
+    ents = np.ascontiguousarray(entities, dtype=np.int32)
+    if hasattr(dolfinx.mesh, "entities_to_geometry"):  # a Python wrapper in newer DOLFINx
+        nodes = dolfinx.mesh.entities_to_geometry(msh, dim, ents, False)
+    else:
+        nodes = dolfinx.cpp.mesh.entities_to_geometry(msh._mesh, dim, ents, False)
+    return np.asarray(nodes, dtype=np.int64).reshape(ents.size, -1)
+
+
+def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The geometry nodes of each local cell (ghosts included): a (cells × nodes) array.
+
+    In basix's order: the vertices first (in the reference order), then for a second-order
+    mesh the nodes on edges, faces and the interior.
+    """
+    if VERSION >= (0, 10):  # one dofmap per coordinate element (mixed-topology meshes)
+        return msh.geometry.dofmaps[0]
+    if VERSION >= (0, 9):
+        return msh.geometry.dofmap
+    ncells = cell_counts(msh)[1]
+    return msh.geometry.dofmap.array.reshape(ncells, -1)
 
 
 def node_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
@@ -45,39 +135,19 @@ def cell_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     return np.asarray(msh.topology.original_cell_index, dtype=np.int64)
 
 
-def function_space(msh: dolfinx.mesh.Mesh, value_size: int) -> dolfinx.fem.FunctionSpace:
-    """The continuous P1 space, scalar (``value_size == 1``) or vector valued."""
-    if value_size == 1:
-        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", 1))
-    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=value_size)
-
-
-def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
-    """The piecewise constant scalar space (for cell-wise material data)."""
-    return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
-
-
-def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
-    """For each (unblocked) dof of a P1 space, the geometry node it sits on.
-
-    P1 dofs and first-order geometry nodes are listed in the same order within each cell, so
-    the two cell-wise maps, read side by side, pair them.
-    """
-    msh = V.mesh
-    ncells = msh.topology.index_map(msh.topology.dim).size_local + \
-        msh.topology.index_map(msh.topology.dim).num_ghosts
-    nv = msh.geometry.dofmap.array.size // ncells
-    dofs = V.dofmap.list.array.reshape(-1, nv)
-    geom = msh.geometry.dofmap.array.reshape(-1, nv)
-    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
-    out = np.empty(n_dofs, dtype=np.int64)
-    out[dofs.ravel()] = geom.ravel()
+def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The topological vertex of each geometry node (-1 for edge, face and interior nodes)."""
+    tdim = msh.topology.dim
+    c_to_v = msh.topology.connectivity(tdim, 0).array
+    nv = c_to_v.size // cell_counts(msh)[1]
+    out = np.full(msh.geometry.x.shape[0], -1, dtype=np.int64)
+    out[cell_geometry_nodes(msh)[:, :nv].ravel()] = c_to_v
     return out
 
 
-def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
-    """Number of (unblocked) dofs owned by this rank."""
-    return V.dofmap.index_map.size_local
+# ---------------------------------------------------------------------------------------------
+# Mesh tags
+# ---------------------------------------------------------------------------------------------
 
 
 def facet_tags(msh: dolfinx.mesh.Mesh, facets: np.ndarray, values: np.ndarray):
@@ -86,10 +156,20 @@ def facet_tags(msh: dolfinx.mesh.Mesh, facets: np.ndarray, values: np.ndarray):
     msh.topology.create_connectivity(tdim - 1, tdim)
     # For P1 meshes geometry nodes and vertices coincide but are numbered separately.
     vertex_of_node = _geometry_node_to_vertex(msh)
-    ents = vertex_of_node[np.asarray(facets, dtype=np.int64)]
-    adj = dolfinx.cpp.graph.AdjacencyList_int32(np.ascontiguousarray(ents, dtype=np.int32))
+    ents = np.ascontiguousarray(vertex_of_node[np.asarray(facets, dtype=np.int64)],
+                                dtype=np.int32)
+    if VERSION >= (0, 9):
+        adj = dolfinx.graph.adjacencylist(ents)
+    else:
+        adj = dolfinx.cpp.graph.AdjacencyList_int32(ents)
     return dolfinx.mesh.meshtags_from_entities(msh, tdim - 1, adj,
                                                np.ascontiguousarray(values, dtype=np.int32))
+
+
+def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
+    """``(dimension, local entity indices, values)`` of MeshTags."""
+    return int(tags.dim), np.asarray(tags.indices, dtype=np.int64), \
+        np.asarray(tags.values, dtype=np.int64)
 
 
 def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
@@ -100,13 +180,108 @@ def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
                                  np.ascontiguousarray(values[order], dtype=np.int32))
 
 
-def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
-    tdim = msh.topology.dim
-    c_to_v = msh.topology.connectivity(tdim, 0).array
-    geom = msh.geometry.dofmap.array
-    out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
-    out[geom] = c_to_v
-    return out
+# ---------------------------------------------------------------------------------------------
+# Function spaces and Functions
+# ---------------------------------------------------------------------------------------------
+
+
+def function_space(msh: dolfinx.mesh.Mesh, value_size: int,
+                   degree: int = 1) -> dolfinx.fem.FunctionSpace:
+    """The continuous Lagrange space of ``degree``, scalar (``value_size == 1``) or vector."""
+    if VERSION >= (0, 9):
+        shape = () if value_size == 1 else (value_size,)
+        return dolfinx.fem.functionspace(msh, ("Lagrange", degree, shape))
+    if value_size == 1:
+        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", degree))
+    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=value_size)
+
+
+def space_mesh(V) -> dolfinx.mesh.Mesh:
+    """The mesh of a function space."""
+    return V.mesh
+
+
+def same_space(W, V) -> bool:
+    """Whether the UFL function space ``W`` is ``V`` (the same element on the same mesh)."""
+    return W is V or (W.ufl_element() == V.ufl_element()
+                      and getattr(W, "mesh", None) is V.mesh)
+
+
+def describe_space(W) -> str:
+    """A short description of a UFL function space, for messages."""
+    mesh = getattr(W, "mesh", None)
+    return f"{W.ufl_element()}" + ("" if mesh is None else
+                                   f" on a mesh of {cell_counts(mesh)[0]} local cells")
+
+
+def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
+    """The piecewise constant scalar space (for cell-wise material data)."""
+    if VERSION >= (0, 9):
+        return dolfinx.fem.functionspace(msh, ("DG", 0))
+    return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
+
+
+def cell_dofs(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
+    """The (unblocked) dofs of each local cell: a (cells × dofs per cell) array."""
+    dofs = V.dofmap.list
+    if VERSION >= (0, 9):  # a 2D array already
+        return dofs
+    return dofs.array.reshape(cell_counts(V.mesh)[1], -1)
+
+
+def dof_entities(V: dolfinx.fem.FunctionSpace, entities: dict[int, int]
+                 ) -> list[tuple[int, int]]:
+    """For each dof of a cell (reference order), the entity (dim, local index) it sits on.
+
+    ``entities``: the number of entities of each dimension of the cell.
+    """
+    layout = V.dofmap.dof_layout
+    out: dict[int, tuple[int, int]] = {}
+    for dim, n in entities.items():
+        for i in range(n):
+            for j in layout.entity_dofs(dim, i):
+                out[int(j)] = (dim, i)
+    return [out[j] for j in range(len(out))]
+
+
+def space_degree(V) -> int:
+    """The polynomial degree of a function space's element."""
+    degree = V.ufl_element().degree
+    return int(degree() if callable(degree) else degree)  # a property of basix.ufl elements
+
+
+def dof_count(V: dolfinx.fem.FunctionSpace) -> int:
+    """Number of (blocked) dofs of this rank, owned and ghost."""
+    return V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+
+
+def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
+    """Number of (unblocked) dofs owned by this rank."""
+    return V.dofmap.index_map.size_local
+
+
+def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
+    """A zero Function with a name (the name is what ParaView shows)."""
+    u = dolfinx.fem.Function(V)
+    u.name = name
+    return u
+
+
+def interpolate_expression(f: dolfinx.fem.Function, expr) -> None:
+    """Interpolate a UFL expression into ``f`` (at its element's interpolation points)."""
+    points = f.function_space.element.interpolation_points
+    points = points() if callable(points) else points  # a property since DOLFINx 0.8
+    f.interpolate(dolfinx.fem.Expression(expr, points))
+
+
+def scatter_forward(u: dolfinx.fem.Function) -> None:
+    """Update ghost values of a Function from their owners."""
+    u.x.scatter_forward()
+
+
+# ---------------------------------------------------------------------------------------------
+# Forms and assembly
+# ---------------------------------------------------------------------------------------------
 
 
 def measure(kind: str, msh: dolfinx.mesh.Mesh, tags=None) -> ufl.Measure:
@@ -133,20 +308,30 @@ def assemble_scalar(M: ufl.Form, comm: MPI.Comm) -> float:
     return comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(M)), op=MPI.SUM)
 
 
-def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
-    """A zero Function with a name (the name is what ParaView shows)."""
-    u = dolfinx.fem.Function(V)
-    u.name = name
-    return u
+# ---------------------------------------------------------------------------------------------
+# Linear solves (monolithic references in tests and benchmarks)
+# ---------------------------------------------------------------------------------------------
 
 
-def scatter_forward(u: dolfinx.fem.Function) -> None:
-    """Update ghost values of a Function from their owners."""
-    u.x.scatter_forward()
+def solve_linear(a: ufl.Form, L: ufl.Form, bcs, petsc_options: dict,
+                 prefix: str = "dolfinx_feti_linear_") -> dolfinx.fem.Function:
+    """Solve a(u, v) = L(v) with Dirichlet conditions by ``fem.petsc.LinearProblem``."""
+    if VERSION >= (0, 10):  # the options prefix became a required argument
+        problem = dolfinx.fem.petsc.LinearProblem(a, L, bcs=bcs, petsc_options=petsc_options,
+                                                  petsc_options_prefix=prefix)
+        out = problem.solve()
+        return out[0] if isinstance(out, tuple) else out
+    problem = dolfinx.fem.petsc.LinearProblem(a, L, bcs=bcs, petsc_options=petsc_options)
+    return problem.solve()
+
+
+# ---------------------------------------------------------------------------------------------
+# Files: XDMF and gmsh
+# ---------------------------------------------------------------------------------------------
 
 
 def write_xdmf(path: str | Path, msh: dolfinx.mesh.Mesh, functions) -> None:
-    """Write a mesh and P1 Functions to XDMF (readable by ParaView and DOLFINx)."""
+    """Write a mesh and Functions of its geometry degree (or DG0) to XDMF."""
     with dolfinx.io.XDMFFile(msh.comm, str(path), "w") as f:
         f.write_mesh(msh)
         for u in functions:
@@ -157,3 +342,16 @@ def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolf
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:
         return f.read_mesh(name=name)
+
+
+def gmsh_model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
+    """DOLFINx's conversion of a gmsh model held on ``rank``: (mesh, cell tags, facet tags)."""
+    if VERSION >= (0, 10):  # io.gmshio became io.gmsh and returns a MeshData
+        from dolfinx.io import gmsh as gmshio
+
+        data = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+        return data.mesh, data.cell_tags, data.facet_tags
+    from dolfinx.io import gmshio
+
+    out = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+    return out[0], out[1], out[2]

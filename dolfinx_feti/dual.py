@@ -167,7 +167,7 @@ class DualQP:
 
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
-            factor: str = "cholmod", norm_rtol: float = 1e-4,
+            factor: str | None = None, norm_rtol: float = 1e-4,
             timer: Timer | None = None, method: str = "tfeti") -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
 
@@ -191,7 +191,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
         with collective(comm, "decomposition"):
-            dec = decompose(problem.mesh, problem.decomposition, comm)
+            dec = decompose(problem.mesh, problem.decomposition, comm, problem.dof_points)
         mortar = []
         with collective(comm, "constraints"):
             rows = build_rows(problem, dec, mortar)
@@ -208,9 +208,10 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             with collective(comm, "constraints"):  # local work on global arrays
                 avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
                     rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
-                corners = choose_corners(mesh, dec, fixed, bs, avoid)
+                x = problem.dof_points.x
+                corners = choose_corners(mesh, dec, fixed, bs, avoid, x)
                 modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
-                                                 data.dof_comp, data.dof_sub)
+                                                 data.dof_comp, data.dof_sub, x)
             steps.append(EliminateCorners(steps[-1].child,
                                           corners.local(data.dof_node, data.dof_comp),
                                           corners.count, modes, bodies))
@@ -225,7 +226,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
 
 
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
-             factor: str = "cholmod", norm_rtol: float = 1e-4, timer: Timer | None = None,
+             factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
              dec=None, rows=None, info: dict | None = None) -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 

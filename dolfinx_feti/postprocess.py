@@ -1,10 +1,12 @@
 """What comes after a solve: derived fields, the pressure plot, NumPy output, run metadata.
 
-- :func:`von_mises`: the von Mises stress per cell (exact for P1 displacements, whose strain
-  is constant in each cell; in 2D with the plane-strain σ_zz = λ tr ε).
+- :func:`von_mises`: the von Mises stress per cell of a P1 displacement on simplices, from
+  nodal arrays (exact: the strain is constant in each cell; in 2D with the plane-strain
+  σ_zz = λ tr ε).
 - :func:`output_functions`: the cell fields that :meth:`Solution.write_xdmf` writes besides
   the displacement and the contact pressure: ``subdomain`` (the subdomain of each cell) and,
-  for :class:`~dolfinx_feti.Elasticity`, ``von_mises``, both piecewise constant (DG0).
+  for :class:`~dolfinx_feti.Elasticity`, ``von_mises`` at the cell midpoints, computed in UFL
+  from ``solution.u`` (any element), both piecewise constant (DG0).
 - :func:`pressure_profile` / :func:`plot_pressure`: the contact pressure along a contact
   surface (against x, y, z or, in 2D, the arc length) and its PNG plot.
 - :func:`save_nodal_values`: the solution as NumPy arrays in the mesh's node order (``.npz``).
@@ -22,7 +24,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+import ufl
 
+from . import compat
 from .errors import InputError
 from .fem import Elasticity
 from .mesh.gmsh_input import MeshData
@@ -66,8 +70,9 @@ def von_mises(mesh: MeshData, u: np.ndarray, E, nu) -> np.ndarray:
     """The von Mises stress in each cell of a P1 displacement field.
 
     Args:
-        mesh: The mesh.
-        u: Nodal displacements, shape (N, gdim).
+        mesh: The mesh (of simplices).
+        u: Nodal displacements, shape (N, gdim) (for a degree-2 solution: its vertex rows,
+            which give the P1 interpolant's stress).
         E: Young's modulus: a number or body name → number.
         nu: Poisson's ratio: a number or body name → number.
 
@@ -75,6 +80,9 @@ def von_mises(mesh: MeshData, u: np.ndarray, E, nu) -> np.ndarray:
         One value per cell, sqrt(3/2 s:s) with s the deviator of the 3×3 stress (plane strain
         in 2D: σ_zz = λ tr ε).
     """
+    if mesh.cell_type not in ("triangle", "tetrahedron"):
+        raise InputError(f"von_mises from nodal arrays needs simplices, not {mesh.cell_type} "
+                         "cells: use output_functions (UFL) instead")
     x, cells, d = mesh.x, mesh.cells, mesh.gdim
     G = x[cells[:, 1:]] - x[cells[:, :1]]  # (C, d, d): edge vectors from the first vertex
     dU = u[cells[:, 1:]] - u[cells[:, :1]]  # (C, d, d)
@@ -100,14 +108,32 @@ def output_functions(solution) -> list:
     """
     from .output import cell_function
 
-    mesh = solution.problem.mesh
-    msh = solution.u.function_space.mesh
-    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", msh)]
+    mesh, comm = solution.problem.mesh, solution.comm
+    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", comm)]
     forms = solution.problem.forms
     if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        vm = von_mises(mesh, solution.nodal_values(), forms.E, forms.nu)
-        out.append(cell_function(mesh, vm, "von_mises", msh))
+        E = cell_function(mesh, _per_cell(forms.E, mesh), "E", comm)
+        nu = cell_function(mesh, _per_cell(forms.nu, mesh), "nu", comm)
+        vm = cell_function(mesh, np.zeros(mesh.cells.shape[0]), "von_mises", comm)
+        compat.interpolate_expression(vm, _von_mises_ufl(solution.u, E, nu))
+        out.append(vm)
     return out
+
+
+def _von_mises_ufl(u, E, nu):
+    """The von Mises stress of a displacement Function as a UFL expression (as von_mises)."""
+    d = len(u)
+    mu = E / (2 * (1 + nu))
+    lmbda = E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = ufl.sym(ufl.grad(u))
+    sigma = 2 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(d)
+    if d == 3:
+        s = ufl.dev(sigma)
+        return ufl.sqrt(1.5 * ufl.inner(s, s))
+    szz = lmbda * ufl.tr(eps)  # plane strain
+    mean = (ufl.tr(sigma) + szz) / 3
+    s = sigma - mean * ufl.Identity(d)
+    return ufl.sqrt(1.5 * (ufl.inner(s, s) + (szz - mean) ** 2))
 
 
 # ------------------------------------------------------------------------------------------
@@ -234,7 +260,6 @@ def versions() -> dict[str, str]:
     """Versions of the libraries a solve depends on, for reports."""
     from importlib import metadata
 
-    import dolfinx
     import mpi4py
     import petsc4py
     from mpi4py import MPI
@@ -245,7 +270,7 @@ def versions() -> dict[str, str]:
     except metadata.PackageNotFoundError:
         own = "unknown"
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
-    return {"dolfinx_feti": own, "dolfinx": dolfinx.__version__, "petsc": petsc,
+    return {"dolfinx_feti": own, "dolfinx": compat.DOLFINX_VERSION, "petsc": petsc,
             "petsc4py": petsc4py.__version__, "numpy": np.__version__,
             "mpi4py": mpi4py.__version__,
             "mpi": MPI.Get_library_version().replace("\x00", "").split(",")[0].strip()}

@@ -106,7 +106,7 @@ def _subdomain_facets(mesh, dec) -> dict[int, dict[str, np.ndarray]]:
     for name, f in mesh.facet_groups.items():
         if f.shape[0] == 0:
             continue
-        cell, _ = locate_facets(mesh.cells, f)
+        cell, _ = locate_facets(mesh.cells, f, mesh.cell_type)
         sub = np.where(cell >= 0, dec.cell_sub[np.maximum(cell, 0)], -1)
         for s in np.unique(sub[sub >= 0]):
             out.setdefault(int(s), {})[name] = f[sub == s]
@@ -129,13 +129,16 @@ def assemble_subdomains(problem: ContactProblem, dec: Decomposition, comm: MPI.C
         K_parts, f_parts = [], []
         for group in _runs_of_equal_bodies(mesh, local_subs, cells_of):
             sub = Subdomain(group, mesh, [cells_of[s] for s in group],
-                            [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group])
+                            [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group],
+                            problem.dof_points)
             K, f = sub.assemble(problem.forms, bs)
             K_parts.append(K)
             f_parts.append(f)
         K = sp.block_diag(K_parts, format="csr") if K_parts else sp.csr_matrix((0, 0))
         nodes = [dec.nodes(s) for s in local_subs]
-        kernels = [rigid_modes(mesh.x[n], bs) for n in nodes]
+        # The rigid motions are linear: their nodal interpolation at the dof points is exact.
+        x = problem.dof_points.x
+        kernels = [rigid_modes(x[n], bs) for n in nodes]
         dof_node = np.repeat(np.concatenate(nodes), bs) if nodes else np.zeros(0, np.int64)
         dof_sub = np.repeat(local_subs, bs * np.array([n.size for n in nodes], dtype=np.int64))
     labels = [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in local_subs]
@@ -143,5 +146,5 @@ def assemble_subdomains(problem: ContactProblem, dec: Decomposition, comm: MPI.C
         comm=comm, bs=bs, gdim=mesh.gdim, local_subs=local_subs, sub_offset=sub_offset, K=K,
         f=np.concatenate(f_parts) if f_parts else np.zeros(0), kernels=kernels, labels=labels,
         bodies=[mesh.body_names[dec.sub_body[s]] for s in local_subs],
-        dof_x=mesh.x[dof_node], dof_comp=np.tile(np.arange(bs), dof_node.size // bs),
+        dof_x=x[dof_node], dof_comp=np.tile(np.arange(bs), dof_node.size // bs),
         dof_node=dof_node, dof_sub=dof_sub)

@@ -74,7 +74,8 @@ def _scaled(x: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
-                   bs: int, avoid: np.ndarray | None = None) -> Corners:
+                   bs: int, avoid: np.ndarray | None = None,
+                   x: np.ndarray | None = None) -> Corners:
     """The corners of a decomposition (see the module docstring).
 
     Args:
@@ -84,6 +85,8 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
         bs: Components per node.
         avoid: Nodes not to take as vertices; taken only where a pair of subdomains needs
             them to be joined rigidly and no other shared node does it.
+        x: Coordinates of the dof points that number the nodes (default: the mesh vertices).
+            The vertices come first among them, so the outer boundary marks mesh vertices.
     """
     N = dec.num_nodes
     ptr, subs = dec.node_subdomains()
@@ -107,10 +110,10 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
     vertices = int(corner.sum())
 
     # every pair of subdomains sharing a facet is joined rigidly by its shared corners
-    cells = facet_neighbours(mesh.cells)
+    cells = facet_neighbours(mesh.cells, mesh.cell_type)
     pair = np.sort(dec.cell_sub[cells], axis=1)
     pair = np.unique(pair[pair[:, 0] != pair[:, 1]], axis=0)
-    x = mesh.x
+    x = mesh.x if x is None else x
     held = {}
     for s, t in pair:
         both = np.intersect1d(dec.nodes(int(s)), dec.nodes(int(t)), assume_unique=True)
@@ -169,26 +172,30 @@ def components(rows: Rows, num_subdomains: int) -> np.ndarray:
 
 def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.ndarray,
                      bs: int, dof_node: np.ndarray, dof_comp: np.ndarray,
-                     dof_sub: np.ndarray) -> tuple[np.ndarray, list[str]]:
+                     dof_sub: np.ndarray, x: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, list[str]]:
     """The rigid motions of the floating components that their fixed dofs allow.
+
+    ``x`` holds the coordinates of the dof points numbering the nodes (default: the vertices).
 
     Returns:
         The motions at the given (local) dofs, n × m with the same m columns on every rank
         (zero on fixed dofs), and the bodies of each column.
     """
+    x = mesh.x if x is None else x
     comp = components(rows, dec.num_subdomains)
     columns, bodies = [], []
     for c in range(int(comp.max(initial=-1)) + 1):
         subs = np.flatnonzero(comp == c)
         nodes = np.unique(dec.pair_node[np.isin(dec.pair_sub, subs)])
-        centre, scale = _scaled(mesh.x[nodes])
-        Y = rigid_motions(mesh.x[nodes], bs, centre, scale).reshape(nodes.size, bs, -1)
+        centre, scale = _scaled(x[nodes])
+        Y = rigid_motions(x[nodes], bs, centre, scale).reshape(nodes.size, bs, -1)
         free = _free_motions(Y[fixed[nodes]])
         if free.shape[1] == 0:
             continue
         mine = np.flatnonzero(np.isin(dof_sub, subs))
         Z = np.zeros((dof_node.size, free.shape[1]))
-        Yl = rigid_motions(mesh.x[dof_node[mine]], bs, centre, scale).reshape(
+        Yl = rigid_motions(x[dof_node[mine]], bs, centre, scale).reshape(
             mine.size, bs, Y.shape[2])[np.arange(mine.size), dof_comp[mine]]
         Z[mine] = Yl @ free
         Z[fixed[dof_node, dof_comp]] = 0.0

@@ -65,7 +65,7 @@ class CornerSystem(_Rows):
         self.f = f
         self.n_coarse = step.n_coarse
 
-    def factorize(self, factor: str = "cholmod") -> None:
+    def factorize(self, factor: str | None = None) -> None:
         """Factor K_rr, build Ψ and S_cc, factor S_cc (collective)."""
         self._step.factorize(factor)
 
@@ -204,7 +204,7 @@ class EliminateCorners:
         self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
         return [cols[colour == k] for k in range(int(colour.max(initial=-1)) + 1)]
 
-    def factorize(self, factor: str = "cholmod") -> None:
+    def factorize(self, factor: str | None = None) -> None:
         """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse."""
         comm, parent, nc = self.parent.comm, self.parent, self.n_coarse
         with collective(comm):

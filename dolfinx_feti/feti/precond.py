@@ -27,6 +27,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..errors import SolveError
+from ..factor import default_factor
 from .kplus import SparseCholesky
 
 SCALINGS = ("multiplicity", "stiffness")
@@ -35,7 +36,7 @@ SCALINGS = ("multiplicity", "stiffness")
 class _DualScaling:
     """Z = (B Δ Bᵀ)⁻¹ with Δ = diag(K)⁻¹: the stiffness scaling of the dual space."""
 
-    def __init__(self, K, B, factor: str = "cholmod") -> None:
+    def __init__(self, K, B, factor: str | None = None) -> None:
         diag = K.diagonal()
         if diag.size and not np.all(diag > 0):
             raise SolveError("stiffness scaling: a subdomain matrix has a non-positive "
@@ -49,9 +50,10 @@ class _DualScaling:
         Bd.destroy()
         dvec.destroy()
         # B Δ Bᵀ is tiny and very sparse (rows couple only through shared dofs): factor it with
-        # the sequential package (CHOLMOD by default; MUMPS took 4 s and 45 ms per solve where
-        # CHOLMOD took 3 ms and 0.2 ms, 32 256 rows); on several ranks redundantly on each
-        # (PCREDUNDANT), which needs no parallel factorization.
+        # the sequential package (CHOLMOD, else PETSc's own by default; MUMPS took 4 s and 45 ms
+        # per solve where CHOLMOD took 3 ms and 0.2 ms, 32 256 rows); on several ranks
+        # redundantly on each (PCREDUNDANT), which needs no parallel factorization.
+        factor = factor or default_factor()
         comm = B.getComm()
         self._ksp = PETSc.KSP().create(comm)
         self._ksp.setOperators(self._C)
@@ -69,12 +71,35 @@ class _DualScaling:
             self._ksp.setFromOptions()
         try:
             self._ksp.setUp()
-        except PETSc.Error as e:
-            raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
-                             "rows of B redundant? use gluing='orthonormal')") from e
+            singular = not self._solves_accurately()
+        except PETSc.Error:
+            singular = True
         finally:
             for key in ("redundant_pc_type", "redundant_pc_factor_mat_solver_type"):
                 opts.delValue(f"{prefix}{key}")
+        if singular:
+            raise SolveError("stiffness scaling: B diag(K)⁻¹ Bᵀ cannot be factored (are the "
+                             "rows of B redundant? use gluing='orthonormal')")
+
+    def _solves_accurately(self) -> bool:
+        """A trial solve with a random right-hand side (collective).
+
+        CHOLMOD refuses a singular B Δ Bᵀ while factoring it; PETSc's own Cholesky only flags a
+        zero pivot in the solve's converged reason, and round-off pivots pass unflagged, so
+        the residual decides: a regular matrix is solved to round-off, a singular one leaves the
+        part of a random vector outside its range (of order 1/sqrt(rows)).
+        """
+        b, y = self._C.createVecs()
+        r = b.duplicate()
+        b.array[:] = np.random.default_rng(b.getOwnershipRange()[0]).standard_normal(
+            b.getLocalSize())
+        self._ksp.solve(b, y)
+        self._C.mult(y, r)
+        r.axpy(-1.0, b)
+        ok = self._ksp.getConvergedReason() >= 0 and r.norm() <= 1e-6 * b.norm()
+        for v in (b, y, r):
+            v.destroy()
+        return bool(ok)
 
     def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = Z x."""
@@ -95,7 +120,7 @@ class LumpedPreconditioner:
 
     name = "lumped"
 
-    def __init__(self, operands, scaling: str = "multiplicity", factor: str = "cholmod") -> None:
+    def __init__(self, operands, scaling: str = "multiplicity", factor: str | None = None) -> None:
         """Use ``operands = (K, B, left_out)`` of a primal system (see the module docstring)."""
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
@@ -155,7 +180,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
 
     name = "dirichlet"
 
-    def __init__(self, operands, factor: str = "cholmod", scaling: str = "multiplicity") -> None:
+    def __init__(self, operands, factor: str | None = None, scaling: str = "multiplicity") -> None:
         """Factor the interior blocks of the local subdomains."""
         super().__init__(operands, scaling, factor)
         K, B = self.K, self.B
@@ -198,7 +223,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
             self._chol.destroy()
 
 
-def make_preconditioner(kind: str, primal, factor: str = "cholmod",
+def make_preconditioner(kind: str, primal, factor: str | None = None,
                         scaling: str = "multiplicity"):
     """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module).
 

@@ -133,7 +133,7 @@ class BlockSystem(_Rows):
                    data.offsets, data.kernels, data.labels, data.bodies)
 
     # --- the generalized inverse -----------------------------------------------------------
-    def factorize(self, factor: str = "cholmod") -> None:
+    def factorize(self, factor: str | None = None) -> None:
         """Factor K once (K⁺ by fixing nodes on the singular blocks; collective)."""
         with collective(self.comm):
             self.Kplus = FixingNodesInverse(self.K, self.kernels, factor, self.labels)
