@@ -56,6 +56,10 @@ BALANCE_TOL = 1e-8
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
 CORNERS_ON_CONTACT = True
+#: FETI-DP in 3D: the edges (interface nodes outside the two-subdomain faces) primal, whole.
+#: Vertices alone leave F badly conditioned in 3D: on the rigid sphere S2 (bench/
+#: hertz3d_fetidp.py) 328 / 115 F-mults with Parts(4) / Parts(16) against 52 / 47 with edges.
+CORNER_EDGES = True
 
 #: The FETI methods.
 METHODS = ("tfeti", "feti1", "fetidp")
@@ -209,7 +213,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
                 avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
                     rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
                 x = problem.dof_points.x
-                corners = choose_corners(mesh, dec, fixed, bs, avoid, x)
+                corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
+                                         edges=CORNER_EDGES and mesh.gdim == 3)
                 modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
                                                  data.dof_comp, data.dof_sub, x)
             steps.append(EliminateCorners(steps[-1].child,

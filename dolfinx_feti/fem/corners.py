@@ -8,7 +8,10 @@ Corners. The interface nodes (in two or more subdomains) fall into *globs*: the 
 same set of subdomains and the same position (on the outer boundary or not). A glob of one node
 is a vertex: a cross point of three or more subdomains, or the end of an interface on the outer
 boundary. The vertices are the corners, as in the seed's FETI-DP (2D: 2 × 2 subdomains per
-body give 5 corners per body). Then every two subdomains that share a facet must be joined
+body give 5 corners per body). In 3D the vertices alone leave the dual operator badly
+conditioned (a classic result of FETI-DP theory, and what bench/hertz3d_fetidp.py measures), so
+``edges=True`` takes the edges whole: every interface node outside the faces shared by two
+subdomains inside the body. Then every two subdomains that share a facet must be joined
 rigidly by the corners they share (together with the dofs both hold fixed): the relative rigid
 motions of the pair must have no kernel on those dofs. Where they do (irregular decompositions),
 shared interface nodes are added, greedily the one that removes most of what is left. This
@@ -75,7 +78,7 @@ def _scaled(x: np.ndarray) -> tuple[np.ndarray, float]:
 
 def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
                    bs: int, avoid: np.ndarray | None = None,
-                   x: np.ndarray | None = None) -> Corners:
+                   x: np.ndarray | None = None, edges: bool = False) -> Corners:
     """The corners of a decomposition (see the module docstring).
 
     Args:
@@ -85,6 +88,7 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
         bs: Components per node.
         avoid: Nodes not to take as vertices; taken only where a pair of subdomains needs
             them to be joined rigidly and no other shared node does it.
+        edges: Also every interface node outside the faces (3D: the edges, whole).
         x: Coordinates of the dof points that number the nodes (default: the mesh vertices).
             The vertices come first among them, so the outer boundary marks mesh vertices.
     """
@@ -103,6 +107,8 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
     _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     corner = np.zeros(N, dtype=bool)
     corner[inter[count[inverse.ravel()] == 1]] = True
+    if edges:  # every interface node outside the faces (two subdomains, inside the body)
+        corner[inter[(mult[inter] >= 3) | on_boundary[inter]]] = True
     avoided = np.zeros(N, dtype=bool)
     if avoid is not None:
         avoided[avoid] = True
