@@ -588,8 +588,9 @@ class _Reader:
         title = data.get("title", self.path.stem)
         if "title" in data:
             title = c.string(title, "title") or self.path.stem
-        if "method" in data:
-            c.string(data["method"], "method", ("tfeti",))
+        method = None
+        if "method" in data:  # the FETI method: the solver option ``method``, at the top
+            method = c.string(data["method"], "method", ("tfeti", "feti1", "fetidp", "auto"))
         mesh_source = self._mesh()
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \
@@ -599,6 +600,11 @@ class _Reader:
         ties = self._ties()
         decomposition, gluing = self._decomposition()
         solver = self._solver()
+        if method is not None:
+            if solver.get("method", method) != method:
+                c.fault("method", f"{method!r} here, but solver.method is "
+                        f"{solver['method']!r}: give it once")
+            solver["method"] = method
         output = self._output(contact)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)

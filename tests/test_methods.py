@@ -5,11 +5,13 @@ body floats, and a coercive FETI-DP contact problem is solved by MPRGP alone (no
 
 from __future__ import annotations
 
+import element_models as em
 import numpy as np
 import pytest
 import reference as ref
 import test_b1_membranes as b1
 import test_blocks3d as b3
+import test_elements as te
 import test_friction as fr
 import test_friction3d as fr3
 import test_hertz2d as h2
@@ -219,3 +221,43 @@ def test_corner_system_definite_exactly_when_held(root, case):
     zero, kernel = _kernel_dimension(problem)
     assert zero == FLOATING[case]
     assert kernel == FLOATING[case]
+
+
+# --- the element types of the front end ------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def element_mesh():
+    built = {}
+
+    def get(cell):
+        if cell not in built:
+            built[cell] = {
+                "triangle": lambda: df.build_mesh(em.rectangle, quads=False),
+                "quadrilateral": lambda: df.build_mesh(em.rectangle, quads=True),
+                "tetrahedron": lambda: df.build_mesh(em.box, hexes=False),
+                "hexahedron": lambda: df.build_mesh(em.box, hexes=True),
+            }[cell]()
+        return built[cell]
+
+    return get
+
+
+@pytest.mark.parametrize("method", ["feti1", "fetidp"])
+@pytest.mark.parametrize("cell,degree", [(c, k) for c in ("triangle", "quadrilateral",
+                                                          "tetrahedron", "hexahedron")
+                                         for k in (1, 2)])
+def test_patch_on_every_element(element_mesh, cell, degree, method):
+    """The uniaxial patch test of test_elements (rollers, and contact on a rigid plane where the
+    element allows it) is exact with FETI-1 and FETI-DP: corners (and in 3D edges) of P2, Q1
+    and Q2 dof points, Dirichlet elimination and recovery in the loop."""
+    mesh = element_mesh(cell)
+    for contact in (False, True):
+        if contact and (cell, degree) == ("tetrahedron", 2):  # refused for every method
+            with pytest.raises(df.InputError, match="degree 2 on tetrahedron"):
+                te.uniaxial(mesh, degree, contact=contact)
+            continue
+        problem = te.uniaxial(mesh, degree, contact=contact)
+        sol = df.solve(problem, rtol=te.RTOL, method=method)
+        assert sol.report.converged
+        assert (sol.report.sizes.get("corner_nodes", 0) > 0) == (method == "fetidp")
+        assert te.rel_error(problem, sol) <= te.EXACT
