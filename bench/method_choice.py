@@ -35,13 +35,16 @@ ROOT = Path(__file__).resolve().parent.parent
 METHODS = ("tfeti", "feti1", "fetidp")
 
 
-def b4(n: int, H: float, friction=None) -> df.ContactProblem:
-    """B4 (block sheared on a foundation, both held: no floating body), H×H grid."""
+def b4(n: int, H: float | None, friction=None) -> df.ContactProblem:
+    """B4 (block sheared on a foundation, both held: no floating body).
+
+    H×H grid of subdomains; None: one subdomain per body.
+    """
     return df.ContactProblem(
         df.build_mesh(meshes.tresca2d, n=n), df.Elasticity(fs.E, fs.NU),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=fs.SHIFT)],
         contact=[df.NodeToNode("block_bottom", "foundation_top", friction=friction)],
-        decomposition=fs.grid(H))
+        decomposition=df.ByTags() if H is None else fs.grid(H))
 
 
 #: name → (floats?, builder). Sizes that solve in seconds.
@@ -56,6 +59,10 @@ CASES = {
     "B4 Tresca, H = 1/4, H/h = 8": (False, lambda: b4(32, 1 / 4, df.Tresca(0.1))),
     "3D blocks, Parts(8)": (True, lambda: P.blocks3d(8, 8, sides=True)),
     "3D blocks, no sides, Parts(8)": (True, lambda: P.blocks3d(8, 8, sides=False)),
+    "3D blocks, ByTags": (True, lambda: P.blocks3d(8, 8, sides=True, decomposition=df.ByTags())),
+    "B1, ByTags": (True, lambda: P.b1(64, None)),
+    "2D Hertz, ByTags": (True, lambda: P.hertz2d(decomposition=df.ByTags())),
+    "B4 Tresca, ByTags": (False, lambda: b4(32, None, df.Tresca(0.1))),
     "rigid sphere S1, Parts(4)": (False, lambda: C.sphere_problem("S1", 4)),
     "rigid sphere S1, Parts(16)": (False, lambda: C.sphere_problem("S1", 16)),
 }

@@ -205,7 +205,8 @@ def hertz2d(parts: int = 4, h_contact: float = 0.05, h_far: float = 1.0,
         decomposition=decomposition or df.Parts(parts))
 
 
-def blocks3d(n: int = 4, parts: int = 2, sides: bool = True) -> df.ContactProblem:
+def blocks3d(n: int = 4, parts: int = 2, sides: bool = True,
+             decomposition=None) -> df.ContactProblem:
     """Two stacked 3D blocks, lower clamped at the bottom, top traction (0, 0, −1).
 
     sides: rollers (u_x = u_y = 0) on the upper block's sides; without them the upper block's
@@ -217,7 +218,7 @@ def blocks3d(n: int = 4, parts: int = 2, sides: bool = True) -> df.ContactProble
     return df.ContactProblem(
         blocks3d_mesh(n), df.Elasticity(1000.0, 0.3, tractions={"top": (0.0, 0.0, -1.0)}),
         dirichlet=dirichlet, contact=[df.NodeToNode("contact_upper", "contact_lower")],
-        decomposition=df.Parts(parts))
+        decomposition=decomposition or df.Parts(parts))
 
 
 def squares2d_body_force(x):

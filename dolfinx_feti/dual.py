@@ -9,6 +9,8 @@ The chain of transforms (:mod:`dolfinx_feti.feti`) for each method:
 - ``"fetidp"``: eliminate Dirichlet conditions → eliminate corners → dualize, and homogenize →
   project only when a body floats (else there is no equality constraint on the dual).
 
+``"auto"`` picks one of them by :func:`choose_method` once the rows are known.
+
 After it the problem is
 
     min 1/2 xᵀ A x − bᵀ x   s.t.   x ≥ lb on the inequality rows,   G̃ x = 0,
@@ -190,8 +192,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     Raises:
         InputError: When the load on a floating body cannot be balanced (``e ∉ Im G``).
     """
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if method not in (*METHODS, "auto"):
+        raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
         with collective(comm, "decomposition"):
@@ -199,6 +201,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         mortar = []
         with collective(comm, "constraints"):
             rows = build_rows(problem, dec, mortar)
+            if method == "auto":
+                method = choose_method(problem, dec, rows)
     data = assemble_subdomains(problem, dec, comm, timer)
     info: dict = {}
     with timer.phase("constraints"):
@@ -228,6 +232,33 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     count = np.diff(dec.node_subdomains()[0])
     qp.copy_weight = 1.0 / count[data.dof_node]
     return qp
+
+
+def choose_method(problem: ContactProblem, dec, rows) -> str:
+    """The method ``method="auto"`` picks (the rule of docs/solvers.md).
+
+    Derived from ``bench/method_choice.py`` (F-multiplications of every method on problems with
+    and without floating bodies, 2D and 3D, few and many subdomains):
+
+    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
+      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
+    - no body floats (every body's rigid motions stopped by its Dirichlet conditions, bodies
+      joined by ties counted as one): ``"fetidp"``. K̃ is definite, the contact problem is
+      bound-constrained and MPRGP runs alone: 3–5× fewer F-mults on held B1 and the 3D rigid
+      sphere; the one measured exception, B4 (a block sheared by its prescribed top), takes
+      1.6–2.5× more than TFETI;
+    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
+      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
+
+    Only global arrays are read (the same on every rank).
+    """
+    if not np.any(rows.kind == Kind.GLUE):
+        return "feti1"
+    fixed, _ = dirichlet_mask(problem, problem.mesh)
+    none = np.zeros(0, dtype=np.int64)
+    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size, none, none,
+                               none, problem.dof_points.x)
+    return "tfeti" if free else "fetidp"
 
 
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",

@@ -64,7 +64,8 @@ FETI = OptionSet(
                   "'tfeti' (Total FETI: Dirichlet conditions as rows of B, every subdomain "
                   "floats), 'feti1' (Dirichlet conditions eliminated, kernels only for the "
                   "floating subdomains), 'fetidp' (FETI-DP: corner dofs primal too, no coarse "
-                  "space when every body is held) or 'auto' (dolfinx_feti.solve.choose_method)"),
+                  "space when every body is held) or 'auto' (the rule of "
+                  "dolfinx_feti.dual.choose_method, docs/solvers.md)"),
     rtol=Option(1e-6, _TOL, "stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term)"),
     eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
                    "None: rtol"),

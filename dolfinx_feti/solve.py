@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .constraints.friction import friction_data
-from .dual import DualQP, dual_qp
+from .dual import DualQP, choose_method, dual_qp
 from .errors import NotConverged, collective
 from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
@@ -84,9 +84,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     progress = Progress(comm, opts.verbose)
     timer = Timer(progress.phase)
     report = Report()
-    method = choose_method(problem) if opts.method == "auto" else opts.method
     qp = dual_qp(problem, comm, factor=opts.factor, norm_rtol=opts.norm_rtol, timer=timer,
-                 method=method)
+                 method=opts.method)
     report.warnings.extend(qp.warnings)
     feti, dec, rows, system = qp.feti, qp.dec, qp.rows, qp.system
     n_ineq = int(rows.inequality.sum())
@@ -240,11 +239,6 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     for v in (g, lam):
         v.destroy()
     return QPSolve(result=res, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
-
-
-def choose_method(problem: ContactProblem) -> str:
-    """The method ``method="auto"`` picks for a problem."""
-    return "tfeti"
 
 
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None):

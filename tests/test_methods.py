@@ -20,6 +20,7 @@ from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti import meshes
+from dolfinx_feti import problemfile as pfile
 from dolfinx_feti.dual import dual_qp
 from dolfinx_feti.feti.system import local_csr
 
@@ -261,3 +262,50 @@ def test_patch_on_every_element(element_mesh, cell, degree, method):
         assert sol.report.converged
         assert (sol.report.sizes.get("corner_nodes", 0) > 0) == (method == "fetidp")
         assert te.rel_error(problem, sol) <= te.EXACT
+
+
+# --- where the method is chosen ------------------------------------------------------------------
+
+@pytest.mark.serial
+def test_method_in_problem_file_and_command_line(root, tmp_path):
+    """The top-level ``method`` of a problem file is the solver option; ``-feti_method`` on the
+    command line overrides it; given twice differently, or unknown, the file is refused."""
+    text = (root / "problems/membranes_8.toml").read_text().replace(
+        'mesh = "../meshes/', f'mesh = "{(root / "meshes").as_posix()}/')
+    path = tmp_path / "p.toml"
+    path.write_text('method = "fetidp"\n' + text)
+    pf = pfile.load(path)
+    assert pf.solver_options().method == "fetidp"
+    pf = pfile.load(path, command_line=["-feti_method", "feti1"])
+    assert pf.solver_options().method == "feti1"
+    assert df.solve(pf.problem, options=pf.solver_options()).report.method == "FETI-1"
+    path.write_text('method = "fetidp"\n' + text.replace("[solver]", '[solver]\nmethod = "tfeti"'))
+    with pytest.raises(pfile.ProblemFileError, match="give it once"):
+        pfile.load(path)
+    path.write_text('method = "feti-dp"\n' + text)
+    with pytest.raises(pfile.ProblemFileError, match="did you mean 'fetidp'"):
+        pfile.load(path)
+
+
+@pytest.mark.parametrize("case,expected", [
+    ("b1_grid", "tfeti"),  # the left membrane floats
+    ("b1_tags", "feti1"),  # one subdomain per body: no gluing rows
+    ("tresca2d", "fetidp"),  # both bodies held
+    ("blocks3d_constrained", "tfeti"),  # the upper block floats in z
+])
+def test_auto(root, case, expected):
+    """``method="auto"``: the rule of docs/solvers.md, and the solution of the chosen method."""
+    membranes = df.read_gmsh(root / "meshes/membranes_8.msh")
+    problem = {
+        "b1_grid": lambda: b1.problem(membranes, b1.grid(0.5)),
+        "b1_tags": lambda: b1.problem(membranes, df.ByTags()),
+        "tresca2d": lambda: fr.b4(df.build_mesh(meshes.tresca2d, n=4), df.Tresca(fr.G),
+                                  df.Parts(4)),
+        "blocks3d_constrained": lambda: b3.problem(df.read_gmsh(root / "meshes/blocks3d.msh"),
+                                                   "constrained", df.Parts(4)),
+    }[case]
+    auto = df.solve(problem(), rtol=RTOL, method="auto")
+    chosen = df.solve(problem(), rtol=RTOL, method=expected)
+    assert auto.report.method == chosen.report.method
+    assert auto.report.hessian_mults == chosen.report.hessian_mults
+    assert np.array_equal(auto.nodal_values(), chosen.nodal_values())
