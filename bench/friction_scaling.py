@@ -41,11 +41,11 @@ def grid(H: float) -> df.ByFunction:
 
 
 def run(H: Fraction, hh: int, g: float, rtol: float, comm, method: str = "tfeti",
-        preconditioner: str | None = None) -> dict:
+        preconditioner: str | None = None, expansion: str | None = None) -> dict:
     n = int(hh / H)  # elements per unit length
     mesh = df.build_mesh(meshes.tresca2d, n=n, comm=comm)
     row = {"H": str(H), "H/h": hh, "n": n, "method": method,
-           "preconditioner": preconditioner or "default"}
+           "preconditioner": preconditioner or "default", "expansion": expansion or "default"}
     for name, friction in (("frictionless", None), ("tresca", df.Tresca(g))):
         problem = df.ContactProblem(
             mesh, df.Elasticity(E, NU),
@@ -54,7 +54,8 @@ def run(H: Fraction, hh: int, g: float, rtol: float, comm, method: str = "tfeti"
             decomposition=grid(float(H)))
         t0 = time.perf_counter()
         sol = df.solve(problem, comm=comm, rtol=rtol, max_it=20000, max_outer=1000,
-                       method=method, preconditioner=preconditioner)
+                       method=method, preconditioner=preconditioner,
+                       mprgp_expansion=expansion)
         t = time.perf_counter() - t0
         r = sol.report
         row.update({"subdomains": r.sizes["subdomains"], "primal": r.sizes["primal"],
@@ -82,6 +83,9 @@ def main() -> None:
                         help="FETI methods, comma-separated (tfeti, feti1, fetidp)")
     parser.add_argument("--preconditioners", type=str, default="default",
                         help="preconditioners, comma-separated ('default': the library's)")
+    parser.add_argument("--expansion", type=str, default=None,
+                        help="MPRGP's expansion step (fixed, optimal, projcg; default: the "
+                             "library's)")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/friction_scaling.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
@@ -90,11 +94,12 @@ def main() -> None:
         for pre in args.preconditioners.split(","):
             for H in (Fraction(s) for s in args.H.split(",")):
                 rows.append(run(H, args.hh, args.g, args.rtol, comm, method,
-                                None if pre == "default" else pre))
+                                None if pre == "default" else pre, args.expansion))
                 if comm.rank == 0:
                     print(json.dumps(rows[-1]), flush=True)
     lines = [
-        f"B4, H/h = {args.hh}, Tresca g = {args.g}, rtol = {args.rtol:g}, {comm.size} rank(s)",
+        f"B4, H/h = {args.hh}, Tresca g = {args.g}, rtol = {args.rtol:g}, {comm.size} rank(s), "
+        f"MPRGP expansion {args.expansion or 'default'}",
         "",
         "| method | preconditioner | H | subdomains | primal dofs | dual dofs | corners | "
         "contact nodes | frictionless: outer / F-mults / s | Tresca: outer / F-mults / s | "
