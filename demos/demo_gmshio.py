@@ -41,6 +41,7 @@ parser.add_argument("--h", type=float, default=0.02, help="element size at the c
 parser.add_argument("--parts", type=int, default=4, help="subdomains")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance")
 parser.add_argument("--out", type=Path, default=Path("output/gmshio"), help="output folder")
+parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
 args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 R, P, E, nu = 1.0, 0.5, 100.0, 0.3
@@ -178,4 +179,6 @@ if comm.rank == 0:
           f"largest error for x < 0.9 a: {100 * np.abs(p - hertz)[inner].max() / p0:.2f} % of p0")
     print(f"total contact force {solution.total_contact_force[1]:.6f} (P/2 = {P / 2})")
     print(f"output: {args.out / 'cylinder.xdmf'}")
+if args.json:
+    solution.report.save_json(args.json)
 # -
