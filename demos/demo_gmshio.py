@@ -22,12 +22,15 @@ import argparse
 import sys
 from pathlib import Path
 
+# mpi4py before dolfinx: DOLFINx 0.11's PyPI wheel finds its MPI library once mpi4py has loaded it
+from mpi4py import MPI
+
+# isort: split
 import dolfinx.fem
 import dolfinx.io
 import gmsh
 import numpy as np
 import ufl
-from mpi4py import MPI
 
 import dolfinx_feti as df
 
@@ -103,12 +106,12 @@ names = comm.bcast(names, root=0)
 out = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
 if comm.rank == 0:
     gmsh.finalize()
-if isinstance(out, tuple):
-    msh, cell_tags, facet_tags = out
-    mesh = df.from_dolfinx(msh, cell_tags, facet_tags, names=names)
-else:
+if hasattr(out, "facet_tags"):  # DOLFINx 0.10 and later: one object, names included
     msh, facet_tags = out.mesh, out.facet_tags
     mesh = df.from_dolfinx(out)
+else:
+    msh, cell_tags, facet_tags = out
+    mesh = df.from_dolfinx(msh, cell_tags, facet_tags, names=names)
 # -
 
 # ## The problem and the solve
