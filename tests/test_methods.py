@@ -269,7 +269,8 @@ def test_patch_on_every_element(element_mesh, cell, degree, method):
 @pytest.mark.serial
 def test_method_in_problem_file_and_command_line(root, tmp_path):
     """The top-level ``method`` of a problem file is the solver option; ``-feti_method`` on the
-    command line overrides it; given twice differently, or unknown, the file is refused."""
+    command line overrides it; given twice differently, or unknown, the file is refused. The
+    decomposition's ``balance`` key likewise."""
     text = (root / "problems/membranes_8.toml").read_text().replace(
         'mesh = "../meshes/', f'mesh = "{(root / "meshes").as_posix()}/')
     path = tmp_path / "p.toml"
@@ -284,6 +285,13 @@ def test_method_in_problem_file_and_command_line(root, tmp_path):
         pfile.load(path)
     path.write_text('method = "feti-dp"\n' + text)
     with pytest.raises(pfile.ProblemFileError, match="did you mean 'fetidp'"):
+        pfile.load(path)
+    # the decomposition for graded meshes: Parts balancing volume
+    parts = text.replace('type = "tags"', 'type = "parts"\nn = 2\nbalance = "volume"')
+    path.write_text(parts)
+    assert pfile.load(path).problem.decomposition == df.Parts(2, "rcb", "volume")
+    path.write_text(parts.replace('balance = "volume"', 'balance = "volume"\nmethod = "ptscotch"'))
+    with pytest.raises(pfile.ProblemFileError, match="'volume' needs method = 'rcb'"):
         pfile.load(path)
 
 
