@@ -285,8 +285,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
     for step in steps:
         row_index = row_index[step.kept]
     with timer.phase("factorization"):
-        with collective(comm, "factorization"):
-            system.factorize(factor)
+        system.factorize(factor, site="factorization")  # guarded inside (collective phases)
     with timer.phase("dual operators"):
         feti = Dualization(system)
     ineq = system.types == INEQUALITY

@@ -65,9 +65,9 @@ class CornerSystem(_Rows):
         self.f = f
         self.n_coarse = step.n_coarse
 
-    def factorize(self, factor: str | None = None) -> None:
-        """Factor K_rr, build Ψ and S_cc, factor S_cc (collective)."""
-        self._step.factorize(factor)
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """Factor K_rr, build Ψ and S_cc, factor S_cc (collective; ``site``: the guard's)."""
+        self._step.factorize(factor, site)
 
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K̃⁺ x."""
@@ -204,10 +204,14 @@ class EliminateCorners:
         self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
         return [cols[colour == k] for k in range(int(colour.max(initial=-1)) + 1)]
 
-    def factorize(self, factor: str | None = None) -> None:
-        """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse."""
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
+
+        The rank-local part runs in one guard (:func:`~dolfinx_feti.errors.collective`, phase
+        ``site``); the assembly of S_cc after it is collective.
+        """
         comm, parent, nc = self.parent.comm, self.parent, self.n_coarse
-        with collective(comm):
+        with collective(comm, site):
             self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
             n = self._n_local
             rows, cols, vals = [], [], []

@@ -133,9 +133,13 @@ class BlockSystem(_Rows):
                    data.offsets, data.kernels, data.labels, data.bodies)
 
     # --- the generalized inverse -----------------------------------------------------------
-    def factorize(self, factor: str | None = None) -> None:
-        """Factor K once (K⁺ by fixing nodes on the singular blocks; collective)."""
-        with collective(self.comm):
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """Factor K once (K⁺ by fixing nodes on the singular blocks; collective).
+
+        ``site`` names the phase for :func:`~dolfinx_feti.errors.collective` (one guard, not
+        nested in another: a rank failing in an outer guard would meet the others' inner one).
+        """
+        with collective(self.comm, site):
             self.Kplus = FixingNodesInverse(self.K, self.kernels, factor, self.labels)
 
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
