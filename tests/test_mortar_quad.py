@@ -17,7 +17,7 @@ import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_quad
 from dolfinx_feti.constraints.mortar import mortar_coupling
 from dolfinx_feti.errors import InputError
-from dolfinx_feti.mesh.topology import nodal_normals_and_areas
+from dolfinx_feti.mesh.topology import facet_normals, nodal_normals_and_areas
 from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 
@@ -217,3 +217,66 @@ def test_degree_2_mortar_is_refused_with_the_reason():
         df.ContactProblem(mesh, df.Elasticity(100.0, 0.3, degree=2),
                           dirichlet=[df.Dirichlet("bottom")],
                           contact=[df.Mortar("upper_bottom", "lower_top")])
+
+
+# -- Hertz: 2D on quadrilaterals, 3D on hexahedra beside the tetrahedral mortar result ----------
+
+R, P, E_H, NU_H = 8.0, 10.0, 200.0, 0.3
+E_STAR = E_H / (2.0 * (1.0 - NU_H**2))
+A_HERTZ = 2.0 * np.sqrt(R * P / (np.pi * E_STAR))
+P0_HERTZ = np.sqrt(P * E_STAR / (np.pi * R))
+
+
+def test_hertz2d_on_quadrilaterals_converges():
+    """Disk on block, each meshed on its own in quadrilaterals (gmsh's subdivision of its
+    triangles: edges of h/2 and 1.7 h/2)."""
+    errors = []
+    for h in (0.4, 0.2, 0.1):
+        mesh = occ_mesh(disk_on_block, h, 1.7 * h, subdivide=1)
+        assert mesh.cell_type == "quadrilateral"
+        sol = df.solve(df.ContactProblem(
+            mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, -P / 2 / R)}),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+            contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4)),
+            rtol=1e-8)
+        c = sol.contact
+        p0 = c.pressure.max()
+        errors.append(abs(p0 / P0_HERTZ - 1.0))
+        half_width = c.x[c.pressure > 1e-6 * p0, 0].max()
+        load = P / 2 / R * np.linalg.norm(np.diff(mesh.x[mesh.facets("load")], axis=1),
+                                          axis=2).sum()
+        assert sol.total_contact_force[1] == pytest.approx(load, rel=1e-6)
+        assert not sol.report.warnings, sol.report.warnings
+    assert errors[0] > errors[1] > errors[2], errors  # the error falls with h
+    assert errors[2] < 0.03, errors
+    assert abs(half_width - A_HERTZ) < 1.7 * 0.1 / 2  # within one (block) element
+
+
+def sphere_problem(mesh):
+    F = 20.0
+    t = F / 4 / (np.pi * R**2 / 4)
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
+                   df.Dirichlet("sym_y", components=[1])],
+        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(8))
+    sol = df.solve(problem, rtol=1e-9)
+    assert sol.report.converged and not sol.report.warnings, sol.report.warnings
+    _, area = facet_normals(mesh.x, mesh.cells, mesh.facets("load"), mesh.cell_type)
+    assert sol.total_contact_force[2] == pytest.approx(t * area.sum(), rel=1e-8)
+    c = sol.contact
+    r = np.linalg.norm(c.x[:, :2], axis=1)
+    return c.pressure.max(), r[c.pressure > 1e-6 * c.pressure.max()].max()
+
+
+def test_sphere_on_block_hexahedra_against_tetrahedra():
+    """Hexahedra (gmsh's subdivision of tetrahedra of 0.4 / 0.6: edges about 0.2 / 0.3, the
+    sphere's quadrilateral facets warped) against tetrahedra of 0.15 / 0.25."""
+    a_hertz = (3 * 20.0 * R / (4 * E_STAR)) ** (1 / 3)
+    hexes = occ_mesh(sphere_on_block, 0.4, 0.6, subdivide=2)
+    assert hexes.cell_type == "hexahedron"
+    p0_hex, radius_hex = sphere_problem(hexes)
+    p0_tet, radius_tet = sphere_problem(occ_mesh(sphere_on_block, 0.15, 0.25))
+    assert abs(radius_hex - a_hertz) < 0.3, (radius_hex, a_hertz)  # within one element
+    assert abs(radius_hex - radius_tet) < 0.3, (radius_hex, radius_tet)
+    assert abs(p0_hex / p0_tet - 1.0) < 0.03, (p0_hex, p0_tet)
