@@ -106,6 +106,9 @@ def inverse_bilinear(P: np.ndarray, p: np.ndarray, tol: float = 1e-13,
                      max_iter: int = 30) -> np.ndarray:
     """Reference coordinates of points in planar quadrilaterals, by Newton's method.
 
+    The first step, from the centre, is exact for parallelograms: only the other
+    quadrilaterals iterate on.
+
     Args:
         P: Vertices (F, 4, 2) in tensor order.
         p: Points (F, Q, 2); each row's points are mapped by its quadrilateral.
@@ -118,22 +121,35 @@ def inverse_bilinear(P: np.ndarray, p: np.ndarray, tol: float = 1e-13,
     """
     a, b = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
     c = P[:, 3] - P[:, 1] - P[:, 2] + P[:, 0]
-    r0 = P[:, None, 0] - p
     xi = np.full(p.shape, 0.5)
+    _newton_step(xi, P[:, 0], a, b, c, p)
+    size = np.abs(a).sum(axis=1) + np.abs(b).sum(axis=1)
+    bent = np.flatnonzero(np.abs(c).sum(axis=1) > 1e-12 * size)
+    if bent.size == 0:
+        return xi
+    sub = xi[bent]
     for _ in range(max_iter):  # a few Newton steps, each over all points at once
-        s, t = xi[..., 0:1], xi[..., 1:2]
-        res = r0 + s * a[:, None] + t * b[:, None] + s * t * c[:, None]
-        j_s = a[:, None] + t * c[:, None]
-        j_t = b[:, None] + s * c[:, None]
-        det = j_s[..., 0] * j_t[..., 1] - j_s[..., 1] * j_t[..., 0]
-        det = np.where(det == 0.0, 1.0, det)
-        ds = (j_t[..., 1] * res[..., 0] - j_t[..., 0] * res[..., 1]) / det
-        dt = (j_s[..., 0] * res[..., 1] - j_s[..., 1] * res[..., 0]) / det
-        xi[..., 0] -= ds
-        xi[..., 1] -= dt
-        if max(np.abs(ds).max(initial=0.0), np.abs(dt).max(initial=0.0)) < tol:
+        step = _newton_step(sub, P[bent, 0], a[bent], b[bent], c[bent], p[bent])
+        if step < tol:
             break
+    xi[bent] = sub
     return xi
+
+
+def _newton_step(xi, p0, a, b, c, p) -> float:
+    """One Newton step for x(ξ) = p0 + aξ + bη + cξη = p, in place; returns the largest update."""
+    s, t = xi[..., 0], xi[..., 1]
+    res = [p0[:, None, d] + s * a[:, None, d] + t * b[:, None, d] + s * t * c[:, None, d]
+           - p[..., d] for d in range(2)]
+    j_s = [a[:, None, d] + t * c[:, None, d] for d in range(2)]
+    j_t = [b[:, None, d] + s * c[:, None, d] for d in range(2)]
+    det = j_s[0] * j_t[1] - j_s[1] * j_t[0]
+    det = np.where(det == 0.0, 1.0, det)
+    ds = (j_t[1] * res[0] - j_t[0] * res[1]) / det
+    dt = (j_s[0] * res[1] - j_s[1] * res[0]) / det
+    xi[..., 0] -= ds
+    xi[..., 1] -= dt
+    return max(np.abs(ds).max(initial=0.0), np.abs(dt).max(initial=0.0))
 
 
 def plane_frame(P: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -178,27 +194,30 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
     poly, count = clip_polygons(Mp[:, CYCLIC], np.full(i.size, 4), Sc)
     idx = np.flatnonzero(count >= 3)
     poly, count = poly[idx], count[idx]
-    K = poly.shape[1]
-    # Fan triangles (centroid, vertex k, vertex k + 1) of each convex overlap polygon.
-    c = poly.sum(axis=1) / count[:, None]
-    k = np.arange(K)
-    use = k[None, :] < count[:, None]  # (n, K)
-    p1 = poly
-    p2 = np.take_along_axis(poly, ((k[None, :] + 1) % count[:, None])[..., None], axis=1)
-    e1, e2 = p1 - c[:, None], p2 - c[:, None]
-    area = 0.5 * np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]) * use
-    # Quadrature points and weights (area of the plane).
-    q = c[:, None, None] + TRI_X[None, None, :, 0:1] * e1[:, :, None] + \
-        TRI_X[None, None, :, 1:2] * e2[:, :, None]
-    q = q.reshape(idx.size, -1, 2)  # (n, K·Q, 2)
-    w = (area[:, :, None] * TRI_W).reshape(idx.size, -1)
-    xs = inverse_bilinear(S[idx], q)
-    xm = inverse_bilinear(Mp[idx], q)
-    # Area element of the slave surface relative to that of its projection onto the plane.
-    Pi = Ps[idx]
-    ratio = area_element(Pi, xs) / np.maximum(area_element(S[idx], xs), 1e-300)
-    psi = np.einsum("fqi,fli->fql", shape(xs), A[i[idx]])  # ψ_l = Σ_i A_li N_i
-    vals = np.einsum("fq,fql,fqk->flk", w * ratio, psi, shape(xm))
+    # Fan triangles (centroid, vertex k, vertex k + 1) of each convex overlap polygon, listed
+    # pair after pair (a fan about a vertex has fewer triangles, but slivers: on trapezoids
+    # the rational integrand's error grows a hundredfold).
+    first = np.cumsum(count) - count
+    pair = np.repeat(np.arange(idx.size), count)
+    k = np.arange(pair.size) - first[pair]
+    v0 = (poly.sum(axis=1) / count[:, None])[pair]
+    e1 = poly[pair, k] - v0
+    e2 = poly[pair, (k + 1) % count[pair]] - v0
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    q = v0[:, None] + TRI_X[None, :, 0:1] * e1[:, None] + TRI_X[None, :, 1:2] * e2[:, None]
+    w = area[:, None] * TRI_W  # (T, Q), the plane's area element
+    on = idx[pair]  # the (slave, master) pair of each triangle
+    xs = inverse_bilinear(S[on], q)
+    xm = inverse_bilinear(Mp[on], q)
+    # A warped slave facet: its area element relative to that of its projection on the plane.
+    height = np.abs(np.einsum("ikl,il->ik", Ps - origin[:, None], ns[i])).max(axis=1)
+    warped = np.flatnonzero(height[on] > 1e-12 * np.abs(S[on]).max(axis=(1, 2)))
+    if warped.size:
+        w[warped] *= area_element(Ps[on[warped]], xs[warped]) / \
+            np.maximum(area_element(S[on[warped]], xs[warped]), 1e-300)
+    psi = shape(xs) @ np.swapaxes(A[i[on]], 1, 2)  # (T, Q, 4): ψ_l = Σ_i A_li N_i
+    vals = np.swapaxes(w[:, :, None] * psi, 1, 2) @ shape(xm)  # (T, 4, 4): Σ_q w ψ_l N_k
+    vals = np.add.reduceat(vals, first, axis=0) if pair.size else np.zeros((0, 4, 4))
     keep = np.abs(vals).sum(axis=(1, 2)) > 0.0
     si, mj = i[idx[keep]], j[idx[keep]]
     rows = np.repeat(slave[si], 4, axis=1).ravel()
