@@ -148,7 +148,8 @@ class Mortar:
     surface through the integrals of the slave's dual basis against the master's shape
     functions over the overlap of each slave facet with the master facets projected onto it
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
-    its facets' normals; the initial gap comes from the geometry (weighted).
+    its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
+    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within

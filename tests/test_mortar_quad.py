@@ -194,6 +194,7 @@ def test_tie_patch_test(blocks):
 
 
 def test_mortar_equals_node_to_node_on_matching_hexahedra():
+    """Frictionless and with Tresca friction (whose rows use the same weights)."""
     mesh = occ_mesh(stacked_blocks, 3, 0.25, 0.25, recombine=True)
     load = {"top": (0.2, 0.1, -1.0)}
 
@@ -204,11 +205,13 @@ def test_mortar_equals_node_to_node_on_matching_hexahedra():
                        df.Dirichlet("sym1", components=[1])],
             contact=[contact], decomposition=df.Parts(2))
 
-    a = df.solve(problem(df.Mortar("upper_bottom", "lower_top")), rtol=1e-12)
-    b = df.solve(problem(df.NodeToNode("upper_bottom", "lower_top")), rtol=1e-12)
-    ub = b.nodal_values()
-    assert np.abs(a.nodal_values() - ub).max() < 1e-8 * np.abs(ub).max()
-    assert np.allclose(a.total_contact_force, b.total_contact_force, rtol=1e-8)
+    for fr in (None, df.Tresca(0.3)):
+        a = df.solve(problem(df.Mortar("upper_bottom", "lower_top", friction=fr)), rtol=1e-12)
+        b = df.solve(problem(df.NodeToNode("upper_bottom", "lower_top", friction=fr)),
+                     rtol=1e-12)
+        ub = b.nodal_values()
+        assert np.abs(a.nodal_values() - ub).max() < 1e-8 * np.abs(ub).max()
+        assert np.allclose(a.total_contact_force, b.total_contact_force, rtol=1e-8)
 
 
 def test_degree_2_mortar_is_refused_with_the_reason():
