@@ -71,7 +71,8 @@ def run(dim: int, h: float, layers: int, repeat: int, recombine: bool = False) -
     forms.check(mesh)
     t_mesh, sub = best(lambda: whole_mesh_subdomain(mesh), repeat)
     t_K, (K, _) = best(lambda: sub.assemble(forms, dim), repeat)
-    return {"dim": dim, "h": h, "cell_type": mesh.cell_type, "cells": mesh.cells.shape[0], "dofs": K.shape[0],
+    return {"dim": dim, "h": h, "cell_type": mesh.cell_type, "cells": mesh.cells.shape[0],
+            "dofs": K.shape[0],
             "slave": slave.shape[0], "master": master.shape[0], "pairs": coupling.pairs,
             "rows": rows.size, "coupling": t_coupling, "rows_time": t_rows, "mesh": t_mesh,
             "K": t_K, "gmsh": t_gmsh}
@@ -97,7 +98,8 @@ def main() -> None:
     for dim in args.dim:
         for h in args.h or SIZES[dim]:
             r = run(dim, h, args.layers, args.repeat if h > 0.005 else 1, args.recombine)
-            print(f"| {dim}D | {h:g} | {r['cells']:,} {r['cell_type']} | {r['dofs']:,} | {r['slave']:,} | "
+            print(f"| {dim}D | {h:g} | {r['cells']:,} {r['cell_type']} | {r['dofs']:,} | "
+                  f"{r['slave']:,} | "
                   f"{r['master']:,} | {r['pairs']:,} | {r['rows']:,} | {r['coupling']:.3f} | "
                   f"{r['rows_time']:.3f} | {r['mesh']:.3f} | {r['K']:.3f} | "
                   f"{r['rows_time'] / (r['mesh'] + r['K']):.2f} | {r['gmsh']:.1f} |",
