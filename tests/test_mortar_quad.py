@@ -15,7 +15,7 @@ import pytest
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_quad
-from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.constraints.mortar import mortar_coupling, penetration
 from dolfinx_feti.errors import InputError
 from dolfinx_feti.mesh.topology import facet_normals, nodal_normals_and_areas
 from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
@@ -283,3 +283,36 @@ def test_sphere_on_block_hexahedra_against_tetrahedra():
     assert abs(radius_hex - a_hertz) < 0.3, (radius_hex, a_hertz)  # within one element
     assert abs(radius_hex - radius_tet) < 0.3, (radius_hex, radius_tet)
     assert abs(p0_hex / p0_tet - 1.0) < 0.03, (p0_hex, p0_tet)
+
+
+def test_narrow_candidate_surface_on_hexahedra_is_warned_about(blocks):
+    """Half of the slave surface named: the rows on its open rim are active (warned)."""
+    dim, mesh = blocks
+    if dim == 2:
+        pytest.skip("the quadrilateral facets' rim and penetration checks are the 3D ones")
+    f = mesh.facets("upper_bottom")
+    narrow = f[(mesh.x[f][:, :, 0] <= 0.5 + 1e-9).all(axis=1)]
+    groups = dict(mesh.facet_groups, narrow=narrow)
+    mesh_n = df.MeshData(mesh.x, mesh.cells, mesh.cell_type, mesh.cell_body, mesh.body_names,
+                         groups, mesh.node_tags, mesh.group_tags)
+    E = {"lower": 100.0, "upper": 300.0}
+    sol = df.solve(patch_problem(mesh_n, dim, E, 0.3, 1.0,
+                                 contact=[df.Mortar("narrow", "lower_top")]), rtol=1e-10)
+    w = sol.report.warnings
+    assert any("'narrow'" in s and "rim" in s for s in w), w
+    assert sol.report.extra["mortar"][0]["rim_rows"] > 0
+
+
+def test_penetration_behind_quadrilateral_facets(blocks):
+    """The post-solve check's depth on hexahedral facets (split into triangles)."""
+    dim, mesh = blocks
+    if dim == 2:
+        pytest.skip("3D facets")
+    nodes = np.unique(mesh.facets("upper_bottom"))
+    p = mesh.x[nodes] - [0.0, 0.0, 0.01]
+    normals = np.tile([0.0, 0.0, -1.0], (nodes.size, 1))
+    depth = penetration(p, normals, mesh.x, mesh.cells, mesh.facets("lower_top"), 0.1,
+                        mesh.cell_type)
+    assert np.allclose(depth, 0.01, atol=1e-12)
+    assert np.all(penetration(p + [0.0, 0.0, 0.02], normals, mesh.x, mesh.cells,
+                              mesh.facets("lower_top"), 0.1, mesh.cell_type) == 0.0)
