@@ -1,15 +1,17 @@
 """Mortar coupling of two non-matching surfaces: contact search, segment-to-segment integrals.
 
 For a slave surface Γs and a master surface Γm (first-order facets: segments in 2D, triangles
-in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers on the slave side
+or quadrilaterals in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers on the slave side
 (Wohlmuth 2000; Popp, Gee and Wall 2009; Puso and Laursen 2004)::
 
     D_j  = ∫_Γs N_j                     (diagonal: ∫ ψ_j N_k = δ_jk ∫ N_k)
     M_jk = ∫_{Γs ∩ π(Γm)} ψ_j N_k^m∘π   (π: projection onto the slave facet's plane)
 
-with ψ_j = 3N_j − 1 on a segment and ψ_j = 4N_j − 1 on a triangle. Each overlap of a slave
-facet with a master facet projected onto the slave facet's plane along its normal is computed
-exactly (an interval in 2D; Sutherland–Hodgman clipping of two triangles in 3D), cut into
+with ψ_j = 3N_j − 1 on a segment and ψ_j = 4N_j − 1 on a triangle (bilinear quadrilaterals,
+the facets of hexahedra, get a dual basis of their own per facet: :mod:`.mortar_quad`). Each
+overlap of a slave facet with a master facet projected onto the slave facet's plane along its
+normal is computed exactly (an interval in 2D; Sutherland–Hodgman clipping of two triangles
+in 3D, :mod:`.clipping`), cut into
 triangles and integrated with a rule exact for the product of two linear functions. All
 pairs are processed at once: the loops run over the vertices of a facet, never over facets.
 
