@@ -1,8 +1,8 @@
 """Mortar coupling of two non-matching surfaces: contact search, segment-to-segment integrals.
 
 For a slave surface Γs and a master surface Γm (first-order facets: segments in 2D, triangles
-or quadrilaterals in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers on the slave side
-(Wohlmuth 2000; Popp, Gee and Wall 2009; Puso and Laursen 2004)::
+or quadrilaterals in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers
+on the slave side (Wohlmuth 2000; Popp, Gee and Wall 2009; Puso and Laursen 2004)::
 
     D_j  = ∫_Γs N_j                     (diagonal: ∫ ψ_j N_k = δ_jk ∫ N_k)
     M_jk = ∫_{Γs ∩ π(Γm)} ψ_j N_k^m∘π   (π: projection onto the slave facet's plane)
