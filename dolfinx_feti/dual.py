@@ -35,7 +35,7 @@ from .constraints import Kind, build_rows
 from .constraints.dirichlet import dirichlet_mask
 from .errors import InputError, collective
 from .fem.assembly import assemble_subdomains
-from .fem.corners import choose_corners, floating_motions
+from .fem.corners import choose_corners, floating_motions, primal_components
 from .feti.corners import EliminateCorners
 from .feti.dualize import Dualization
 from .feti.system import INEQUALITY, BlockSystem
@@ -220,7 +220,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
                 corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
                                          edges=CORNER_EDGES and mesh.gdim == 3)
                 modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
-                                                 data.dof_comp, data.dof_sub, x)
+                                                 data.dof_comp, data.dof_sub, x,
+                                                 primal_components(mesh, dec))
             steps.append(EliminateCorners(steps[-1].child,
                                           corners.local(data.dof_node, data.dof_comp),
                                           corners.count, modes, bodies))
@@ -242,11 +243,11 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
 
     - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
       corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
-    - no body floats (every body's rigid motions stopped by its Dirichlet conditions, bodies
-      joined by ties counted as one): ``"fetidp"``. K̃ is definite, the contact problem is
-      bound-constrained and MPRGP runs alone: 3–5× fewer F-mults on held B1 and the 3D rigid
-      sphere; the one measured exception, B4 (a block sheared by its prescribed top), takes
-      1.6–2.5× more than TFETI;
+    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
+      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
+      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
+      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
+      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
     - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
       3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
 
@@ -257,7 +258,7 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
     fixed, _ = dirichlet_mask(problem, problem.mesh)
     none = np.zeros(0, dtype=np.int64)
     _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size, none, none,
-                               none, problem.dof_points.x)
+                               none, problem.dof_points.x, primal_components(problem.mesh, dec))
     return "tfeti" if free else "fetidp"
 
 

@@ -15,6 +15,7 @@ import test_elements as te
 import test_friction as fr
 import test_friction3d as fr3
 import test_hertz2d as h2
+import test_mortar_quad as mq
 from friction_reference import FrictionReference
 from mpi4py import MPI
 
@@ -331,3 +332,23 @@ def test_feti1_with_every_factor_package(friction2d, tresca_case, factor):
                  factor=factor)
     assert s.report.converged
     assert ref.rel_max_diff(s.nodal_values(), sols["tfeti"].nodal_values()) <= TOL
+
+
+@pytest.mark.parametrize("method", ["feti1", "fetidp"])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_mortar_patch_on_quadrilaterals_and_hexahedra(dim, method):
+    """Two blocks meshed apart (quadrilaterals / hexahedra), joined by mortar contact or a
+    mortar tie: the uniaxial state is exact with FETI-1 and FETI-DP. The tie is a row of B, not
+    a corner: the upper block, held only through it, floats in K̃ (its rigid motions the
+    coarse space), which a component analysis through the rows once missed (a wrong answer
+    reported converged)."""
+    mesh = mq.occ_mesh(mq.stacked_blocks, dim, *mq.SIZES[dim], recombine=True)
+    for kind, E in (("contact", {"lower": 100.0, "upper": 300.0}),
+                    ("tie", {"lower": 100.0, "upper": 100.0})):
+        cond = {"contact": [df.Mortar("upper_bottom", "lower_top")]} if kind == "contact" \
+            else {"ties": [df.Tie("upper_bottom", "lower_top")]}
+        sol = df.solve(mq.patch_problem(mesh, dim, E, 0.3, 1.0, **cond), rtol=1e-12,
+                       method=method)
+        assert sol.report.converged
+        exact = mq.uniaxial(mesh, dim, 1.0, E, 0.3)
+        assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max(), kind

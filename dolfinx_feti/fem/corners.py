@@ -176,20 +176,37 @@ def components(rows: Rows, num_subdomains: int) -> np.ndarray:
     return connected_components(graph, directed=False)[1]
 
 
+def primal_components(mesh: MeshData, dec: Decomposition) -> np.ndarray:
+    """Component of every subdomain for FETI-DP: subdomains joined through shared facets.
+
+    Subdomains that share a facet are joined rigidly by their corners (:func:`choose_corners`);
+    bodies joined only by rows of B (mortar ties, contact) are not: their relative rigid
+    motions stay in the kernel of K̃.
+    """
+    cells = facet_neighbours(mesh.cells, mesh.cell_type)
+    pair = dec.cell_sub[cells]
+    pair = pair[pair[:, 0] != pair[:, 1]]
+    n = dec.num_subdomains
+    graph = sp.coo_matrix((np.ones(pair.shape[0]), (pair[:, 0], pair[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
 def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.ndarray,
                      bs: int, dof_node: np.ndarray, dof_comp: np.ndarray,
-                     dof_sub: np.ndarray, x: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, list[str]]:
+                     dof_sub: np.ndarray, x: np.ndarray | None = None,
+                     comp: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
     """The rigid motions of the floating components that their fixed dofs allow.
 
-    ``x`` holds the coordinates of the dof points numbering the nodes (default: the vertices).
+    ``x`` holds the coordinates of the dof points numbering the nodes (default: the vertices);
+    ``comp`` the component of every subdomain (default: joined by equality rows,
+    :func:`components`; FETI-DP: :func:`primal_components`).
 
     Returns:
         The motions at the given (local) dofs, n × m with the same m columns on every rank
         (zero on fixed dofs), and the bodies of each column.
     """
     x = mesh.x if x is None else x
-    comp = components(rows, dec.num_subdomains)
+    comp = components(rows, dec.num_subdomains) if comp is None else comp
     columns, bodies = [], []
     for c in range(int(comp.max(initial=-1)) + 1):
         subs = np.flatnonzero(comp == c)
