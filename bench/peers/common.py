@@ -89,22 +89,22 @@ def sphere_obstacle() -> df.Sphere:
     return df.Sphere(center=(0.0, 0.0, SPHERE_R - SPHERE_D), radius=SPHERE_R)
 
 
-def sphere_problem(level: str, parts: int) -> df.ContactProblem:
+def sphere_problem(level: str, parts: int, balance: str = "cells") -> df.ContactProblem:
     return df.ContactProblem(
         sphere_mesh(level), df.Elasticity(SPHERE_E, SPHERE_NU),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry_x", components=[0]),
                    df.Dirichlet("symmetry_y", components=[1])],
         contact=[df.RigidObstacle("top", sphere_obstacle())],
-        decomposition=df.Parts(parts))
+        decomposition=df.Parts(parts, balance=balance))
 
 
 def hertz_mesh(level: str) -> df.MeshData:
     return P.hertz2d_mesh(*HERTZ_LEVELS[level])
 
 
-def hertz_problem(level: str, parts: int) -> df.ContactProblem:
-    return P.hertz2d(parts=parts, h_contact=HERTZ_LEVELS[level][0],
-                     h_far=HERTZ_LEVELS[level][1])
+def hertz_problem(level: str, parts: int, balance: str = "cells") -> df.ContactProblem:
+    return P.hertz2d(h_contact=HERTZ_LEVELS[level][0], h_far=HERTZ_LEVELS[level][1],
+                     decomposition=df.Parts(parts, balance=balance))
 
 
 def b1_problem(level: str) -> df.ContactProblem:

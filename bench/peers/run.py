@@ -32,8 +32,9 @@ OUT = C.ROOT / "output" / "peers"
 RAW = OUT / "raw"
 REPEAT = int(os.environ.get("PEERS_REPEAT", "2"))  # PEERS_TOLS: e.g. "1e-6,1e-8" (S4)
 
-FAMILIES = {"sphere": ["feti", "feti_tuned", "snes", "penalty"],
-            "hertz": ["feti", "feti_tuned", "feti_libdefault", "clarabel", "osqp", "penalty"],
+FAMILIES = {"sphere": ["feti", "feti_tuned", "snes", "penalty", "by_method"],
+            "hertz": ["feti", "feti_tuned", "feti_libdefault", "clarabel", "osqp", "penalty",
+                      "by_method"],
             "b1": ["feti", "feti_libdefault", "clarabel", "penalty"]}
 # "feti_libdefault": df.solve with the library's own default options (no preconditioner
 # passed), FETI_PARTS decomposition.
@@ -53,6 +54,15 @@ FETI_PRECOND = os.environ.get("PEERS_FETI_PRECOND", "none")
 FETI_TUNED = {"sphere": {"preconditioner": "lumped", "preconditioner_scaling": "stiffness"},
               "hertz": {"preconditioner": "none"}}
 FETI_TUNED_PARTS = {"sphere": {"S1": 4, "S2": 4, "S3": 4, "S4": 4}, "hertz": {"H1": 32}}
+#: "by_method" (issue 15): every method of ``df.solve`` in one worker, beside SNES-VI (sphere,
+#: Hertz) and the floor, each on Parts(k, balance="volume") (docs/benchmarks.md § 10: compact
+#: subdomains on the graded meshes). "FETI-DP tuned": the options of docs/benchmarks.md § 9.
+#: PEERS_METHODS (comma-separated labels) runs a subset.
+BY_METHOD = {"TFETI": {"method": "tfeti"}, "FETI-1": {"method": "feti1"},
+             "FETI-DP": {"method": "fetidp"},
+             "FETI-DP tuned": {"method": "fetidp", "preconditioner": "dirichlet",
+                               "mprgp_expansion": "projcg"}}
+BY_METHOD_PARTS = {"sphere": 8, "hertz": 16}
 
 
 def best_of(fn, repeat=REPEAT):
@@ -132,13 +142,14 @@ def metrics(problem: str, mono, ref: dict, u: np.ndarray, lam: np.ndarray) -> di
 
 
 def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: str | None,
-             **options) -> dict:
+             balance: str = "cells", **options) -> dict:
     import dolfinx_feti as df
 
     if problem == "b1":
         prob = C.b1_problem(level)
     else:
-        prob = (C.sphere_problem if problem == "sphere" else C.hertz_problem)(level, parts)
+        prob = (C.sphere_problem if problem == "sphere" else C.hertz_problem)(level, parts,
+                                                                              balance)
     if precond is not None:
         options.setdefault("preconditioner", precond)
     t = C.Clock()
@@ -154,7 +165,9 @@ def run_feti(problem: str, level: str, mono, rtol: float, parts: int, precond: s
     out = {"t": elapsed, "its": r.iterations, "outer": r.outer_iterations,
            "mults": r.hessian_mults, "mults_total": r.hessian_mults_total,
            "converged": bool(r.converged), "timings": dict(r.timings), "u": u, "lam": lam,
-           "parts": parts, "precond": options.get("preconditioner", "library default"),
+           "parts": parts, "balance": balance, "method_used": r.method,
+           "subdomains": r.sizes.get("subdomains"),
+           "precond": options.get("preconditioner", "library default"),
            "options": options,
            "primal": r.sizes["primal"],
            "dual": r.sizes["dual"]}
@@ -176,7 +189,8 @@ def worker(problem: str, level: str, family: str) -> None:
     elif problem == "b1":
         mono, rot = C.b1_monolithic(level), None
     else:
-        mono, rot = C.hertz_monolithic(level), None
+        mono = C.hertz_monolithic(level)
+        rot = M.Relative(mono)
     t_assemble = t()
     ref = reference(problem, level, mono, rot)
     rss_base = C.maxrss_mib()
@@ -206,6 +220,15 @@ def worker(problem: str, level: str, family: str) -> None:
         for tol in TOLS:
             record("FETI tuned", tol, best_of(lambda tol=tol: run_feti(
                 problem, level, mono, tol, parts, opts["preconditioner"], **dict(opts))))
+    elif family == "by_method":
+        parts = BY_METHOD_PARTS[problem]
+        labels = os.environ.get("PEERS_METHODS", ",".join(BY_METHOD)).split(",")
+        for tol in TOLS:
+            if rot is not None:
+                record("SNES-VI", tol, best_of(lambda tol=tol: M.run_snes_vi(mono, rot, tol)))
+            for label in labels:
+                record(label, tol, best_of(lambda tol=tol, o=BY_METHOD[label]: run_feti(
+                    problem, level, mono, tol, parts, None, "volume", **o)))
     elif family == "snes":
         for tol in TOLS:
             record("SNES-VI", tol, best_of(lambda tol=tol: M.run_snes_vi(mono, rot, tol)))
