@@ -16,7 +16,9 @@ OUT = Path(__file__).resolve().parents[2] / "output" / "peers"
 RAW = OUT / "raw"
 FLOOR_ERR = 1e-15  # exact active-set results (error 0) are drawn here on the log scale
 STYLE = {"FETI": "C0", "FETI tuned": "C9", "FETI lib default": "C5", "SNES-VI": "C1",
-         "penalty": "C2", "Clarabel": "C3", "OSQP": "C4"}
+         "penalty": "C2", "Clarabel": "C3", "OSQP": "C4", "TFETI": "C6", "FETI-1": "C7",
+         "FETI-DP": "C8", "FETI-DP tuned": "k"}
+BY_METHOD = ("SNES-VI", "TFETI", "FETI-1", "FETI-DP", "FETI-DP tuned")
 LEVEL_MARK = {"1": "o", "2": "s", "3": "^", "4": "D"}
 
 
@@ -135,9 +137,25 @@ def condensed(data: list[dict]) -> str:
                     out.append(f"| {lv} | {d['ndofs']} | {r['method']} | {p:.0e} | {r['t']:.2f} | "
                                f"{r['ratio_mumps']:.1f} | {r['err']:.1e} | {r.get('mults', '–')} |"
                                f" {r.get('parts', '–')} |")
+    out += by_method(data)
     text = "\n".join(out)
     (OUT / "condensed.md").write_text(text + "\n")
     return text
+
+
+def by_method(data: list[dict]) -> list[str]:
+    """Issue 15: each method of ``df.solve`` beside SNES-VI in one worker per case."""
+    out = ["\n### By method (issue 15; docs/peers.md)\n",
+           "| case | free dofs | floor MUMPS (s) | rtol | " + " | ".join(BY_METHOD) + " |",
+           "|---|---|---|---|" + "---|" * len(BY_METHOD)]
+    ds = [d for d in data if d["family"] == "by_method"]
+    for d in sorted(ds, key=lambda d: (d["problem"] != "hertz", d["level"])):
+        for tol in sorted({r["param"] for r in d["rows"]}, reverse=True):
+            rows = {r["method"]: r for r in d["rows"] if r["param"] == tol}
+            cells = [_cell(rows[m]) if m in rows else "–" for m in BY_METHOD]
+            out.append(f"| {d['level']} | {d['ndofs']} | {d['floor']['mumps']['t']:.3f} | "
+                       f"{tol:.0e} | " + " | ".join(cells) + " |")
+    return out
 
 
 def plots(data: list[dict]) -> None:
