@@ -20,7 +20,10 @@ from .fem.dofmap import dof_points_of_space
 from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.gmsh_input import MeshData
 
-_PARENT_CACHE: dict[tuple[int, int], object] = {}
+#: The last parent mesh built: (the MeshData it was built from, communicator handle, mesh). The
+#: MeshData itself is held (not its id): an id is reused once an object is freed, and a later
+#: problem's data at the same address must not get another mesh's parent.
+_PARENT: tuple[MeshData, int, object] | None = None
 
 
 def parent_mesh(mesh: MeshData, comm: MPI.Comm):
@@ -29,16 +32,16 @@ def parent_mesh(mesh: MeshData, comm: MPI.Comm):
     Its input nodes are the global vertices, or for a curved mesh the global dof points of
     degree 2 (its geometry nodes).
     """
-    key = (id(mesh), comm.py2f())
-    if key not in _PARENT_CACHE:
+    global _PARENT
+    if _PARENT is None or _PARENT[0] is not mesh or _PARENT[1] != comm.py2f():
         degree = mesh.geometry_degree
         points = dof_points(mesh, degree)
         cells, x = points.cell_points, points.x
         if comm.rank != 0:
             cells, x = cells[:0], x[:0]
-        _PARENT_CACHE.clear()  # keep at most one parent mesh alive
-        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type, degree)
-    return _PARENT_CACHE[key]
+        _PARENT = None  # keep at most one parent mesh alive
+        _PARENT = (mesh, comm.py2f(), compat.create_mesh(comm, cells, x, mesh.cell_type, degree))
+    return _PARENT[2]
 
 
 def output_mesh(mesh: MeshData, comm: MPI.Comm) -> tuple[object, np.ndarray, np.ndarray]:
