@@ -28,11 +28,18 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
     """A first-order simplex mesh from a cell-to-node array and node coordinates.
 
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
-    DOLFINx distributes it.
+    DOLFINx distributes it. On one rank the partitioner is skipped (every cell stays here): the
+    default one builds the dual graph first, a third of the time of creating the mesh.
     """
     domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], 1, dim=x.shape[1]))
+    extra = {"partitioner": _all_here} if comm.size == 1 else {}
     return dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells, dtype=np.int64),
-                                    np.ascontiguousarray(x, dtype=np.float64), domain)
+                                    np.ascontiguousarray(x, dtype=np.float64), domain, **extra)
+
+
+def _all_here(comm, nparts, tdim, cells, ghost_mode):
+    """A cell partitioner that sends every cell to rank 0 (for a mesh on one rank)."""
+    return dolfinx.cpp.graph.AdjacencyList_int32(np.zeros(cells.num_nodes, dtype=np.int32))
 
 
 def node_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
