@@ -193,19 +193,23 @@ class Solution:
     def u(self):
         """The solution as a DOLFINx Function (P1) on the whole mesh (distributed on comm)."""
         if self._function is None:
-            from .output import parent_function
-            self._function = parent_function(self.problem.mesh, self.nodal_values(), self.comm,
-                                             "displacement" if self.problem.value_size > 1
-                                             else "u")
+            from .output import distributed_function
+            dec, bs = self.dec, self.problem.value_size
+            subs = self.feti.local_subs  # consecutive: their pairs are one slice, in dof order
+            pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
+                else slice(0, 0)
+            self._function = distributed_function(
+                self.problem.mesh, dec.pair_node[pairs], self.u_vec.array_r.reshape(-1, bs),
+                self.comm, "displacement" if bs > 1 else "u")
         return self._function
 
     def pressure_function(self):
         """The contact pressure as a P1 scalar Function on the whole mesh (zero off contact)."""
-        from .output import parent_function
-        p = np.zeros((self.dec.num_nodes, 1))
-        np.add.at(p[:, 0], self.contact.node, self.contact.pressure)
-        return parent_function(self.problem.mesh, p, self.comm, "contact_pressure",
-                               msh=self.u.function_space.mesh)
+        from .output import distributed_function
+        c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
+        return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
+                                    "contact_pressure", msh=self.u.function_space.mesh,
+                                    local=True)
 
     def write_xdmf(self, path: str | Path) -> None:
         """Write the solution to XDMF (for ParaView), atomically.
