@@ -98,15 +98,33 @@ def output_functions(solution) -> list:
     ``subdomain`` (the subdomain index of each cell) always; ``von_mises`` when the forms are
     :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown).
     """
+    from types import SimpleNamespace
+
+    from . import compat
     from .output import cell_function
 
     mesh = solution.problem.mesh
-    msh = solution.u.function_space.mesh
+    u = solution.u
+    V, msh = u.function_space, u.function_space.mesh
     out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", msh)]
     forms = solution.problem.forms
     if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        vm = von_mises(mesh, solution.nodal_values(), forms.E, forms.nu)
-        out.append(cell_function(mesh, vm, "von_mises", msh))
+        # From the rank's own cells of the parent mesh and the (distributed) Function's values
+        # there: no array of the whole mesh's displacements.
+        d = mesh.gdim
+        n_cells = compat.cell_input_indices(msh).size
+        geom = msh.geometry.dofmap.array.reshape(-1, d + 1)[:n_cells]
+        u_geom = np.zeros((msh.geometry.x.shape[0], d))
+        u_geom[compat.vertex_dof_nodes(V)] = u.x.array.reshape(-1, d)
+        local = SimpleNamespace(x=msh.geometry.x[:, :d], cells=geom, gdim=d,
+                                cell_body=mesh.cell_body[compat.cell_input_indices(msh)],
+                                body_names=mesh.body_names)
+        Q = compat.dg0_space(msh)
+        vm = compat.function(Q, "von_mises")
+        dofs = Q.dofmap.list.array[:n_cells]
+        vm.x.array[dofs] = von_mises(local, u_geom, forms.E, forms.nu)
+        compat.scatter_forward(vm)
+        out.append(vm)
     return out
 
 

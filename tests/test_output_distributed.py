@@ -57,3 +57,14 @@ def test_xdmf_is_written(solution, tmp_path_factory):
     from pathlib import Path
 
     assert Path(path).is_file() and Path(path).with_suffix(".h5").is_file()
+
+
+def test_von_mises_from_the_local_cells(solution):
+    from dolfinx_feti.postprocess import output_functions, von_mises
+
+    vm = {f.name: f for f in output_functions(solution)}["von_mises"]
+    Q = vm.function_space
+    cells = compat.cell_input_indices(Q.mesh)
+    dofs = Q.dofmap.list.array[:cells.size]
+    ref = von_mises(solution.problem.mesh, solution.nodal_values(), 1000.0, 0.3)
+    assert np.allclose(vm.x.array[dofs], ref[cells], rtol=1e-10, atol=1e-12 * ref.max())
