@@ -7,9 +7,11 @@
 # $$ a = 2\sqrt{\frac{R P}{\pi E^*}}, \qquad p_0 = \sqrt{\frac{P E^*}{\pi R}}, \qquad
 #    \frac{1}{E^*} = \frac{1-\nu_1^2}{E_1} + \frac{1-\nu_2^2}{E_2}, $$
 #
-# and the pressure profile $p(x) = p_0 \sqrt{1 - x^2/a^2}$. We solve the half model (symmetry
-# about $x = 0$) with Total FETI and SMALBE/MPRGP, compare with Hertz, write the displacement
-# and the contact pressure to XDMF and plot the pressure.
+# and the pressure profile $p(x) = p_0 \sqrt{1 - x^2/a^2}$. The two bodies are meshed the way a
+# gmsh user meshes them: each is its own OCC surface, one `generate` call, no matching nodes.
+# Mortar contact couples the non-matching surfaces. We solve the half model (symmetry about
+# $x = 0$) with Total FETI and SMALBE/MPRGP, compare with Hertz, write the displacement and the
+# contact pressure to XDMF and plot the pressure.
 #
 # Run it with `python demos/demo_hertz2d.py` (or under `mpirun -n 2`); `--help` lists options.
 
@@ -22,10 +24,12 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti import meshes_occ
 
 parser = argparse.ArgumentParser(description=__doc__)
-parser.add_argument("--h", type=float, default=0.05, help="element size in the contact zone")
+parser.add_argument("--h", type=float, default=0.05, help="disk's element size near the contact")
+parser.add_argument("--h-block", type=float, default=None,
+                    help="block's element size near the contact (default: the disk's)")
 parser.add_argument("--parts", type=int, default=2, help="subdomains per body")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance of the solver")
 parser.add_argument("--out", type=Path, default=Path("output/hertz2d"), help="output folder")
@@ -36,16 +40,18 @@ comm = MPI.COMM_WORLD
 
 # ## The geometry
 #
-# `dolfinx_feti.meshes.hertz2d` builds the quarter disk and the half block in gmsh, with
-# matching node abscissae $x_k = k h$ on the two contact surfaces, as node-to-node contact
-# requires. Physical groups name the bodies (`disk`, `block`) and the boundary parts
-# (`disk_contact`, `block_contact`, `load`, `symmetry`, `bottom`). `build_mesh` runs the
-# generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file instead).
+# `dolfinx_feti.meshes_occ.disk_on_block` builds the quarter disk and the half block as two
+# OCC surfaces, each with its own element size near the contact, and meshes them with one
+# `generate` call: the nodes on the arc and on the block's top do not match. Physical groups
+# name the bodies (`disk`, `block`) and the boundary parts (`disk_contact` = the whole arc,
+# `block_contact` = the whole top of the block, `load`, `symmetry`, `bottom`). `build_mesh`
+# runs the generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file).
 
 # +
 R, P, E, nu = 8.0, 10.0, 200.0, 0.3
 t0 = time.perf_counter()
-mesh = df.build_mesh(meshes.hertz2d, h_contact=args.h, R=R, comm=comm)
+mesh = df.build_mesh(meshes_occ.disk_on_block, h_contact_disk=args.h,
+                     h_contact_block=args.h_block or args.h, R=R, comm=comm)
 t_mesh = time.perf_counter() - t0
 # -
 
@@ -53,14 +59,18 @@ t_mesh = time.perf_counter() - t0
 #
 # The load acts on the flat top of the quarter disk: half of $P$ on the half model, spread over
 # its length $R$. The block is clamped at the bottom; both bodies are symmetric about $x = 0$
-# ($u_x = 0$ there). The disk's contact surface is the slave side: each of its nodes may not
-# cross the block's surface along the block's normal, with the initial gap from the geometry.
+# ($u_x = 0$ there). `df.Mortar` searches the pairs of facets that face each other on the two
+# candidate surfaces (here the whole arc and the whole top of the block) and integrates the
+# dual (biorthogonal) multiplier basis of the slave side (the disk) against the master's shape
+# functions over their overlaps: one non-penetration row and one bound per slave node in
+# reach, with the initial gap from the geometry. After the solve the report says how many slave
+# nodes were out of reach, and warns if either surface penetrates the other.
 
 problem = df.ContactProblem(
     mesh,
     df.Elasticity(E, nu, tractions={"load": (0.0, -P / 2 / R)}),
     dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-    contact=[df.NodeToNode(slave="disk_contact", master="block_contact")],
+    contact=[df.Mortar(slave="disk_contact", master="block_contact")],
     decomposition=df.Parts(args.parts),
 )
 
@@ -74,7 +84,8 @@ report = solution.report
 
 # ## Comparison with Hertz
 #
-# The nodal contact forces divided by the nodes' lumped lengths give the pressure. The computed
+# The mortar multiplier of a slave node is its contact pressure (the nodal force divided by
+# the node's lumped length). The computed
 # half-width is taken between the last node in contact and the first one out of contact.
 
 # +
@@ -104,7 +115,7 @@ if comm.rank == 0:
     xs = np.linspace(0, a, 200)
     fig, ax = plt.subplots(figsize=(6, 3.5))
     ax.plot(xs, p0 * np.sqrt(1 - xs**2 / a**2), "k-", label="Hertz")
-    ax.plot(x, p, "o", ms=3, label=f"TFETI, h = {args.h}")
+    ax.plot(x, p, "o", ms=3, label=f"TFETI + mortar, h = {args.h}")
     ax.set_xlim(0, min(2 * a, x.max()))
     ax.set_xlabel("x")
     ax.set_ylabel("contact pressure")
@@ -123,5 +134,8 @@ if comm.rank == 0:
     print(f"computed: a_h = {a_h:.4f} (error {a_h - a:+.4f}, element {args.h}), "
           f"peak = {p.max():.4f} (error {100 * peak_err:+.2f} %)")
     print(f"total contact force error: {force_err:.1e} (relative)")
+    m = report.extra["mortar"][0]
+    print(f"mortar: {m['rows']} rows, {m['uncoupled_slave_nodes']} slave nodes out of reach, "
+          f"{m['active_rows']} active, largest penetration {m['max_penetration']:.1e}")
     print(f"time: mesh {t_mesh:.2f} s, solve {report.timings['total']:.2f} s; "
           f"output in {args.out}/")

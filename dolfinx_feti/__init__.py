@@ -20,11 +20,13 @@ from .problem import (
                       Coulomb,
                       Cylinder,
                       Dirichlet,
+                      Mortar,
                       NodeToNode,
                       Plane,
                       RigidObstacle,
                       SignedDistance,
                       Sphere,
+                      Tie,
                       Tresca,
 )
 from .report import Report
@@ -32,8 +34,7 @@ from .solution import ContactData, Solution
 from .solve import solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
-           "Dirichlet",
-           "Elasticity", "InputError", "MeshData", "NodeToNode", "Parts", "Plane", "Poisson",
-           "Report", "RigidObstacle", "SignedDistance", "Solution", "SolveError",
-           "SolverOptions", "Sphere", "Subdomain", "Tresca", "build_mesh", "read_gmsh", "solve",
-           "DualQP", "dual_qp"]
+           "Dirichlet", "DualQP", "Elasticity", "InputError", "MeshData", "Mortar", "NodeToNode",
+           "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
+           "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
+           "dual_qp", "read_gmsh", "solve"]

@@ -12,7 +12,7 @@ in ``bench/peers``), so that solvers are compared on one problem.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from mpi4py import MPI
@@ -55,6 +55,8 @@ class DualQP:
         norm_A: Lanczos estimate of ``||P F P||``.
         b_noise: Round-off level of ``b`` (a floor for absolute tolerances).
         warnings: Notes for the report (e.g. an unloaded rigid motion nothing fixes).
+        mortar: What the contact search found for each mortar condition
+            (:class:`.constraints.mortar_rows.MortarInfo`).
     """
 
     feti: TotalFETI
@@ -70,6 +72,7 @@ class DualQP:
     norm_A: float
     b_noise: float
     warnings: list[str]
+    mortar: list = field(default_factory=list)
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -117,7 +120,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
         dec = decompose(problem.mesh, problem.decomposition, comm)
-        rows = build_rows(problem, dec)
+        mortar = []
+        rows = build_rows(problem, dec, mortar)
     feti = TotalFETI(problem, dec, rows, comm, timer, factor)
     ineq = rows.inequality[feti.rows_local]
     with timer.phase("coarse problem"):
@@ -139,7 +143,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
     return DualQP(feti=feti, dec=dec, rows=rows, constraint=ocon, projector=projector, A=A,
                   b=b, lb=lb, lam_hat=lam_hat, ineq=ineq, norm_A=float(norm.value),
-                  b_noise=float(b_noise), warnings=warnings)
+                  b_noise=float(b_noise), warnings=warnings, mortar=mortar)
 
 
 def _check_balance(ocon, feti: TotalFETI) -> list[str]:

@@ -128,6 +128,69 @@ class NodeToNode:
     match_tol: float = 1e-4
     friction: Friction | None = None
 
+    @property
+    def group(self) -> str:
+        """The surface whose nodes carry the rows (the slave)."""
+        return self.slave
+
+
+@dataclass(frozen=True)
+class Mortar:
+    """Contact of two surfaces of different bodies with independent (non-matching) meshes.
+
+    Segment-to-segment mortar with dual Lagrange multipliers on the slave side: one
+    non-penetration row and one bound λ_j >= 0 per slave node j, coupling it to the master
+    surface through the integrals of the slave's dual basis against the master's shape
+    functions over the overlap of each slave facet with the master facets projected onto it
+    (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
+    its facets' normals; the initial gap comes from the geometry (weighted).
+
+    The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
+    of facets are searched automatically; slave nodes with no master facet within
+    ``search_distance`` get no row (the report says how many), and after the solve every node
+    of both surfaces is checked against the other surface (the report warns about a
+    penetration, or about an active row on the rim of a candidate surface). Take as slave the
+    surface with the finer mesh, or the smaller one.
+
+    Args:
+        slave: Boundary group of the slave side.
+        master: Boundary group of the master side.
+        friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`; the slip is
+            the tangential part of u_slave − Σ_k w_k u_k (the weighted master point).
+        search_distance: How far apart two facets may be (along the slave normal, either
+            side) and still be coupled; by default twice the larger mean facet size of the
+            two surfaces, and at least 5 % of the slave surface's extent.
+    """
+
+    slave: str
+    master: str
+    friction: Friction | None = None
+    search_distance: float | None = None
+
+    @property
+    def group(self) -> str:
+        """The surface whose nodes carry the rows (the slave)."""
+        return self.slave
+
+
+@dataclass(frozen=True)
+class Tie:
+    """Gluing of two surfaces with independent (non-matching) meshes by mortar equality rows.
+
+    For pieces of a body (or of several bodies) meshed on their own, e.g. gmsh volumes that
+    were not fragmented, or stiff inclusions meshed apart from the matrix: at each slave node
+    u_slave = Σ_k w_k u_k (the same dual-basis weights as :class:`Mortar`), per component.
+
+    Args:
+        slave: Boundary group of the slave side (preferably the finer mesh).
+        master: Boundary group of the master side.
+        search_distance: As for :class:`Mortar`.
+    """
+
+    slave: str
+    master: str
+    search_distance: float | None = None
+
 
 class Obstacle(Protocol):
     """A rigid obstacle as a signed distance: positive outside the obstacle."""
@@ -207,6 +270,10 @@ class RigidObstacle:
     friction: Friction | None = None
 
 
+#: The contact conditions; each has ``group``, the surface whose nodes carry its rows.
+Contact = NodeToNode | Mortar | RigidObstacle
+
+
 @dataclass
 class ContactProblem:
     """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
@@ -219,19 +286,22 @@ class ContactProblem:
         value_size: 1 for a scalar problem, the geometric dimension for elasticity; taken from
             ``forms.value_size`` when the helpers are used.
         dirichlet: Dirichlet conditions.
-        contact: Contact conditions (:class:`NodeToNode`, :class:`RigidObstacle`).
+        contact: Contact conditions (:class:`Mortar`, :class:`NodeToNode`,
+            :class:`RigidObstacle`).
         decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
+        ties: :class:`Tie` conditions gluing non-matching interfaces by mortar rows.
     """
 
     mesh: MeshData
     forms: Callable
     value_size: int | None = None
     dirichlet: Sequence[Dirichlet] = field(default_factory=list)
-    contact: Sequence[NodeToNode | RigidObstacle] = field(default_factory=list)
+    contact: Sequence[Contact] = field(default_factory=list)
     decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
     gluing: str = "orthonormal"
+    ties: Sequence[Tie] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
@@ -255,8 +325,14 @@ class ContactProblem:
             if any(int(c) < 0 or int(c) >= self.value_size for c in comps):
                 raise InputError(f"Dirichlet on {bc.group!r}: components {list(comps)} out of "
                                  f"range for a problem with {self.value_size} component(s)")
+        for t in self.ties:
+            if not isinstance(t, Tie):
+                raise InputError(f"ties must be df.Tie conditions, got {t!r}")
+            _check_pair(self.mesh, "tie", t)
         for c in self.contact:
-            if isinstance(c, NodeToNode):
+            if isinstance(c, Mortar):
+                _check_pair(self.mesh, "mortar contact", c)
+            elif isinstance(c, NodeToNode):
                 self.mesh.facets(c.slave)
                 self.mesh.facets(c.master)
                 if c.slave == c.master:
@@ -274,9 +350,24 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
-        _check_mesh(self.mesh, [g for c in self.contact for g in
-                                ((c.slave, c.master) if isinstance(c, NodeToNode) else (c.group,))],
+        _check_mesh(self.mesh, [g for c in [*self.contact, *self.ties] for g in
+                                ((c.group,) if isinstance(c, RigidObstacle) else
+                                 (c.slave, c.master))],
                     self.forms)
+
+
+def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
+    """The two groups of a mortar condition exist and differ; the search distance is sane."""
+    mesh.facets(c.slave)
+    mesh.facets(c.master)
+    if c.slave == c.master:
+        raise InputError(f"{what} {c.slave!r} with itself")
+    if mesh.tdim != mesh.gdim:
+        raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")
+    d = c.search_distance
+    if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
+        raise InputError(f"{what} {c.slave!r}/{c.master!r}: search_distance must be a finite "
+                         f"number > 0, got {d!r}")
 
 
 def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:

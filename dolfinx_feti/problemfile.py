@@ -54,10 +54,12 @@ from .problem import (
     ContactProblem,
     Cylinder,
     Dirichlet,
+    Mortar,
     NodeToNode,
     Plane,
     RigidObstacle,
     Sphere,
+    Tie,
 )
 
 # ------------------------------------------------------------------------------------------
@@ -65,8 +67,10 @@ from .problem import (
 # ------------------------------------------------------------------------------------------
 
 #: Top-level keys.
-TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "decomposition",
-            "solver", "output")
+TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
+            "decomposition", "solver", "output")
+#: ``[[tie]]`` keys.
+TIE_KEYS = ("slave", "master", "search_distance")
 #: ``[model]`` keys by model type.
 MODEL_KEYS = {"elasticity": ("type", "E", "nu", "tractions", "body_force"),
               "poisson": ("type", "source", "k", "flux", "source_boxes")}
@@ -77,7 +81,8 @@ BOX_KEYS = ("min", "max", "value")
 #: ``[[dirichlet]]`` keys.
 DIRICHLET_KEYS = ("group", "value", "components")
 #: ``[[contact]]`` keys by contact type.
-CONTACT_KEYS = {"node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
+CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance"),
+                "node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
                 "obstacle": ("type", "group", "plane", "sphere", "cylinder", "friction")}
 #: ``contact[i].friction`` keys by friction law.
 FRICTION_KEYS = {"tresca": ("type", "bound"),
@@ -602,6 +607,7 @@ class _Reader:
             (self.mesh.gdim if model == "elasticity" else 1)
         dirichlet = self._dirichlet(value_size)
         contact = self._contact(model)
+        ties = self._ties()
         decomposition, gluing = self._decomposition()
         solver = self._solver()
         output = self._output(contact)
@@ -611,7 +617,7 @@ class _Reader:
             raise ProblemFileError(self.path, c.faults)
         try:
             problem = ContactProblem(self.mesh, forms, value_size=value_size,
-                                     dirichlet=dirichlet, contact=contact,
+                                     dirichlet=dirichlet, contact=contact, ties=ties,
                                      decomposition=decomposition, gluing=gluing)
         except InputError as e:
             raise ProblemFileError(self.path, [Fault("", str(e))]) from None
@@ -856,21 +862,9 @@ class _Reader:
                 kind = c.string(kind, _key(key, "type"), tuple(CONTACT_KEYS))
                 if kind is None:
                     continue
-            if kind == "node_to_node":
+            if kind in ("node_to_node", "mortar"):
                 t = c.table(t, key, CONTACT_KEYS[kind], required=("slave", "master"))
-                s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
-                m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
-                if "slave" in t and t.get("slave") == t.get("master"):
-                    c.fault(key, f"a contact pair of the group {t['slave']!r} with itself: slave "
-                            "and master must be surfaces of two different bodies")
-                    s = None
-                elif s is not None and m is not None and mesh is not None:
-                    sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
-                    if sb & mb:
-                        c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
-                                f"{mesh.body_names[min(sb & mb)]!r}: node-to-node contact is "
-                                "between two bodies")
-                        s = None
+                s, m = self._pair(t, key, "contact")
                 kw = {}
                 if "gap" in t:
                     kw["gap"] = c.number(t["gap"], _key(key, "gap"), "a number >= 0 (the "
@@ -879,11 +873,14 @@ class _Reader:
                 if "match_tol" in t:
                     kw["match_tol"] = c.number(t["match_tol"], _key(key, "match_tol"),
                                                "a number > 0", lambda v: v > 0)
+                if "search_distance" in t:
+                    kw["search_distance"] = self._search_distance(t, key)
+                cls = NodeToNode if kind == "node_to_node" else Mortar
                 if "friction" in t:
-                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"),
-                                                    NodeToNode, model)
+                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"), cls,
+                                                    model)
                 if s is not None and m is not None and all(v is not None for v in kw.values()):
-                    out.append(NodeToNode(slave=s, master=m, **kw))
+                    out.append(cls(slave=s, master=m, **kw))
             else:
                 t = c.table(t, key, CONTACT_KEYS[kind], required=("group",))
                 g = c.group(t["group"], _key(key, "group"), mesh) if "group" in t else None
@@ -904,6 +901,43 @@ class _Reader:
                 if g is not None and obstacle is not None and \
                         all(v is not None for v in kw.values()):
                     out.append(RigidObstacle(g, obstacle, **kw))
+        return out
+
+    def _pair(self, t: dict, key: str, what: str) -> tuple[str | None, str | None]:
+        """The slave and master groups of a contact pair or a tie, checked."""
+        c, mesh = self.c, self.mesh
+        s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
+        m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
+        if "slave" in t and t.get("slave") == t.get("master"):
+            c.fault(key, f"a {what} of the group {t['slave']!r} with itself: slave and master "
+                    "must be two different surfaces")
+            return None, m
+        if what == "contact" and s is not None and m is not None and mesh is not None:
+            sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
+            if sb & mb:
+                c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
+                        f"{mesh.body_names[min(sb & mb)]!r}: contact is between two bodies")
+                return None, m
+        return s, m
+
+    def _search_distance(self, t: dict, key: str) -> float | None:
+        return self.c.number(t["search_distance"], _key(key, "search_distance"),
+                             "a finite number > 0 (omit it for the default)",
+                             lambda v: np.isfinite(v) and v > 0)
+
+    def _ties(self) -> list:
+        """``[[tie]]``: mortar gluing of non-matching interfaces."""
+        c = self.c
+        out = []
+        for i, t in enumerate(c.array_of_tables(self.data.get("tie"), "tie")):
+            key = _key("tie", i)
+            t = c.table(t, key, TIE_KEYS, required=("slave", "master"))
+            s, m = self._pair(t, key, "tie")
+            kw = {}
+            if "search_distance" in t:
+                kw["search_distance"] = self._search_distance(t, key)
+            if s is not None and m is not None and all(v is not None for v in kw.values()):
+                out.append(Tie(slave=s, master=m, **kw))
         return out
 
     def _friction(self, t: Any, key: str, condition: type, model: str | None):
@@ -987,6 +1021,7 @@ class _Reader:
     def _dry_run_contact(self, problem: ContactProblem) -> None:
         """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
         from .constraints.contact import node_to_node_rows, obstacle_rows
+        from .constraints.mortar_rows import mortar_contact_rows
 
         mesh = problem.mesh
         node_ptr = np.arange(mesh.num_nodes + 1, dtype=np.int64)
@@ -995,6 +1030,8 @@ class _Reader:
             try:
                 if isinstance(spec, NodeToNode):
                     node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                elif isinstance(spec, Mortar):
+                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
                 else:
                     obstacle_rows(mesh, spec, i, node_ptr, node_subs)
             except InputError as e:

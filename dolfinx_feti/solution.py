@@ -15,7 +15,7 @@ from .constraints.friction import FRICTIONLESS, SLIP, STICK
 from .constraints.rows import Kind, Rows
 from .feti import TotalFETI
 from .mesh.decompose import Decomposition
-from .problem import ContactProblem, NodeToNode, RigidObstacle
+from .problem import ContactProblem, RigidObstacle
 from .report import Report
 
 
@@ -135,7 +135,7 @@ class Solution:
         spec, node = rows.spec[sel], rows.node[sel]
         area = np.ones(node.size)
         for i, c in enumerate(self.problem.contact):
-            group = c.slave if isinstance(c, NodeToNode) else c.group
+            group = c.group
             nodes, _, a = surface(mesh, group)
             m = spec == i
             area[m] = a[np.searchsorted(nodes, node[m])]

@@ -19,6 +19,7 @@ from .dual import DualQP, dual_qp
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
+from .mortar_report import mortar_warnings
 from .options import SolverOptions
 from .problem import ContactProblem
 from .qp import (
@@ -133,6 +134,12 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         friction.destroy()
     sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm, friction=friction)
     sol.check_kkt(ineq)
+    if qp.mortar:
+        c = sol.contact
+        warn, report.extra["mortar"] = mortar_warnings(problem.mesh, qp.mortar,
+                                                       sol.nodal_values(), c.spec, c.node,
+                                                       c.force)
+        report.warnings.extend(warn)
     _warn_loose_stop(report, opts.rtol)
     report.timings = timer.reduced(comm)
     report.timings["total"] = float(sum(report.timings.values()))

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import gmsh
 
-from dolfinx_feti import meshes
+from dolfinx_feti import meshes, meshes_occ
 
 #: file name → function that builds the model in the current gmsh session.
 MESHES: dict[str, Callable[[], object]] = {
@@ -19,6 +19,8 @@ MESHES: dict[str, Callable[[], object]] = {
     "membranes_16.msh": lambda: meshes.membranes(16),
     "hertz2d.msh": meshes.hertz2d,
     "blocks3d.msh": meshes.blocks3d,
+    "disk_on_block.msh": lambda: meshes_occ.disk_on_block(0.1, 0.1),
+    "stacked_blocks2d.msh": lambda: meshes_occ.stacked_blocks(2, 0.1, 0.17),
 }
 
 

@@ -81,6 +81,20 @@ def api_problem(name: str) -> df.ContactProblem:
             mesh, forms, dirichlet=dirichlet,
             contact=[df.RigidObstacle("disk_contact", df.Plane((0.0, 0.0), (0.0, 1.0)))],
             decomposition=df.Parts({"disk": 2, "block": 1}))
+    if name == "hertz2d_mortar":
+        return df.ContactProblem(
+            df.read_gmsh(MESHES / "disk_on_block.msh"),
+            df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 2 / 8.0)}),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+            contact=[df.Mortar(slave="disk_contact", master="block_contact")],
+            decomposition=df.Parts(2))
+    if name == "blocks2d_tie":
+        return df.ContactProblem(
+            df.read_gmsh(MESHES / "stacked_blocks2d.msh"),
+            df.Elasticity(100.0, 0.3, tractions={"top": (0.0, -1.0)}),
+            dirichlet=[df.Dirichlet("bottom", components=[1]),
+                       df.Dirichlet("sym0", components=[0])],
+            ties=[df.Tie(slave="upper_bottom", master="lower_top")], decomposition=df.Parts(2))
     if name in ("membranes", "membranes_8"):
         n = 16 if name == "membranes" else 8
         mesh = df.read_gmsh(MESHES / f"membranes_{n}.msh")
@@ -134,7 +148,8 @@ def _friction_problem(name: str) -> df.ContactProblem:
 
 
 FRICTION = ("coulomb_cylinders", "tresca2d", "tresca3d")
-SHIPPED = ("blocks3d", "hertz2d", "hertz2d_rigid", "membranes", "membranes_8", *FRICTION)
+SHIPPED = ("blocks3d", "hertz2d", "hertz2d_rigid", "hertz2d_mortar", "membranes", "membranes_8",
+           "blocks2d_tie", *FRICTION)
 HAS_FRICTION = hasattr(df, "Tresca") and hasattr(df, "Coulomb")
 
 

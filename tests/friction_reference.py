@@ -55,10 +55,13 @@ class FrictionReference:
         point: A point of the plane (obstacle only).
         match_axes: Coordinates that pair slave and master nodes.
         tractions: Group → constant traction vector.
+        weights: Instead of pairing: a sparse (slave nodes × all nodes) matrix of master
+            weights (mortar), the master point of slave node j being Σ_k w_jk x_k; the rows
+            are (u_m − u_s)·n <= gap and (u_s − u_m)·t with u_m = Σ_k w_jk u_k.
     """
 
     def __init__(self, mesh, forms, *, dirichlet, slave: str, normal, master: str | None = None,
-                 point=None, match_axes=(0,), tractions=None) -> None:
+                 point=None, match_axes=(0,), tractions=None, weights=None) -> None:
         bs = mesh.gdim
         self.mesh, self.bs = mesh, bs
         self.K, self.f = assemble(mesh, bs, forms)
@@ -74,7 +77,13 @@ class FrictionReference:
         n = np.asarray(normal, dtype=float)
         assert abs(np.linalg.norm(n) - 1) < 1e-14
         s = np.unique(mesh.facet_groups[slave])
-        if master is not None:
+        if weights is not None:
+            W = sp.csr_matrix(weights)
+            s = s[np.asarray(W.sum(axis=1)).ravel() > 0]
+            W = W[np.asarray(W.sum(axis=1)).ravel() > 0]
+            m = None
+            gap = (mesh.x[s] - W @ mesh.x) @ n
+        elif master is not None:
             m = np.unique(mesh.facet_groups[master])
             key = np.round(mesh.x[:, list(match_axes)] / np.abs(mesh.x).max(), 9)
             index = {tuple(k): i for i, k in zip(m, key[m], strict=True)}
@@ -103,14 +112,27 @@ class FrictionReference:
                     vals.append(np.full(nodes.size, sign * vec[c]))
 
         r = np.arange(k)
+
+        def add_weighted(row, vec, sign):  # sign · Σ_k w_jk vec·u_k
+            Wc = W.tocoo()
+            for c in range(bs):
+                if vec[c] != 0.0:
+                    rows.append(row[Wc.row])
+                    cols.append(bs * Wc.col + c)
+                    vals.append(sign * vec[c] * Wc.data)
+
         add(r, s, n, -1.0)  # (u_m − u_s)·n <= gap
         if m is not None:
             add(r, m, n, 1.0)
+        if weights is not None:
+            add_weighted(r, n, 1.0)
         for j, t in enumerate(T):  # (u_s − u_m)·t
             rj = k + j * k + r
             add(rj, s, t, 1.0)
             if m is not None:
                 add(rj, m, t, -1.0)
+            if weights is not None:
+                add_weighted(rj, t, -1.0)
         nt = T.shape[0]
         self.B = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows),
                                                        np.concatenate(cols))),

@@ -249,7 +249,7 @@ class MonolithicProblem:
         forms: ``forms(u, v, x, body) -> (a, L or None)`` in UFL with ``ufl.dx``.
         tractions: Facet group → constant traction vector (lumped exactly).
         dirichlet: [(group, components or None)] fixed to zero.
-        contact: (slave group, master group).
+        contact: (slave group, master group), or the rows themselves as :class:`Pairs`.
         match_axes: The coordinates that pair slave and master nodes.
         normal: The master's outward normal (vector problems).
         extra_fixed: Further single dofs fixed to zero (e.g. to remove free rigid motions).
@@ -257,7 +257,7 @@ class MonolithicProblem:
 
     def __init__(self, mesh, bs: int, forms, *, tractions: dict | None = None,
                  dirichlet: Sequence[tuple[str, Sequence[int] | None]] = (),
-                 contact: tuple[str, str] | None = None, match_axes: Sequence[int] = (0,),
+                 contact: tuple[str, str] | Pairs | None = None, match_axes: Sequence[int] = (0,),
                  normal: Sequence[float] | None = None, extra_fixed: Sequence[int] = ()) -> None:
         self.mesh, self.bs = mesh, bs
         self.K, self.f = assemble(mesh, bs, forms)
@@ -266,7 +266,8 @@ class MonolithicProblem:
         self.fixed = dirichlet_dofs(mesh, bs, dirichlet)
         self.fixed[np.asarray(extra_fixed, dtype=np.int64)] = True  # single dofs bs·node + c
         self.free = np.flatnonzero(~self.fixed)
-        self.pairs = match_pairs(mesh, contact[0], contact[1], match_axes, bs, normal)
+        self.pairs = contact if isinstance(contact, Pairs) else \
+            match_pairs(mesh, contact[0], contact[1], match_axes, bs, normal)
 
     # -- the QP -----------------------------------------------------------------------------
     def solve(self, max_it: int = 100) -> ReferenceSolution:

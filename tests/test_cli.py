@@ -56,7 +56,7 @@ def api_nodal(name: str, cache: dict) -> np.ndarray:
 
 
 def rel_diff(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300))
+    return float(np.abs(a - b).max(initial=0.0) / max(np.abs(b).max(initial=0.0), 1e-300))
 
 
 def xdmf_attributes(path) -> set[str]:

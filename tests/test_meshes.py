@@ -293,7 +293,8 @@ def test_committed_meshes_are_up_to_date(tmp_path):
         capture_output=True,
     )
     written = sorted(p.name for p in tmp_path.glob("*.msh"))
-    assert written == ["blocks3d.msh", "hertz2d.msh", "membranes_16.msh", "membranes_8.msh"]
+    assert written == ["blocks3d.msh", "disk_on_block.msh", "hertz2d.msh", "membranes_16.msh",
+                       "membranes_8.msh", "stacked_blocks2d.msh"]
     for name in written:
         committed = MESH_DIR / name
         assert committed.stat().st_size < 1_000_000

@@ -366,7 +366,7 @@ def test_docs_reference_lists_every_key():
     docs = (ROOT / "docs" / "index.md").read_text()
     ref = docs[docs.index("## Problem file reference"):]
     keys = set(pfile.TOP_KEYS) | set(pfile.BOX_KEYS) | set(pfile.DIRICHLET_KEYS) | \
-        set(pfile.OUTPUT_KEYS) | set(pfile.PLOT_KEYS) | set(pfile.AFFINE_KEYS)
+        set(pfile.OUTPUT_KEYS) | set(pfile.PLOT_KEYS) | set(pfile.AFFINE_KEYS) | set(pfile.TIE_KEYS)
     for table in (pfile.MODEL_KEYS, pfile.CONTACT_KEYS, pfile.OBSTACLE_KEYS,
                   pfile.DECOMPOSITION_KEYS, pfile.FRICTION_KEYS):
         for ks in table.values():

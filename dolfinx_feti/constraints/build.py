@@ -6,16 +6,21 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.decompose import Decomposition
-from ..problem import ContactProblem, NodeToNode, RigidObstacle
+from ..problem import ContactProblem, Mortar, NodeToNode, RigidObstacle
 from .contact import node_to_node_rows, obstacle_rows
 from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows
 from .gluing import gluing_rows
+from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
 from .rows import Rows
 
 
-def build_rows(problem: ContactProblem, dec: Decomposition) -> Rows:
+def build_rows(problem: ContactProblem, dec: Decomposition,
+               mortar: list[MortarInfo] | None = None) -> Rows:
     """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
+
+    ``mortar``, when given, receives what the contact search found for each :class:`Mortar`
+    and :class:`Tie` condition (for the report and the post-solve checks).
 
     Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
     are contiguous and the global order does not depend on the number of ranks. The normal and
@@ -27,13 +32,22 @@ def build_rows(problem: ContactProblem, dec: Decomposition) -> Rows:
     fixed, values = dirichlet_mask(problem, mesh)
     blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
               dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim)]
+    found = [] if mortar is None else mortar
+    for i, t in enumerate(problem.ties):
+        block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs)
+        blocks.append(block)
+        found.append(info)
     for i, c in enumerate(problem.contact):
-        if isinstance(c, NodeToNode):
+        if isinstance(c, Mortar):
+            block, info = mortar_contact_rows(mesh, c, i, node_ptr, node_subs, bs)
+            blocks.append(block)
+            found.append(info)
+        elif isinstance(c, NodeToNode):
             blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs))
         elif isinstance(c, RigidObstacle):
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs))
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
-            blocks[-1] = with_tangential_rows(blocks[-1], node_ptr, node_subs)
+            blocks[-1] = with_tangential_rows(blocks[-1])
     rows = Rows.concatenate(blocks)
     if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
         raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "

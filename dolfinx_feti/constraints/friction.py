@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.gmsh_input import MeshData
-from ..problem import ContactProblem, Coulomb, NodeToNode, Tresca
+from ..problem import ContactProblem, Coulomb, Tresca
 from .contact import surface
 from .rows import Kind, Rows
 
@@ -52,36 +52,38 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     return np.stack([t1, t2], axis=1)
 
 
-def with_tangential_rows(normal: Rows, node_ptr: np.ndarray, node_subs: np.ndarray) -> Rows:
+def with_tangential_rows(normal: Rows) -> Rows:
     """The normal rows of one contact condition with their tangential rows interleaved.
 
-    Row order: for each contact node, its normal row, then its gdim − 1 tangential rows.
+    A normal row is Σ_k w_k n·u_k over its nodes (node-to-node: the slave and its master;
+    mortar: the slave and the weighted master nodes; obstacle: the node alone), so each
+    node's weight is w_k = Σ_c coef_c n_c; its tangential rows are −Σ_k w_k t·u_k, which puts
+    the slave node with +scale·t as the module docstring says. Row order: for each contact
+    node, its normal row, then its gdim − 1 tangential rows.
     """
     k, d = normal.normal.shape
     nt = d - 1
     T = tangent_basis(normal.normal)  # (k, nt, d)
-    first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
+    # The weight of each (row, node): entries of one node in one row are summed.
+    key = normal.e_row.astype(np.int64) * (int(normal.e_node.max(initial=0)) + 1) + normal.e_node
+    uniq, first_entry, inv = np.unique(key, return_index=True, return_inverse=True)
+    w = np.zeros(uniq.size)
+    np.add.at(w, inv, normal.e_coef * normal.normal[normal.e_row, normal.e_comp])
+    u_row, u_node, u_sub = (a[first_entry] for a in (normal.e_row, normal.e_node, normal.e_sub))
     nrow = k * nt
-    row = np.arange(nrow)
-    node = np.repeat(normal.node, nt)
-    partner = np.repeat(normal.partner, nt)
-    scale = np.repeat(normal.scale, nt)
-    tang = T.reshape(nrow, d)
-    e_row = [np.repeat(row, d)]
-    e_node = [np.repeat(node, d)]
-    e_coef = [(scale[:, None] * tang).ravel()]
-    two = partner >= 0  # node-to-node: the master node enters with the opposite sign
-    e_row.append(np.repeat(row[two], d))
-    e_node.append(np.repeat(partner[two], d))
-    e_coef.append((-scale[two, None] * tang[two]).ravel())
-    e_row, e_node, e_coef = (np.concatenate(a) for a in (e_row, e_node, e_coef))
-    e_comp = np.tile(np.arange(d), e_row.size // d)
+    # Entries: for each (row, node) and each tangent, d components.
+    e_row = (u_row[:, None] * nt + np.arange(nt)[None, :]).repeat(d, axis=1).ravel()
+    e_coef = (-w[:, None, None] * T[u_row]).ravel()
+    e_node = np.repeat(u_node, nt * d)
+    e_sub = np.repeat(u_sub, nt * d)
+    e_comp = np.tile(np.arange(d), u_row.size * nt)
     keep = e_coef != 0.0
     tangential = Rows(
-        e_row=e_row[keep], e_sub=first[e_node[keep]].astype(np.int32), e_node=e_node[keep],
+        e_row=e_row[keep], e_sub=e_sub[keep].astype(np.int32), e_node=e_node[keep],
         e_comp=e_comp[keep].astype(np.int8), e_coef=e_coef[keep], rhs=np.zeros(nrow),
-        kind=np.full(nrow, Kind.TANGENT, dtype=np.int8), scale=scale, node=node,
-        partner=partner, normal=tang, spec=np.repeat(normal.spec, nt))
+        kind=np.full(nrow, Kind.TANGENT, dtype=np.int8), scale=np.repeat(normal.scale, nt),
+        node=np.repeat(normal.node, nt), partner=np.repeat(normal.partner, nt),
+        normal=T.reshape(nrow, d), spec=np.repeat(normal.spec, nt))
     both = Rows.concatenate([normal, tangential])
     order = np.empty((k, nt + 1), dtype=np.int64)
     order[:, 0] = np.arange(k)
@@ -153,7 +155,7 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
         m = rows.spec[t] == i
         if not np.any(m):
             continue
-        group = c.slave if isinstance(c, NodeToNode) else c.group
+        group = c.group
         nodes, _, a = surface(mesh, group)
         node = rows.node[t[m]]
         area[m] = a[np.searchsorted(nodes, node)]

@@ -1,0 +1,183 @@
+"""Rows of B from a mortar coupling: non-penetration (one bound per slave node) and ties.
+
+With the dual multiplier basis the coupling of slave node j is the weighted master point
+Σ_k w_jk x_k (w_jk = M_jk / C_j, see :mod:`.mortar`), so a mortar row looks like a node-to-node
+row whose master node is replaced by that weighted combination::
+
+    contact:  s_j · n_j·(Σ_k w_jk u_k − u_j) <= s_j · n_j·(x_j − Σ_k w_jk x_k)
+    tie:      s_j · (u_j,c − Σ_k w_jk u_k,c) = 0        for each component c
+
+with n_j the averaged slave normal turned toward the slave (the direction of the master's
+outward normal, as in node-to-node rows) and s_j = 1/√(1 + Σ_k w_jk²) the factor that gives
+the row unit norm; so the physical multiplier s_j λ_j is the nodal contact force, as for
+node-to-node rows, and with matching meshes (w_jk = δ) the rows are the node-to-node rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+from ..mesh.checks import boundary_facets
+from ..mesh.gmsh_input import MeshData
+from ..problem import Mortar, Tie
+from .contact import surface
+from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
+from .rows import Kind, Rows
+
+
+@dataclass
+class MortarInfo:
+    """What the search found for one mortar condition (for the report and the checks).
+
+    Attributes:
+        spec: Index of the condition (in the problem's contact list, or its ties).
+        slave, master: The boundary groups.
+        coupling: The mortar coupling.
+        rows: Number of rows (coupled slave nodes).
+        uncoupled: Slave nodes with no master facet in range (no row).
+        rim_nodes: The coupled slave nodes on the rim of a candidate surface.
+        tie: A :class:`~dolfinx_feti.Tie` (equality rows), else a contact condition.
+    """
+
+    spec: int
+    slave: str
+    master: str
+    coupling: MortarCoupling
+    rows: int
+    uncoupled: int
+    rim_nodes: np.ndarray
+    tie: bool = False
+
+    def summary(self) -> dict:
+        """Plain data for the report."""
+        return {"type": "tie" if self.tie else "mortar", "slave": self.slave,
+                "master": self.master, "rows": self.rows,
+                "uncoupled_slave_nodes": self.uncoupled, "rim_rows": int(self.rim_nodes.size),
+                "facet_pairs": self.coupling.pairs,
+                "search_distance": self.coupling.search_distance}
+
+
+def _coupling(mesh: MeshData, slave: str, master: str, search_distance) -> MortarCoupling:
+    surface(mesh, slave)  # a surface that is no boundary of a body is refused by name here
+    surface(mesh, master)
+    return mortar_coupling(mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master),
+                           search_distance)
+
+
+def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
+    """The coupled slave nodes on an open rim (:func:`.mortar.open_rim`) of either surface.
+
+    A slave node is on the master's open rim when its support is only partly covered and it
+    is coupled to a node of that rim.
+    """
+    boundary, _ = boundary_facets(mesh)
+    s_rim = open_rim(mesh.x, mesh.cells, mesh.facets(slave), boundary)
+    m_rim = open_rim(mesh.x, mesh.cells, mesh.facets(master), boundary)
+    keep = coupling.coupled
+    nodes = coupling.slave_nodes
+    partial = coupling.coverage < 1.0 - COVERAGE_FULL_TOL
+    M = coupling.M.tocsr()
+    touches = np.asarray(M[:, m_rim].getnnz(axis=1) > 0).ravel() if m_rim.size else \
+        np.zeros(nodes.size, dtype=bool)
+    rim = np.isin(nodes, s_rim) | (partial & touches)
+    return nodes[keep & rim]
+
+
+def _bodies(mesh: MeshData, group: str) -> set[int]:
+    nodes = np.unique(mesh.facets(group))
+    return set(np.unique(mesh.cell_body[np.isin(mesh.cells, nodes).any(axis=1)]).tolist())
+
+
+def _coupled_rows(coupling: MortarCoupling, first: np.ndarray, bs: int, dirs: np.ndarray
+                  ) -> tuple[np.ndarray, ...]:
+    """Entries of rows s_j (dir_j·u_j − Σ_k w_jk dir_j·u_k), one row per coupled node.
+
+    ``dirs`` (rows, bs) is the direction each row measures (a normal, or a unit vector e_c).
+    """
+    W = coupling.weights().tocoo()
+    slave = coupling.slave_nodes[coupling.coupled]
+    nr = slave.size
+    s = 1.0 / np.sqrt(1.0 + np.asarray(W.multiply(W).sum(axis=1)).ravel())
+    comps = np.arange(bs)
+    e_row = np.concatenate([np.repeat(np.arange(nr), bs), np.repeat(W.row, bs)])
+    e_node = np.concatenate([np.repeat(slave, bs), np.repeat(W.col, bs)])
+    e_comp = np.concatenate([np.tile(comps, nr), np.tile(comps, W.nnz)])
+    e_coef = np.concatenate([(s[:, None] * dirs).ravel(),
+                             (-(s[W.row] * W.data)[:, None] * dirs[W.row]).ravel()])
+    keep = e_coef != 0.0
+    return (e_row[keep], first[e_node[keep]].astype(np.int32), e_node[keep],
+            e_comp[keep].astype(np.int8), e_coef[keep], s, slave)
+
+
+def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.ndarray,
+                        node_subs: np.ndarray, bs: int) -> tuple[Rows, MortarInfo]:
+    """Non-penetration rows of a :class:`~dolfinx_feti.Mortar` condition, one per coupled node."""
+    name = f"mortar contact {spec.slave!r} (slave) / {spec.master!r} (master)"
+    common = _bodies(mesh, spec.slave) & _bodies(mesh, spec.master)
+    if common:
+        raise InputError(f"{name}: both surfaces belong to body "
+                         f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
+    keep = coupling.coupled
+    n = -coupling.normals[keep]  # toward the slave: the master's outward direction
+    first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
+    if bs > 1:
+        gap = coupling.weighted_gap(mesh.x)
+        dirs = -n  # the row is s·n·(Σ w u_m − u_s): slave direction −n
+    else:
+        gap = np.zeros(int(keep.sum()))
+        dirs = np.ones((int(keep.sum()), 1))
+    e_row, e_sub, e_node, e_comp, e_coef, s, slave = _coupled_rows(coupling, first, bs, dirs)
+    nr = slave.size
+    rows = Rows(e_row=e_row, e_sub=e_sub, e_node=e_node, e_comp=e_comp, e_coef=e_coef,
+                rhs=s * gap, kind=np.full(nr, Kind.CONTACT, dtype=np.int8), scale=s, node=slave,
+                partner=np.full(nr, -1), normal=n if bs > 1 else np.zeros((nr, mesh.gdim)),
+                spec=np.full(nr, index, dtype=np.int32))
+    info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
+                      rows=nr, uncoupled=int((~keep).sum()),
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling))
+    return rows, info
+
+
+def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_subs: np.ndarray,
+             fixed: np.ndarray, bs: int) -> tuple[Rows, MortarInfo]:
+    """Equality rows u_j,c = Σ_k w_jk u_k,c of a :class:`~dolfinx_feti.Tie`, per component.
+
+    Components with a Dirichlet condition at the slave node are skipped (its Dirichlet row
+    already holds them), as in the gluing of matching subdomains.
+    """
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
+    if not np.any(coupling.coupled):
+        raise InputError(f"tie {spec.slave!r} (slave) / {spec.master!r} (master): no slave node "
+                         f"has a master facet within the search distance "
+                         f"{coupling.search_distance:.3g}: the surfaces are not an interface")
+    first = node_subs[node_ptr[:-1]]
+    blocks = []
+    slave = coupling.slave_nodes[coupling.coupled]
+    for c in range(bs):
+        dirs = np.zeros((slave.size, bs))
+        dirs[:, c] = 1.0
+        e_row, e_sub, e_node, e_comp, e_coef, s, _ = _coupled_rows(coupling, first, bs, dirs)
+        free = ~fixed[slave, c]
+        sel = np.flatnonzero(free)
+        new = np.full(slave.size, -1)
+        new[sel] = np.arange(sel.size)
+        ke = free[e_row]
+        nr = sel.size
+        blocks.append(Rows(
+            e_row=new[e_row[ke]], e_sub=e_sub[ke], e_node=e_node[ke], e_comp=e_comp[ke],
+            e_coef=e_coef[ke], rhs=np.zeros(nr), kind=np.full(nr, Kind.GLUE, dtype=np.int8),
+            scale=s[sel], node=slave[sel], partner=np.full(nr, -1),
+            normal=np.zeros((nr, mesh.gdim)), spec=np.full(nr, -1, dtype=np.int32)))
+    rows = Rows.concatenate(blocks)
+    comp = np.zeros(rows.size, dtype=np.int64)
+    comp[rows.e_row] = rows.e_comp
+    rows = rows.permuted(np.lexsort((comp, rows.node)))  # node-major, like the gluing rows
+    info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
+                      rows=rows.size, uncoupled=int((~coupling.coupled).sum()),
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True)
+    return rows, info
+

@@ -1,0 +1,241 @@
+"""Models of independently meshed bodies, built the way a gmsh user builds them (OCC kernel).
+
+Each body is its own OCC entity, not fragmented against the others, so each is meshed on its
+own by one ``generate`` call: the meshes of two touching bodies do not match on their common
+surface. This is what :class:`~dolfinx_feti.Mortar` contact and :class:`~dolfinx_feti.Tie`
+gluing are for. Like :mod:`dolfinx_feti.meshes`, each function adds a model to the current gmsh
+session, names its physical groups, meshes it with first-order simplices, leaves it current
+and returns the groups as ``{name: (dim, tag)}``.
+"""
+
+from __future__ import annotations
+
+import gmsh
+
+from .meshes import _add_group, _set_output_options, physical_groups
+
+_EPS = 1e-7
+
+
+def _in_box(dim: int, lo, hi) -> list[int]:
+    """Entities of dimension ``dim`` inside the box [lo, hi] (padded by a small tolerance)."""
+    lo = [*lo, 0.0][:3] if len(lo) == 2 else list(lo)
+    hi = [*hi, 0.0][:3] if len(hi) == 2 else list(hi)
+    box = [v - _EPS for v in lo] + [v + _EPS for v in hi]
+    return [tag for _, tag in gmsh.model.getEntitiesInBoundingBox(*box, dim)]
+
+
+def _size_in(entities: list[tuple[int, int]], h: float) -> None:
+    """Mesh size ``h`` at every point of the given entities."""
+    pts = gmsh.model.getBoundary(entities, combined=False, recursive=True)
+    gmsh.model.mesh.setSize(pts, h)
+
+
+def _graded_sizes(bodies: list[tuple[int, float]], dim: int, h_far: float, refine: float) -> None:
+    """Per body: size h within ``refine`` of the origin, growing to h_far (slope 0.2)."""
+    origin = [t for _, t in gmsh.model.getEntitiesInBoundingBox(
+        -_EPS, -_EPS, -_EPS, _EPS, _EPS, _EPS, 0)]
+    field = gmsh.model.mesh.field
+    fields = []
+    for ent, h in bodies:
+        dist = field.add("Distance")
+        field.setNumbers(dist, "PointsList", origin)
+        thr = field.add("Threshold")
+        field.setNumber(thr, "InField", dist)
+        field.setNumber(thr, "SizeMin", h)
+        field.setNumber(thr, "SizeMax", h_far)
+        field.setNumber(thr, "DistMin", refine)
+        field.setNumber(thr, "DistMax", refine + 5 * (h_far - h))
+        restrict = field.add("Restrict")
+        field.setNumber(restrict, "InField", thr)
+        below = gmsh.model.getBoundary([(dim, ent)], combined=False, oriented=False,
+                                       recursive=False)
+        if dim == 2:
+            field.setNumbers(restrict, "SurfacesList", [ent])
+            field.setNumbers(restrict, "CurvesList", [abs(t) for _, t in below])
+        else:
+            field.setNumbers(restrict, "VolumesList", [ent])
+            field.setNumbers(restrict, "SurfacesList", [abs(t) for _, t in below])
+            curves = gmsh.model.getBoundary(below, combined=False, oriented=False)
+            field.setNumbers(restrict, "CurvesList", sorted({abs(t) for _, t in curves}))
+        fields.append(restrict)
+    mini = field.add("Min")
+    field.setNumbers(mini, "FieldsList", fields)
+    field.setAsBackgroundMesh(mini)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", h_far)
+
+
+def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
+                   width: float = 1.0, height: float = 1.0, gap: float = 0.0) -> dict:
+    """Two boxes, one on top of the other, meshed independently (non-matching interface).
+
+    "lower" = [0, width]^(dim−1) × [0, height], "upper" the same box shifted up by
+    height + gap (the last coordinate is vertical). Unstructured simplices of size h_lower and
+    h_upper.
+
+    Physical groups: bodies "lower" (tag 1) and "upper" (2); boundary groups "bottom" (11, the
+    lower box's base), "lower_top" (12), "upper_bottom" (13), "top" (14, the upper box's top),
+    "sym0" (15, the faces x = 0 of both boxes) and in 3D "sym1" (16, the faces y = 0).
+
+    Args:
+        dim: 2 or 3.
+        h_lower: Element size of the lower box.
+        h_upper: Element size of the upper box.
+        width: Horizontal size of the boxes.
+        height: Vertical size of the boxes.
+        gap: Initial gap between the boxes.
+    """
+    if dim not in (2, 3) or min(h_lower, h_upper, width, height) <= 0 or gap < 0:
+        raise ValueError(f"stacked_blocks: bad sizes dim={dim}, h={h_lower}/{h_upper}, "
+                         f"width={width}, height={height}, gap={gap}")
+    gmsh.model.add("stacked_blocks")
+    _set_output_options()
+    occ = gmsh.model.occ
+    z1 = height + gap
+    if dim == 2:
+        lower = occ.addRectangle(0.0, 0.0, 0.0, width, height)
+        upper = occ.addRectangle(0.0, z1, 0.0, width, height)
+    else:
+        lower = occ.addBox(0.0, 0.0, 0.0, width, width, height)
+        upper = occ.addBox(0.0, 0.0, z1, width, width, height)
+    occ.synchronize()
+    # Sizes from the points only (another model of the session may have changed the options).
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
+    _size_in([(dim, lower)], h_lower)
+    _size_in([(dim, upper)], h_upper)
+    top = z1 + height
+    w = [width] * (dim - 1)
+    z = [0.0] * (dim - 1)
+
+    def at(level: float) -> tuple[list[float], list[float]]:
+        return [*z, level], [*w, level]
+
+    _add_group(dim, [lower], 1, "lower")
+    _add_group(dim, [upper], 2, "upper")
+    _add_group(dim - 1, _in_box(dim - 1, *at(0.0)), 11, "bottom")
+    _add_group(dim - 1, [e for e in _in_box(dim - 1, *at(height))
+                         if (dim - 1, e) in gmsh.model.getBoundary([(dim, lower)])
+                         or (dim - 1, -e) in gmsh.model.getBoundary([(dim, lower)])],
+               12, "lower_top")
+    _add_group(dim - 1, [e for e in _in_box(dim - 1, *at(z1))
+                         if abs(e) in [abs(t) for _, t in gmsh.model.getBoundary([(dim, upper)])]],
+               13, "upper_bottom")
+    _add_group(dim - 1, _in_box(dim - 1, *at(top)), 14, "top")
+    lo, hi = [0.0] * dim, [0.0] + [width] * (dim - 2) + [top]
+    _add_group(dim - 1, _in_box(dim - 1, lo, hi), 15, "sym0")
+    if dim == 3:
+        _add_group(2, _in_box(2, [0.0, 0.0, 0.0], [width, 0.0, top]), 16, "sym1")
+    gmsh.model.mesh.generate(dim)
+    return physical_groups()
+
+
+def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
+                  h_far: float = 1.0, R: float = 8.0, width: float = 20.0,
+                  height: float = 20.0, refine: float = 2.5) -> dict:
+    """2D Hertz, half model: a quarter disk on a block, each meshed on its own.
+
+    The geometry of :func:`dolfinx_feti.meshes.hertz2d` (disk of radius R centred at (0, R)
+    touching the block's top y = 0 at the origin; symmetry about x = 0), but with no matching
+    nodes: each body is an OCC surface meshed with its own size near the contact
+    (h_contact_disk, h_contact_block within ``refine`` of the origin, growing to h_far).
+
+    Physical groups: "disk" (2, 1), "block" (2, 2), "disk_contact" (1, 11) = the whole arc,
+    "block_contact" (1, 12) = the whole top of the block, "load" (1, 13) = the disk's flat top
+    y = R, "symmetry" (1, 14) = the x = 0 edges, "bottom" (1, 15) = y = −height.
+    """
+    if not 0 < max(h_contact_disk, h_contact_block) <= h_far or refine <= 0:
+        raise ValueError("disk_on_block: need 0 < h_contact <= h_far and refine > 0")
+    gmsh.model.add("disk_on_block")
+    _set_output_options()
+    occ = gmsh.model.occ
+    disk_full = occ.addDisk(0.0, R, 0.0, R, R)
+    quarter = occ.addRectangle(0.0, 0.0, 0.0, R, R)
+    (disk_dt, _) = occ.intersect([(2, disk_full)], [(2, quarter)])
+    disk = disk_dt[0][1]
+    block = occ.addRectangle(0.0, -height, 0.0, width / 2, height)
+    occ.synchronize()
+    disk_curves = [abs(t) for _, t in gmsh.model.getBoundary([(2, disk)], oriented=False)]
+    block_curves = [abs(t) for _, t in gmsh.model.getBoundary([(2, block)], oriented=False)]
+
+    def centre(c: int) -> tuple[float, float]:
+        cx, cy, _ = gmsh.model.occ.getCenterOfMass(1, c)
+        return cx, cy
+
+    tol = 1e-6 * max(R, width, height)
+    load = [c for c in disk_curves if abs(centre(c)[1] - R) < tol]
+    disk_sym = [c for c in disk_curves if abs(centre(c)[0]) < tol]
+    arc = [c for c in disk_curves if c not in load + disk_sym]
+    top = [c for c in block_curves if abs(centre(c)[1]) < tol]
+    block_sym = [c for c in block_curves if abs(centre(c)[0]) < tol]
+    bottom = [c for c in block_curves if abs(centre(c)[1] + height) < tol]
+    _graded_sizes([(disk, h_contact_disk), (block, h_contact_block)], 2, h_far, refine)
+    _add_group(2, [disk], 1, "disk")
+    _add_group(2, [block], 2, "block")
+    _add_group(1, arc, 11, "disk_contact")
+    _add_group(1, top, 12, "block_contact")
+    _add_group(1, load, 13, "load")
+    _add_group(1, disk_sym + block_sym, 14, "symmetry")
+    _add_group(1, bottom, 15, "bottom")
+    gmsh.model.mesh.generate(2)
+    return physical_groups()
+
+
+def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.25,
+                    h_far: float = 2.0, R: float = 8.0, width: float = 16.0,
+                    height: float = 8.0, refine: float = 1.5) -> dict:
+    """3D Hertz, quarter model: a hemisphere on a block, each meshed on its own.
+
+    The lower half of the ball of radius R centred at (0, 0, R), cut to x, y >= 0, touches the
+    top z = 0 of the block [0, width/2]² × [−height, 0] at the origin. Each body is an OCC
+    volume meshed with its own size near the contact (within ``refine`` of the origin),
+    growing to h_far; the meshes do not match.
+
+    Physical groups: "sphere" (3, 1), "block" (3, 2), "sphere_contact" (2, 11) = the whole
+    spherical surface, "block_contact" (2, 12) = the whole top of the block, "load" (2, 13) =
+    the flat top z = R of the hemisphere, "sym_x" (2, 14) = the faces x = 0, "sym_y" (2, 15)
+    = the faces y = 0, "bottom" (2, 16) = z = −height.
+    """
+    if not 0 < max(h_contact_sphere, h_contact_block) <= h_far or refine <= 0:
+        raise ValueError("sphere_on_block: need 0 < h_contact <= h_far and refine > 0")
+    gmsh.model.add("sphere_on_block")
+    _set_output_options()
+    occ = gmsh.model.occ
+    ball = occ.addSphere(0.0, 0.0, R, R)
+    box = occ.addBox(0.0, 0.0, 0.0, R, R, R)
+    (dt, _) = occ.intersect([(3, ball)], [(3, box)])
+    sphere = dt[0][1]
+    block = occ.addBox(0.0, 0.0, -height, width / 2, width / 2, height)
+    occ.synchronize()
+    tol = 1e-6 * max(R, width, height)
+
+    def faces(body: int) -> list[int]:
+        return [abs(t) for _, t in gmsh.model.getBoundary([(3, body)], oriented=False)]
+
+    def centre(f: int) -> tuple[float, float, float]:
+        return gmsh.model.occ.getCenterOfMass(2, f)
+
+    sym_x = [f for b in (sphere, block) for f in faces(b) if abs(centre(f)[0]) < tol]
+    sym_y = [f for b in (sphere, block) for f in faces(b) if abs(centre(f)[1]) < tol]
+    load = [f for f in faces(sphere) if abs(centre(f)[2] - R) < tol]
+    curved = [f for f in faces(sphere) if f not in sym_x + sym_y + load]
+    top = [f for f in faces(block) if abs(centre(f)[2]) < tol]
+    bottom = [f for f in faces(block) if abs(centre(f)[2] + height) < tol]
+    _graded_sizes([(sphere, h_contact_sphere), (block, h_contact_block)], 3, h_far, refine)
+    _add_group(3, [sphere], 1, "sphere")
+    _add_group(3, [block], 2, "block")
+    _add_group(2, curved, 11, "sphere_contact")
+    _add_group(2, top, 12, "block_contact")
+    _add_group(2, load, 13, "load")
+    _add_group(2, sym_x, 14, "sym_x")
+    _add_group(2, sym_y, 15, "sym_y")
+    _add_group(2, bottom, 16, "bottom")
+    gmsh.model.mesh.generate(3)
+    return physical_groups()
+
+
+__all__ = ["disk_on_block", "sphere_on_block", "stacked_blocks"]

@@ -1,0 +1,80 @@
+"""After a solve with mortar conditions: the search summary and the checks of the result.
+
+The mortar rows hold the non-penetration condition in a weighted (integral) sense and only at
+the slave nodes that the contact search coupled. So after the solve every node of both
+surfaces of each :class:`~dolfinx_feti.Mortar` condition is checked against the other
+deformed surface, and the report warns, naming the groups, when
+
+- a node penetrates the other surface by more than :data:`PENETRATION_RTOL` times the mean
+  facet size (the contact zone reaches nodes the rows do not hold: the candidate surfaces or
+  the search distance are too small), or
+- a row on the rim of a candidate surface is active (the contact zone may extend beyond the
+  surfaces that were named).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .constraints.mortar import mean_facet_size, penetration
+from .constraints.mortar_rows import MortarInfo
+from .mesh.topology import nodal_normals_and_areas
+
+#: A penetration deeper than this times the mean facet size of the two surfaces gets a warning.
+PENETRATION_RTOL = 1e-2
+#: A row counts as active where its force exceeds this times the largest force of its condition.
+ACTIVE_RTOL = 1e-6
+
+
+def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarray,
+                    node: np.ndarray, force: np.ndarray) -> tuple[list[str], list[dict]]:
+    """The warnings and the per-condition summaries of a solve.
+
+    Args:
+        mesh: The mesh (global arrays).
+        infos: What the search found, per mortar condition.
+        u: The nodal displacement (N, gdim) or (N, 1) for a scalar problem.
+        spec: Per contact row: the index of its condition; ``node`` its slave node; ``force``
+            its nodal force.
+        node: See ``spec``.
+        force: See ``spec``.
+    """
+    warnings, summaries = [], []
+    for info in infos:
+        summary = info.summary()
+        summaries.append(summary)
+        if info.tie:
+            continue
+        name = f"mortar contact {info.slave!r} (slave) / {info.master!r} (master)"
+        mine = spec == info.spec
+        f = force[mine]
+        active = node[mine][f > ACTIVE_RTOL * max(float(np.abs(f).max(initial=0.0)), 1e-300)]
+        rim_active = np.intersect1d(active, info.rim_nodes)
+        if rim_active.size:
+            warnings.append(
+                f"{name}: {rim_active.size} active row(s) on the rim of a candidate surface "
+                f"(e.g. the slave node at {np.round(mesh.x[rim_active[0]], 6).tolist()}): the "
+                "contact zone may extend beyond the named surfaces; name larger candidate "
+                "surfaces")
+        summary["active_rows"] = int(active.size)
+        if u.shape[1] != mesh.gdim:
+            continue  # a scalar problem has no deformed geometry to check
+        xd = mesh.x + u
+        S, M = mesh.facets(info.slave), mesh.facets(info.master)
+        h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
+        tol = PENETRATION_RTOL * h
+        worst = 0.0
+        count = 0
+        for a, b in ((S, M), (M, S)):
+            nodes, normals, _ = nodal_normals_and_areas(xd, mesh.cells, a)
+            depth = penetration(xd[nodes], normals, xd, mesh.cells, b,
+                                info.coupling.search_distance)
+            count += int((depth > tol).sum())
+            worst = max(worst, float(depth.max(initial=0.0)))
+        summary["max_penetration"] = worst
+        if count:
+            warnings.append(
+                f"{name}: {count} node(s) of the two surfaces penetrate the other one by up to "
+                f"{worst:.3g} (tolerance {tol:.3g}): the contact zone reaches nodes that no row "
+                "holds; name larger candidate surfaces or a larger search_distance")
+    return warnings, summaries
