@@ -2,10 +2,10 @@
 
 B1 (two membranes), ``Parts`` decomposition (coordinate bisection) per membrane:
 
-- fixed problem: n = 512 squares per membrane side, Parts(64) per membrane (532 512 primal
-  dofs, 128 subdomains) on every number of ranks;
-- fixed work per rank: n ≈ 181·√ranks, Parts(8·ranks) per membrane (≈ 66 000 dofs and 16
-  subdomains per rank, H/h ≈ 64).
+- fixed problem (``--fixed n parts``, default 512 64): n squares per membrane side,
+  Parts(parts) per membrane (532 512 primal dofs, 128 subdomains) on every number of ranks;
+- fixed work per rank (``--weak n0 parts0``, default 181 8): n ≈ n0·√ranks,
+  Parts(parts0·ranks) per membrane (≈ 66 000 dofs and 16 subdomains per rank, H/h ≈ 64).
 
 Per rank: the peak resident set size (VmHWM) after the mesh is built (gmsh on rank 0, the
 arrays broadcast) and after the solve (``df.solve``, rtol 1e-6), and the growth in between
@@ -14,6 +14,7 @@ the figure. The driver starts one ``mpirun`` per case:
 
     python bench/memory_scaling.py                 # both tables, ~10 min
     python bench/memory_scaling.py --ranks 1 2     # fewer cases
+    python bench/memory_scaling.py --fixed 362 32 --weak 128 8   # smaller (docs/benchmarks.md)
 """
 
 from __future__ import annotations
@@ -93,6 +94,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--worker", nargs=2, type=int, help=argparse.SUPPRESS)
     ap.add_argument("--ranks", nargs="*", type=int, default=[1, 2, 4, 8])
+    ap.add_argument("--fixed", nargs=2, type=int, default=[512, 64], metavar=("N", "PARTS"))
+    ap.add_argument("--weak", nargs=2, type=int, default=[181, 8], metavar=("N0", "PARTS0"))
     ap.add_argument("--json", type=Path, default=ROOT / "output/bench/memory_scaling.json")
     args = ap.parse_args()
     if args.worker:
@@ -100,16 +103,20 @@ def main() -> None:
         return
     fixed, weak = [], []
     for r in args.ranks:
-        fixed.append((r, 512, 64, run_case(r, 512, 64)))
+        fn, fp = args.fixed
+        fixed.append((r, fn, fp, run_case(r, fn, fp)))
         print(table("fixed", fixed[-1:]).splitlines()[-1], flush=True)
-        n = int(round(181 * math.sqrt(r)))
-        weak.append((r, n, 8 * r, run_case(r, n, 8 * r)))
+        n0, p0 = args.weak
+        n = int(round(n0 * math.sqrt(r)))
+        weak.append((r, n, p0 * r, run_case(r, n, p0 * r)))
         print(table("weak", weak[-1:]).splitlines()[-1], flush=True)
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({"fixed": fixed, "weak": weak}, indent=1))
-    print(table("Fixed problem: B1 n = 512, Parts(64) per membrane", fixed))
+    print(table(f"Fixed problem: B1 n = {args.fixed[0]}, Parts({args.fixed[1]}) per membrane",
+                fixed))
     print()
-    print(table("Fixed work per rank: n ≈ 181·√ranks, Parts(8·ranks) per membrane", weak))
+    print(table(f"Fixed work per rank: n ≈ {args.weak[0]}·√ranks, Parts({args.weak[1]}·ranks) "
+                "per membrane", weak))
 
 
 if __name__ == "__main__":
