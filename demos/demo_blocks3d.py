@@ -10,6 +10,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,7 @@ problem = df.ContactProblem(
     dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sides_upper", components=[0, 1])],
     contact=[df.NodeToNode(slave="contact_upper", master="contact_lower")],
     decomposition=df.Parts(args.parts))
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 
 # ## Equilibrium and output
 

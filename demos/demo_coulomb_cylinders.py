@@ -19,6 +19,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -65,7 +66,7 @@ problem = df.ContactProblem(
     dirichlet=[df.Dirichlet("bottom")],
     contact=[df.NodeToNode("disk_contact", "block_contact", friction=df.Coulomb(F))],
     decomposition=df.Parts(args.parts))
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 report = solution.report
 # -
 

@@ -17,6 +17,7 @@
 
 # +
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -34,7 +35,7 @@ parser.add_argument("--parts", type=int, default=2, help="subdomains per body")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance of the solver")
 parser.add_argument("--out", type=Path, default=Path("output/hertz2d"), help="output folder")
 parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
-args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 # -
 
@@ -79,7 +80,7 @@ problem = df.ContactProblem(
 # Every subdomain floats (Total FETI); the dual problem has bound constraints (contact) and
 # equality constraints (the natural coarse space), so SMALBE-M with inner MPRGP is used.
 
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 report = solution.report
 
 # ## Comparison with Hertz

@@ -14,6 +14,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +65,7 @@ problem = df.ContactProblem(
     dirichlet=[df.Dirichlet("dirichlet")],
     contact=[df.NodeToNode(slave="contact_left", master="contact_right")],  # u_1 - u_2 <= 0
     decomposition=decomposition)
-solution = df.solve(problem, comm=comm, rtol=args.rtol)
+solution = df.solve(problem, comm=comm, options=sys.argv, rtol=args.rtol)
 # -
 
 # ## Checks and output

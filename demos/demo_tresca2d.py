@@ -17,6 +17,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +35,7 @@ parser.add_argument("--shift", type=float, nargs=2, default=(0.02, -0.02),
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance")
 parser.add_argument("--out", type=Path, default=Path("output/tresca2d"), help="output folder")
 parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
-args, _ = parser.parse_known_args()  # leave -feti_* options to PETSc
+args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 E, nu = 21.19, 0.277
 # -
@@ -58,8 +59,9 @@ def problem(friction):
         decomposition=df.Parts(args.parts))
 
 
-solution = df.solve(problem(df.Tresca(args.g)), comm=comm, rtol=args.rtol)
-frictionless = df.solve(problem(None), comm=comm, rtol=args.rtol)
+solution = df.solve(problem(df.Tresca(args.g)), comm=comm, options=sys.argv,
+                    rtol=args.rtol)
+frictionless = df.solve(problem(None), comm=comm, options=sys.argv, rtol=args.rtol)
 report = solution.report
 # -
 

@@ -12,6 +12,7 @@
 
 # +
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -46,8 +47,9 @@ def problem(friction):
         decomposition=df.Parts(args.parts))
 
 
-solution = df.solve(problem(df.Tresca(args.g)), comm=comm, rtol=args.rtol)
-frictionless = df.solve(problem(None), comm=comm, rtol=args.rtol)
+solution = df.solve(problem(df.Tresca(args.g)), comm=comm, options=sys.argv,
+                    rtol=args.rtol)
+frictionless = df.solve(problem(None), comm=comm, options=sys.argv, rtol=args.rtol)
 report = solution.report
 # -
 

@@ -11,7 +11,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 """
 
 from .dual import DualQP, dual_qp
-from .errors import InputError, SolveError
+from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
 from .options import SolverOptions
@@ -35,6 +35,7 @@ from .solve import solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
            "Dirichlet", "DualQP", "Elasticity", "InputError", "MeshData", "Mortar", "NodeToNode",
+           "NotConverged",
            "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
            "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
            "dual_qp", "read_gmsh", "solve"]

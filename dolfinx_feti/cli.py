@@ -7,12 +7,14 @@ Usage::
 
 The problem file is read and checked completely (every fault reported, with the file and the
 key) before anything heavy starts; then the problem is solved by Total FETI on all ranks of
-``MPI.COMM_WORLD`` and the outputs are written, each atomically (a temporary name in the target
-folder, renamed when complete), and only after a successful solve.
+``MPI.COMM_WORLD`` and the outputs are written, all or none: the output folder is checked before
+the solve, the files are staged beside their targets and moved into place together
+(:mod:`dolfinx_feti.staging`).
 
-Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, an
-output that cannot be written); 2 the command line or the problem file is wrong (nothing
-written); 3 the solver did not converge (only the JSON report is written).
+Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, outputs
+that could not be written: then none is); 2 the command line, the problem file or the output
+folder is wrong (nothing written); 3 the solver did not converge (only the JSON report is
+written).
 """
 
 from __future__ import annotations
@@ -28,10 +30,11 @@ from pathlib import Path
 from mpi4py import MPI
 
 from . import postprocess
-from .errors import InputError, SolveError
+from .errors import InputError, SolveError, collective
 from .log import Progress, logger
 from .options import option_value
 from .problemfile import ProblemFile, ProblemFileError, load
+from .staging import check_outputs, staged
 
 PROG = "dolfinx-feti"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
@@ -62,9 +65,10 @@ def _parser() -> _Parser:
         description="Solve a contact problem described in a TOML problem file by Total FETI "
                     "(SMALBE/MPRGP). Runs the same under mpirun -n N.",
         epilog="Solver options: any field of dolfinx_feti.SolverOptions as -feti_<name> VALUE "
-               "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1); these override the file's "
-               "[solver] table. Exit status: 0 solved, 1 solve failed, 2 bad command line or "
-               "problem file (nothing written), 3 not converged (only the report is written).")
+               "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1 -feti_smalbe_rho 2); these override "
+               "the file's [solver] table. Exit status: 0 solved, 1 solve failed (nothing "
+               "written), 2 bad command line, problem file or output folder (nothing written), "
+               "3 not converged (only the report is written).")
     p.add_argument("problem", type=Path, help="the problem file (TOML)")
     p.add_argument("-o", "--output-dir", type=Path, default=None,
                    help="write the outputs here instead of the file's output.directory")
@@ -167,6 +171,12 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
     if args.check:
         progress.info(f"{pf.path}: the problem file is valid")
         return EXIT_OK
+    try:  # before the solve: a folder that cannot be written is found now, not after it
+        requested = [pf.output.directory / f"{pf.path.stem}_pressure.png"] if args.plot else []
+        check_outputs(pf.output.paths() + requested, pf.inputs(), comm)
+    except (InputError, SolveError) as e:
+        _error(f"{PROG}: {pf.path}: {e}")
+        return EXIT_USAGE if isinstance(e, InputError) else EXIT_FAILED
 
     from .solve import solve
 
@@ -183,8 +193,8 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
     converged = report.converged
     try:
         written = _write_outputs(pf, solution, args.plot, converged, comm, progress)
-    except OSError as e:
-        _error(f"{PROG}: {pf.path}: cannot write the output: {e}")
+    except (InputError, SolveError) as e:
+        _error(f"{PROG}: {pf.path}: cannot write the outputs (none was written): {e}")
         return EXIT_FAILED
     if comm.rank == 0 and opts.verbose > 0:
         print(report.summary(), flush=True)
@@ -199,10 +209,12 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
 
 def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: bool,
                    comm: MPI.Comm, progress: Progress) -> list[Path]:
-    """Write the outputs (collective); raise OSError on every rank if one failed."""
+    """Write the outputs, all or none (collective; raises on every rank if one failed).
+
+    A converged run writes every output; a run that did not converge only the report.
+    """
     t0 = time.perf_counter()
     out = pf.output
-    written: list[Path] = []
     plot = out.pressure_plot
     if plot is None and plot_on_request and pf.problem.contact:
         from .problemfile import PlotSpec
@@ -213,41 +225,28 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
         along = "xyz"[int(abs(nodes.max(axis=0) - nodes.min(axis=0)).argmax())] \
             if nodes.size else "x"
         plot = PlotSpec(out.directory / f"{pf.path.stem}_pressure.png", 0, group, along)
-    if converged:
-        if out.xdmf is not None:
-            solution.write_xdmf(out.xdmf)  # collective, atomic
-            written += [out.xdmf, out.xdmf.with_suffix(".h5")]
-        solution.nodal_values()  # collective: computed (and cached) on every rank first
-        error = None
-        if comm.rank == 0:
-            try:
-                if out.nodal_values is not None:
-                    postprocess.save_nodal_values(solution, out.nodal_values)
-                    written.append(out.nodal_values)
-                if plot is not None:
-                    postprocess.plot_pressure(solution, plot.path, plot.contact, plot.along,
+    with staged(comm) as stage:
+        if converged:
+            if out.xdmf is not None:
+                stage.path(out.xdmf.with_suffix(".h5"))
+                solution.write_xdmf(stage.path(out.xdmf))  # collective
+            solution.nodal_values()  # collective: computed (and cached) on every rank first
+            npz = None if out.nodal_values is None else stage.path(out.nodal_values)
+            png = None if plot is None else stage.path(plot.path)
+            with collective(comm, "outputs"):
+                if comm.rank == 0 and npz is not None:
+                    postprocess.save_nodal_values(solution, npz)
+                if comm.rank == 0 and png is not None:
+                    postprocess.plot_pressure(solution, png, plot.contact, plot.along,
                                               title=f"{pf.title}: contact pressure on "
                                                     f"{plot.surface!r}")
-                    written.append(plot.path)
-            except Exception as e:  # noqa: BLE001 - rank 0 only: raised on every rank below
-                error = str(e) if isinstance(e, OSError) else f"{type(e).__name__}: {e}"
-        _raise_collectively(comm, error)
-    error = None
-    if out.report is not None and comm.rank == 0:
-        try:
-            solution.report.save_json(out.report)  # atomic
-            written.append(out.report)
-        except OSError as e:
-            error = str(e)
-    _raise_collectively(comm, error)
+        if out.report is not None:
+            report = stage.path(out.report)
+            with collective(comm, "outputs"):
+                if comm.rank == 0:
+                    solution.report.save_json(report)
     progress.phase("output", time.perf_counter() - t0)
-    return written
-
-
-def _raise_collectively(comm: MPI.Comm, error: str | None) -> None:
-    error = comm.bcast(error, root=0)
-    if error is not None:
-        raise OSError(error)
+    return stage.committed
 
 
 __all__ = ["main", "split_feti_options"]

@@ -1,20 +1,89 @@
-"""Solver options: explicit keyword arguments, overridable from the PETSc options database.
+"""Solver options: declared next to each solver, read under nested prefixes, checked by name.
 
-Every field ``name`` can be set on the command line as ``-feti_<name> value`` (e.g.
-``-feti_rtol 1e-8 -feti_mprgp_gamma 1``); command-line values win over the Python defaults but
-not over keyword arguments given explicitly to :func:`dolfinx_feti.solve`.
+Each solver declares its options where it is defined (an :class:`~dolfinx_feti.validation.
+OptionSet`: default, check, meaning): MPRGP in :mod:`dolfinx_feti.qp.mprgp`
+(``-feti_mprgp_gamma``, ``_expansion``, ``_alpha``), SMALBE in :mod:`dolfinx_feti.qp.smalbe`
+(``-feti_smalbe_rho``, ``_M``, ...), the dual penalty and the FETI solve itself here
+(``-feti_rtol``, ``-feti_factor``, ...). :class:`SolverOptions` is made from these
+declarations: one field per option, named ``<solver>_<option>`` (``smalbe_rho``), so the
+keyword ``df.solve(..., smalbe_rho=2)``, the problem file's ``[solver] smalbe_rho = 2`` and the
+command line's ``-feti_smalbe_rho 2`` name the same option.
+
+Precedence: the declared defaults < the PETSc options database under ``-feti_`` (what the user
+put there) < the command-line tokens the user hands over (``df.solve(..., options=sys.argv)``
+or :meth:`SolverOptions.create` with ``argv``) < keyword arguments. Nothing is written into the
+PETSc options database, and ``sys.argv`` is read only when it is passed.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import sys
-from collections.abc import Sequence
-from dataclasses import asdict, dataclass, fields
+import difflib
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass
+from typing import Any
 
 from petsc4py import PETSc
 
 from .errors import InputError
+from .qp.mprgp import OPTIONS as MPRGP
+from .qp.smalbe import OPTIONS as SMALBE
+from .validation import (
+    Check,
+    Choice,
+    Flag,
+    Integer,
+    Maybe,
+    Option,
+    OptionSet,
+    Real,
+    checked,
+)
+
+_TOL = Real(gt=0, lt=1)
+_COUNT = Integer(ge=1, le=10**9)
+
+#: The options of the FETI solve (no solver prefix: ``-feti_rtol``).
+FETI = OptionSet(
+    "", "the FETI solve",
+    rtol=Option(1e-6, _TOL, "stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term)"),
+    eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
+                   "None: rtol"),
+    max_it=Option(5000, _COUNT, "the budget of inner iterations (all outer iterations "
+                  "together)"),
+    max_outer=Option(1000, _COUNT, "the budget of SMALBE outer iterations (an outer iteration "
+                     "with no inner work costs no F-multiplication; 2D elasticity with 512 "
+                     "subdomains needs 166, docs/benchmarks.md)"),
+    factor=Option("cholmod", Choice("cholmod", "mumps", "petsc"), "the sparse Cholesky package "
+                  "of the subdomain matrices"),
+    preconditioner=Option("lumped", Choice("none", "lumped", "dirichlet"), "'none', 'lumped' "
+                          "(B K Bᵀ) or 'dirichlet' (B S Bᵀ), applied projected in CG and in the "
+                          "face (free set) in MPRGP"),
+    preconditioner_scaling=Option("stiffness", Choice("stiffness", "multiplicity"),
+                                  "'stiffness' (Rixen–Farhat: Z B Δ K Δ Bᵀ Z, Δ = diag(K)⁻¹, "
+                                  "Z = (B Δ Bᵀ)⁻¹; multiplicity scaling with a warning where "
+                                  "B Δ Bᵀ is singular) or 'multiplicity' (the orthonormal rows "
+                                  "of B as they are); measured in docs/solvers.md"),
+    qp=Option("auto", Choice("auto", "penalty"), "'auto' (CG / SMALBE / MPRGP as the problem "
+              "needs) or 'penalty' (the dual penalty FETI-NCG_ρ: MPRGP on PFP + ρQ, the "
+              "equality only approximated: ||Gλ|| = O(1/ρ))"),
+    norm_rtol=Option(1e-4, _TOL, "the relative tolerance of the Lanczos estimate of ||PFP||"),
+    verbose=Option(0, Integer(ge=0, le=2), "0 quiet, 1 one line per phase, 2 also every "
+                   "iteration (rank 0 only)"),
+    error_if_not_converged=Option(False, Flag(), "raise df.NotConverged (on every rank) "
+                                  "instead of returning a solution that did not converge"),
+)
+
+#: The dual penalty of ``qp="penalty"`` (``-feti_penalty_rho``).
+PENALTY = OptionSet("penalty", "the dual penalty (qp='penalty')",
+                    rho=Option(1e3, Real(gt=0), "ρ relative to ||PFP||"))
+
+#: Every option set, in the order of SolverOptions' fields.
+OPTION_SETS = (FETI, MPRGP, SMALBE, PENALTY)
+
+#: Flat name → (set, option name, declaration).
+DECLARED: dict[str, tuple[OptionSet, str, Option]] = {
+    s.key(k): (s, k, o) for s in OPTION_SETS for k, o in s.options.items()}
 
 
 def option_value(tokens: Sequence[str], i: int) -> str | None:
@@ -32,108 +101,84 @@ def option_value(tokens: Sequence[str], i: int) -> str | None:
     return value
 
 
-def insert_command_line(argv: list[str] | None = None, prefix: str = "-feti_") -> None:
-    """Put ``-feti_*`` command-line options into PETSc's options database.
+def parse_text(name: str, text: str) -> Any:
+    """The value of the option ``name`` written as text (command line, options database).
 
-    DOLFINx initializes petsc4py without ``sys.argv``, so PETSc never sees them otherwise.
-    Values already in the database are kept. A flag with no value is stored as "1".
+    Raises:
+        InputError: For an unknown name or a text that is not of the option's type.
     """
-    argv = sys.argv[1:] if argv is None else argv
-    opts = PETSc.Options()
+    if name not in DECLARED:
+        close = difflib.get_close_matches(name, list(DECLARED), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise InputError(f"unknown solver option {name!r}{hint}; the options are "
+                         f"{', '.join(DECLARED)}")
+    check = DECLARED[name][2].check
+    if isinstance(check, Maybe):
+        if text.lower() == "none":
+            return None
+        check = check.check
+    try:
+        if isinstance(check, Integer):
+            value = float(text)
+            return int(value) if value.is_integer() else value
+        if isinstance(check, Real):
+            return float(text)
+    except ValueError:
+        raise InputError(f"solver option {name} must be {check.what}, got {text!r}") from None
+    return text  # strings and flags: the field's check reads them
+
+
+def kind(name: str) -> str:
+    """``'int'``, ``'float'``, ``'bool'`` or ``'str'``: what the option ``name`` holds."""
+    check = DECLARED[name][2].check
+    check = check.check if isinstance(check, Maybe) else check
+    return {Integer: "int", Real: "float", Flag: "bool"}.get(type(check), "str")
+
+
+def command_line_options(argv: Sequence[str], prefix: str = "-feti_") -> dict[str, Any]:
+    """The ``-feti_<name> value`` options among command-line tokens, by name, parsed.
+
+    Other tokens (the program, its own arguments) are skipped; a flag without a value is "1"
+    (true, or verbose level 1).
+
+    Raises:
+        InputError: For an unknown ``-feti_`` name or a value of the wrong type.
+    """
+    out = {}
     for i, token in enumerate(argv):
         if not token.startswith(prefix):
             continue
+        name = token[len(prefix):]
         value = option_value(argv, i)
-        name = token[1:]
-        if not opts.hasName(name):
-            opts.setValue(name, "1" if value is None else value)
+        out[name] = parse_text(name, "1" if value is None else value)
+    return out
 
 
-@dataclass
-class SolverOptions:
-    """Parameters of the FETI solve.
+def _database(prefix: str) -> dict[str, Any]:
+    """The options set in PETSc's options database under ``prefix`` (read, never written)."""
+    db = PETSc.Options(prefix)
+    return {name: parse_text(name, db.getString(name)) for name in DECLARED if db.hasName(name)}
 
-    Attributes:
-        rtol: Stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term).
-        eq_rtol: Stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; default ``rtol``.
-        max_it: Budget of inner iterations (all outer iterations together).
-        max_outer: Budget of SMALBE outer iterations. Outer iterations with no inner work cost
-            no F-multiplication; 2D elasticity with 512 subdomains needs 166 (docs/benchmarks.md).
-        factor: Sparse Cholesky package for the subdomain matrices ("cholmod", "mumps", "petsc").
-        mprgp_gamma: MPRGP's proportioning parameter Γ.
-        mprgp_expansion: "fixed", "optimal" or "projcg".
-        mprgp_alpha: Expansion step length: "fixed" (ᾱ = 1.95/||A||) or "bb" (Barzilai–Borwein,
-            accepted only if the energy decreases; needs mprgp_expansion "fixed").
-        preconditioner: "none", "lumped" (B K Bᵀ, the default) or "dirichlet" (B S Bᵀ),
-            applied projected in CG and in the face (free set) in MPRGP.
-        preconditioner_scaling: "stiffness" (the default; Rixen–Farhat: Z B Δ K Δ Bᵀ Z with
-            Δ = diag(K)⁻¹, Z = (B Δ Bᵀ)⁻¹) or "multiplicity" (the orthonormal rows of B as they
-            are). Where B Δ Bᵀ is singular (redundant rows) the preconditioner falls back to
-            multiplicity scaling with a warning. Measured in docs/solvers.md.
-        qp: "auto" (CG / SMALBE / MPRGP as the problem needs) or "penalty" (the dual penalty
-            FETI-NCG_ρ: MPRGP on PFP + ρQ, the equality only approximated: ||Gλ|| = O(1/ρ)).
-        penalty_rho: ρ of qp="penalty", relative to ||PFP||.
-        smalbe_rho: SMALBE's penalty ρ relative to ||PFP||.
-        smalbe_M: SMALBE's initial M relative to ||PFP||. The reference value 100 stalls the
-            outer loop (136 outer iterations on the 3D two-block problem); 1 needs 1-28 outer
-            iterations and the fewest F-multiplications on B1, 2D Hertz and the 3D blocks
-            (see docs/solvers.md).
-        smalbe_eta: SMALBE's η relative to ||b|| (None: the solver's default).
-        smalbe_beta: SMALBE's divisor of M.
-        smalbe_acceleration: "none" (the plain multiplier update μ += ρG̃λ of the theory) or
-            "anderson" (Anderson acceleration of that update, memory reset when the active set
-            changes; see docs/solvers.md).
-        smalbe_depth: Memory of the Anderson acceleration (number of past updates).
-        norm_rtol: Relative tolerance of the Lanczos estimate of ||PFP||.
-        verbose: 0 quiet, 1 one line per phase, 2 also every iteration (rank 0 only).
-    """
 
-    rtol: float = 1e-6
-    eq_rtol: float | None = None
-    max_it: int = 5000
-    max_outer: int = 1000
-    factor: str = "cholmod"
-    mprgp_gamma: float = 1.0
-    mprgp_expansion: str = "fixed"
-    mprgp_alpha: str = "fixed"
-    preconditioner: str = "lumped"
-    preconditioner_scaling: str = "stiffness"
-    qp: str = "auto"
-    penalty_rho: float = 1e3
-    smalbe_rho: float = 1.1
-    smalbe_M: float = 1.0
-    smalbe_eta: float | None = None
-    smalbe_beta: float = 2.0
-    smalbe_acceleration: str = "anderson"
-    smalbe_depth: int = 3
-    norm_rtol: float = 1e-4
-    verbose: int = 0
+class _Methods:
+    """The methods of :class:`SolverOptions` (its fields come from the option sets)."""
 
     @classmethod
-    def create(cls, prefix: str = "feti_", **kwargs) -> SolverOptions:
-        """Defaults, then the PETSc options database under ``prefix``, then ``kwargs``."""
-        names = {f.name for f in fields(cls)}
-        unknown = set(kwargs) - names
-        if unknown:
-            raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(names)}")
-        insert_command_line(prefix=f"-{prefix}")
-        opts = PETSc.Options(prefix)
-        values = {}
-        for f in fields(cls):
-            if not opts.hasName(f.name):
-                continue
-            kind = str(f.type)
-            try:
-                if "int" in kind:
-                    values[f.name] = opts.getInt(f.name)
-                elif "float" in kind:
-                    values[f.name] = opts.getReal(f.name)
-                else:
-                    values[f.name] = opts.getString(f.name)
-            except PETSc.Error:
-                raise InputError(f"PETSc option -{prefix}{f.name} {opts.getString(f.name)!r}: "
-                                 f"expected {'an integer' if 'int' in kind else 'a number'}"
-                                 ) from None
+    def create(cls, prefix: str = "feti_", *, argv: Sequence[str] | None = None,
+               defaults: Mapping[str, Any] | None = None, **kwargs) -> SolverOptions:
+        """The options, each source over the previous ones.
+
+        The declared defaults < ``defaults`` < the PETSc options database under ``prefix`` <
+        the ``-<prefix><name> value`` tokens of ``argv`` < ``kwargs``. Keyword values that
+        are None are ignored (not given). Pass ``argv=sys.argv`` to let the command line of a
+        script set options; nothing reads it otherwise.
+        """
+        for given in (defaults or {}, kwargs):
+            _check_names(given)
+        values: dict[str, Any] = dict(defaults or {})
+        values.update(_database(prefix))
+        if argv is not None:
+            values.update(command_line_options(argv, f"-{prefix}"))
         values.update({k: v for k, v in kwargs.items() if v is not None})
         out = cls(**values)
         out.validate()
@@ -141,51 +186,57 @@ class SolverOptions:
 
     def replace(self, **kwargs) -> SolverOptions:
         """A validated copy with some fields changed (unknown names are an InputError)."""
-        names = {f.name for f in fields(self)}
-        unknown = set(kwargs) - names
-        if unknown:
-            raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(names)}")
+        _check_names(kwargs)
         out = dataclasses.replace(self, **{k: v for k, v in kwargs.items() if v is not None})
         out.validate()
         return out
 
     def validate(self) -> None:
-        """Raise InputError for impossible values."""
-        for name in ("rtol", "norm_rtol", "mprgp_gamma"):
-            v = getattr(self, name)
-            if not v > 0:
-                raise InputError(f"solver option {name} must be positive, got {v}")
-        if self.eq_rtol is not None and not self.eq_rtol > 0:
-            raise InputError(f"solver option eq_rtol must be positive, got {self.eq_rtol}")
-        if self.max_it < 1 or self.max_outer < 1:
-            raise InputError("solver options max_it and max_outer must be >= 1")
-        if self.factor not in ("cholmod", "mumps", "petsc"):
-            raise InputError(f"factor must be 'cholmod', 'mumps' or 'petsc', got {self.factor!r}")
-        if self.mprgp_expansion not in ("fixed", "optimal", "projcg"):
-            raise InputError("mprgp_expansion must be 'fixed', 'optimal' or 'projcg', got "
-                             f"{self.mprgp_expansion!r}")
-        if self.mprgp_alpha not in ("fixed", "bb"):
-            raise InputError(f"mprgp_alpha must be 'fixed' or 'bb', got {self.mprgp_alpha!r}")
+        """Raise InputError for impossible values (each field is checked when it is set)."""
+        dataclasses.replace(self)  # the field checks
         if self.mprgp_alpha == "bb" and self.mprgp_expansion != "fixed":
             raise InputError("mprgp_alpha 'bb' needs mprgp_expansion 'fixed'")
-        if self.preconditioner not in ("none", "lumped", "dirichlet"):
-            raise InputError("preconditioner must be 'none', 'lumped' or 'dirichlet', got "
-                             f"{self.preconditioner!r}")
-        if self.preconditioner_scaling not in ("multiplicity", "stiffness"):
-            raise InputError("preconditioner_scaling must be 'multiplicity' or 'stiffness', got "
-                             f"{self.preconditioner_scaling!r}")
-        if self.qp not in ("auto", "penalty"):
-            raise InputError(f"qp must be 'auto' or 'penalty', got {self.qp!r}")
-        if not self.penalty_rho > 0:
-            raise InputError(f"penalty_rho must be positive, got {self.penalty_rho}")
-        if self.smalbe_beta <= 1:
-            raise InputError(f"smalbe_beta must be > 1, got {self.smalbe_beta}")
-        if self.smalbe_acceleration not in ("none", "anderson"):
-            raise InputError("smalbe_acceleration must be 'none' or 'anderson', got "
-                             f"{self.smalbe_acceleration!r}")
-        if self.smalbe_depth < 1:
-            raise InputError(f"smalbe_depth must be >= 1, got {self.smalbe_depth}")
+
+    def of(self, solver: OptionSet) -> dict[str, Any]:
+        """The options of one solver by their own names, e.g. ``{'rho': 1.1, 'M': 1.0, ...}``."""
+        return {k: getattr(self, solver.key(k)) for k in solver.options}
 
     def to_dict(self) -> dict:
         """Plain dict (for the JSON report)."""
         return asdict(self)
+
+
+def _check_names(given: Mapping[str, Any]) -> None:
+    unknown = set(given) - set(DECLARED)
+    if unknown:
+        raise InputError(f"unknown solver options {sorted(unknown)}; known: {sorted(DECLARED)}")
+
+
+def _doc() -> str:
+    lines = ["Parameters of the FETI solve, made from the options each solver declares.", "",
+             "Every field is checked when set (type, finiteness, range: tolerances in (0, 1), "
+             "iteration", "limits integers in [1, 1e9], penalties > 0), with an InputError "
+             "naming the option.", "", "Attributes:"]
+    for s in OPTION_SETS:
+        for k, o in s.options.items():
+            where = f"{s.doc}: " if s.name else ""
+            lines.append(f"    {s.key(k)}: {where}{o.doc} (default {o.default!r}).")
+    return "\n".join(lines)
+
+
+def _make_class() -> type:
+    annotations = {name: {"int": "int", "float": "float", "bool": "bool"}.get(kind(name), "str")
+                   for name in DECLARED}
+    annotations = {n: (t if DECLARED[n][2].default is not None else f"{t} | None")
+                   for n, t in annotations.items()}
+    namespace = {"__annotations__": annotations, "__doc__": _doc(), "__module__": __name__,
+                 **{n: d[2].default for n, d in DECLARED.items()}}
+    cls = type("SolverOptions", (_Methods,), namespace)
+    specs: dict[str, Check] = {n: d[2].check for n, d in DECLARED.items()}
+    return dataclass(checked("solver option", **specs)(cls))
+
+
+SolverOptions = _make_class()
+
+__all__ = ["DECLARED", "FETI", "OPTION_SETS", "PENALTY", "SolverOptions",
+           "command_line_options", "kind", "option_value", "parse_text"]

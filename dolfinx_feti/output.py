@@ -15,6 +15,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import compat
+from .errors import collective
 from .mesh.gmsh_input import MeshData
 
 _PARENT_CACHE: dict[tuple[int, int], object] = {}
@@ -144,25 +145,29 @@ def cell_function(mesh: MeshData, values: np.ndarray, name: str, msh):
 
 
 def write_xdmf(path: str | os.PathLike, u, functions) -> None:
-    """Write Functions on one mesh to XDMF; the files appear under their names only when done."""
+    """Write Functions on one mesh to XDMF; the files appear under their names only when done.
+
+    Collective; a failure on any rank (the folder cannot be made, the disk is full) raises on
+    every rank and leaves no file behind.
+    """
     path = Path(path)
     comm = u.function_space.mesh.comm
-    if comm.rank == 0:
-        path.parent.mkdir(parents=True, exist_ok=True)
-    comm.barrier()
     tmp = path.with_name(f".tmp-{path.name}")
+    with collective(comm, "outputs"):
+        if comm.rank == 0:
+            path.parent.mkdir(parents=True, exist_ok=True)
     try:
-        compat.write_xdmf(tmp, u.function_space.mesh, functions)
+        with collective(comm, "outputs"):
+            compat.write_xdmf(tmp, u.function_space.mesh, functions)
     except BaseException:
         if comm.rank == 0:  # leave no partial temporary files behind either
             for p in (tmp, tmp.with_suffix(".h5")):
                 p.unlink(missing_ok=True)
         raise
-    comm.barrier()
-    if comm.rank == 0:
-        h5_tmp, h5 = tmp.with_suffix(".h5"), path.with_suffix(".h5")
-        text = tmp.read_text().replace(h5_tmp.name, h5.name)
-        os.replace(h5_tmp, h5)
-        tmp.write_text(text)
-        os.replace(tmp, path)
-    comm.barrier()
+    with collective(comm, "outputs"):
+        if comm.rank == 0:
+            h5_tmp, h5 = tmp.with_suffix(".h5"), path.with_suffix(".h5")
+            text = tmp.read_text().replace(h5_tmp.name, h5.name)
+            os.replace(h5_tmp, h5)
+            tmp.write_text(text)
+            os.replace(tmp, path)

@@ -17,9 +17,28 @@ from .mesh.checks import (
 )
 from .mesh.decompose import ByFunction, ByTags, Parts
 from .mesh.gmsh_input import MeshData
+from .validation import (
+    Choice,
+    Either,
+    Function,
+    Instance,
+    Integer,
+    Maybe,
+    Real,
+    SequenceOf,
+    Text,
+    Vector,
+    checked,
+)
+
+_POINT_FUNCTION = "a function of the node coordinates x (n, gdim)"
 
 
 @dataclass(frozen=True)
+@checked(group=Text(),
+         value=Either(Real(), Vector(), Function(),
+                      what=f"a finite number, one per component, or {_POINT_FUNCTION}"),
+         components=Maybe(SequenceOf(Integer(ge=0), unique=True, nonempty=True)))
 class Dirichlet:
     """Prescribed values on a boundary group.
 
@@ -37,6 +56,8 @@ class Dirichlet:
 
 
 @dataclass(frozen=True)
+@checked(bound=Either(Real(ge=0, inf=True), Function(),
+                      what=f"a slip bound: a number >= 0, inf (no slip) or {_POINT_FUNCTION}"))
 class Tresca:
     """Given (Tresca) friction: the tangential traction is bounded by the slip bound ``g``.
 
@@ -53,19 +74,9 @@ class Tresca:
 
     bound: float | Callable[[np.ndarray], np.ndarray]
 
-    def __post_init__(self) -> None:
-        """Check a constant bound."""
-        if not callable(self.bound):
-            try:
-                g = float(self.bound)
-            except (TypeError, ValueError):
-                raise InputError(f"Tresca: the slip bound must be a number or a function of "
-                                 f"the node coordinates, got {self.bound!r}") from None
-            if np.isnan(g) or g < 0:
-                raise InputError(f"Tresca: the slip bound must be >= 0, got {self.bound}")
-
 
 @dataclass(frozen=True)
+@checked(coefficient=Real(ge=0), rtol=Real(gt=0, lt=1), max_steps=Integer(ge=1, le=10**6))
 class Coulomb:
     """Coulomb friction, solved by a fixed point on Tresca problems.
 
@@ -86,24 +97,14 @@ class Coulomb:
     rtol: float = 1e-6
     max_steps: int = 50
 
-    def __post_init__(self) -> None:
-        """Check the data."""
-        try:
-            f = float(self.coefficient)
-        except (TypeError, ValueError):
-            raise InputError(f"Coulomb: the coefficient must be a number, got "
-                             f"{self.coefficient!r}") from None
-        if not np.isfinite(f) or f < 0:
-            raise InputError(f"Coulomb: the coefficient must be finite and >= 0, got {f}")
-        if not self.rtol > 0 or int(self.max_steps) < 1:
-            raise InputError(f"Coulomb: need rtol > 0 and max_steps >= 1, got {self.rtol}, "
-                             f"{self.max_steps}")
-
 
 Friction = Tresca | Coulomb
+_FRICTION = Maybe(Instance(Tresca, Coulomb))
 
 
 @dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), gap=Maybe(Real()), match_tol=Real(gt=0, lt=1),
+         friction=_FRICTION)
 class NodeToNode:
     """Contact of two surfaces of different bodies with matching nodes.
 
@@ -117,7 +118,8 @@ class NodeToNode:
         slave: Boundary group of the slave side.
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
-        match_tol: Pairing tolerance relative to the mean edge length of the slave surface.
+        match_tol: Pairing tolerance relative to the mean edge length of the slave surface,
+            in (0, 1).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
             slip is the tangential part of u_slave − u_master.
     """
@@ -135,6 +137,7 @@ class NodeToNode:
 
 
 @dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION)
 class Mortar:
     """Contact of two surfaces of different bodies with independent (non-matching) meshes.
 
@@ -174,6 +177,7 @@ class Mortar:
 
 
 @dataclass(frozen=True)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)))
 class Tie:
     """Gluing of two surfaces with independent (non-matching) meshes by mortar equality rows.
 
@@ -200,41 +204,57 @@ class Obstacle(Protocol):
 
 
 @dataclass(frozen=True)
+@checked(point=Vector(), normal=Vector(nonzero=True))
 class Plane:
-    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle."""
+    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle.
+
+    ``point`` and ``normal`` have one coordinate per dimension of the mesh.
+    """
 
     point: Sequence[float]
     normal: Sequence[float]
 
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"point": self.point, "normal": self.normal}
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        n = np.asarray(self.normal, dtype=float)[: x.shape[1]]
-        if not np.linalg.norm(n) > 0:
-            raise InputError(f"Plane: the normal {tuple(self.normal)} is zero or not finite")
+        n = np.asarray(self.normal, dtype=float)
         n = n / np.linalg.norm(n)
-        p = np.asarray(self.point, dtype=float)[: x.shape[1]]
+        p = np.asarray(self.point, dtype=float)
         return (x - p) @ n, np.broadcast_to(n, x.shape).copy()
 
 
 @dataclass(frozen=True)
+@checked(center=Vector(), radius=Real(gt=0))
 class Sphere:
     """A rigid ball (a disc in 2D) of radius ``radius`` centred at ``center``."""
 
     center: Sequence[float]
     radius: float
 
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"center": self.center}
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        d = x - np.asarray(self.center, dtype=float)[: x.shape[1]]
+        d = x - np.asarray(self.center, dtype=float)
         r = np.linalg.norm(d, axis=1)
         return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
 
 
 @dataclass(frozen=True)
+@checked(point=Vector(3), axis=Vector(3, nonzero=True), radius=Real(gt=0))
 class Cylinder:
     """A rigid infinite cylinder (3D) with an axis through ``point`` along ``axis``."""
 
     point: Sequence[float]
     axis: Sequence[float]
     radius: float
+
+    def coordinates(self) -> dict[str, Sequence[float]]:
+        """The vectors that need one coordinate per dimension of the mesh."""
+        return {"point": self.point, "axis": self.axis}
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         a = np.asarray(self.axis, dtype=float)
@@ -246,6 +266,7 @@ class Cylinder:
 
 
 @dataclass(frozen=True)
+@checked(fn=Function(f"{_POINT_FUNCTION} returning (phi (n,), grad (n, gdim))"))
 class SignedDistance:
     """A rigid obstacle given by a user signed distance ``fn(x) -> (phi, grad)``."""
 
@@ -256,6 +277,9 @@ class SignedDistance:
 
 
 @dataclass(frozen=True)
+@checked(group=Text(), obstacle=Instance(methods=("distance",), what="an obstacle (Plane, "
+                                         "Sphere, Cylinder, SignedDistance)"),
+         friction=_FRICTION)
 class RigidObstacle:
     """Contact of a body's boundary group with a rigid obstacle.
 
@@ -275,6 +299,14 @@ Contact = NodeToNode | Mortar | RigidObstacle
 
 
 @dataclass
+@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh)"),
+         forms=Function("a function forms(V, sub) -> (a, L)"),
+         value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
+         contact=SequenceOf(Instance(object, what="a contact condition")),
+         decomposition=Instance(ByTags, Parts, ByFunction,
+                                what="a decomposition: ByTags(), Parts(n) or ByFunction(fn)"),
+         gluing=Choice("orthonormal", "redundant", "nonredundant"),
+         ties=SequenceOf(Instance(Tie)))
 class ContactProblem:
     """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
 
@@ -313,9 +345,6 @@ class ContactProblem:
                              "dimension for elasticity) when the forms are a plain function")
         if self.value_size not in (1, self.mesh.gdim):
             raise InputError(f"value_size must be 1 or {self.mesh.gdim}, got {self.value_size}")
-        if self.gluing not in ("orthonormal", "redundant", "nonredundant"):
-            raise InputError(f"gluing must be 'orthonormal', 'redundant' or 'nonredundant', "
-                             f"got {self.gluing!r}")
         check = getattr(self.forms, "check", None)
         if check is not None:
             check(self.mesh)
@@ -350,6 +379,7 @@ class ContactProblem:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
+        check_dimensions(self)
         _check_mesh(self.mesh, [g for c in [*self.contact, *self.ties] for g in
                                 ((c.group,) if isinstance(c, RigidObstacle) else
                                  (c.slave, c.master))],
@@ -368,6 +398,25 @@ def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
         raise InputError(f"{what} {c.slave!r}/{c.master!r}: search_distance must be a finite "
                          f"number > 0, got {d!r}")
+
+
+def check_dimensions(problem: ContactProblem) -> None:
+    """Vectors with one coordinate per dimension of the mesh, values one per component."""
+    gdim = problem.mesh.gdim
+    for bc in problem.dirichlet:
+        n = len(bc.components) if bc.components is not None else problem.value_size
+        if isinstance(bc.value, tuple) and len(bc.value) not in (1, n):
+            raise InputError(f"Dirichlet on {bc.group!r}: value has {len(bc.value)} numbers for "
+                             f"{n} constrained component(s); give one number or {n}")
+    for c in problem.contact:
+        vectors = getattr(getattr(c, "obstacle", None), "coordinates", dict)()
+        for name, v in vectors.items():
+            if len(v) != gdim:
+                kind = type(c.obstacle).__name__
+                raise InputError(f"obstacle on {c.group!r}: {kind}.{name} has {len(v)} "
+                                 f"coordinates, the mesh is {gdim}D"
+                                 + (" (a Cylinder is 3D only; use a Sphere, a disc, in 2D)"
+                                    if kind == "Cylinder" else ""))
 
 
 def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:

@@ -44,12 +44,11 @@ from typing import Any
 import numpy as np
 import ufl
 from mpi4py import MPI
-from petsc4py import PETSc
 
-from .errors import InputError
+from .errors import InputError, SolveError, collective
 from .fem import Elasticity, Poisson
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
-from .options import SolverOptions, option_value
+from .options import DECLARED, SolverOptions, kind, option_value, parse_text
 from .problem import (
     ContactProblem,
     Cylinder,
@@ -98,7 +97,7 @@ OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
-SOLVER_KEYS = tuple(f.name for f in fields(SolverOptions))
+SOLVER_KEYS = tuple(DECLARED)
 
 _ALONG = ("x", "y", "z", "arclength")
 _GLUING = ("orthonormal", "redundant", "nonredundant")
@@ -457,31 +456,21 @@ class ProblemFile:
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
-        """The solver options: defaults < ``[solver]`` < ``-feti_*`` options < overrides.
+        """The solver options, each source over the previous ones.
 
-        ``overrides`` that are None are ignored. The command-line pairs are put in PETSc's
-        options database for the call only (then the database is as before), so options given
-        to an in-process run do not leak into the next.
+        defaults < ``[solver]`` < the PETSc options database < the command line's ``-feti_*``
+        options < overrides. ``overrides`` that are None are ignored. Nothing is written into
+        PETSc's options database, so options given to an in-process run do not leak into the
+        next.
         """
-        db = PETSc.Options()
-        saved = {}
-        for name, value in self.command_line:
-            key = name.lstrip("-")
-            if key not in saved:
-                saved[key] = db.getString(key) if db.hasName(key) else None
-            db.setValue(key, value)
-        try:
-            feti = PETSc.Options("feti_")
-            kw = {k: v for k, v in {**(defaults or {}), **self.solver}.items()
-                  if not feti.hasName(k)}
-            kw.update({k: v for k, v in overrides.items() if v is not None})
-            return SolverOptions.create(**kw)
-        finally:
-            for key, old in saved.items():
-                if old is None:
-                    db.delValue(key)
-                else:
-                    db.setValue(key, old)
+        argv = [token for pair in self.command_line for token in pair]
+        return SolverOptions.create(argv=argv, defaults={**(defaults or {}), **self.solver},
+                                    **overrides)
+
+    def inputs(self) -> list[Path]:
+        """The run's input files: the problem file and the mesh file (never overwritten)."""
+        mesh = Path(self.mesh_source)
+        return [self.path] + ([mesh] if mesh.suffix == ".msh" else [])
 
     def summary(self) -> dict[str, Any]:
         """What was solved, for the report."""
@@ -517,17 +506,14 @@ def load(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, *,
             missing in the mesh, the command-line options), on every rank.
     """
     path = Path(path)
-    text, err = None, None
-    if comm.rank == 0:
-        try:
-            text = path.read_bytes()
-        except FileNotFoundError:
-            err = "the problem file does not exist"
-        except OSError as e:
-            err = f"cannot read the problem file: {e.strerror or e}"
-    text, err = comm.bcast((text, err), root=0)
-    if err is not None:
-        raise ProblemFileError(path, [Fault("", err)])
+    text = None
+    try:
+        with collective(comm, "problem file"):
+            if comm.rank == 0:
+                text = _read_bytes(path)
+    except (InputError, SolveError) as e:
+        raise ProblemFileError(path, [Fault("", str(e))]) from None
+    text = comm.bcast(text, root=0)
     try:
         data = tomllib.loads(text.decode("utf-8"))
     except UnicodeDecodeError as e:
@@ -537,6 +523,15 @@ def load(path: str | Path, comm: MPI.Comm = MPI.COMM_WORLD, *,
     return _Reader(path, data, comm, output_dir, list(command_line)).read()
 
 
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise InputError("the problem file does not exist") from None
+    except OSError as e:
+        raise InputError(f"cannot read the problem file: {e.strerror or e}") from None
+
+
 def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], list[Fault]]:
     """Pair ``-feti_<name> value`` tokens and check the names and values.
 
@@ -544,7 +539,7 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
         The (option, value) pairs and the faults (key ``command line -feti_<name>``).
     """
     pairs, faults = [], []
-    kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
+    kinds = {name: kind(name) for name in DECLARED}
     i = 0
     while i < len(tokens):
         name = tokens[i]
@@ -564,15 +559,8 @@ def check_command_line(tokens: Sequence[str]) -> tuple[list[tuple[str, str]], li
         if value is None:
             faults.append(Fault(key, "expected a value after the option"))
             continue
-        kind = kinds[field_name]
         try:
-            typed = int(value) if "int" in kind else float(value) if "float" in kind else value
-        except ValueError:
-            faults.append(Fault(key, f"expected {'an integer' if 'int' in kind else 'a number'}"
-                                     f", got {value!r}"))
-            continue
-        try:
-            SolverOptions(**{field_name: typed}).validate()
+            SolverOptions(**{field_name: parse_text(field_name, value)}).validate()
         except InputError as e:
             faults.append(Fault(key, str(e)))
             continue
@@ -590,6 +578,7 @@ class _Reader:
         self.command_line = command_line
         self.c = _Check()
         self.mesh: MeshData | None = None
+        self.mesh_path: Path | None = None
         self.model: str | None = None
 
     # --- top level ---------------------------------------------------------------------
@@ -644,6 +633,7 @@ class _Reader:
                     f"'<name>', ...}}, got {_describe(self.data['mesh'])}")
             return ""
         mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
+        self.mesh_path = mesh_path
         exists = self.comm.bcast(mesh_path.is_file() if self.comm.rank == 0 else None, root=0)
         if not exists:
             c.fault("mesh", f"mesh file not found: {str(mesh_path)!r} (paths are relative to "
@@ -651,7 +641,7 @@ class _Reader:
             return str(mesh_path)
         try:
             self.mesh = read_gmsh(mesh_path, self.comm)
-        except InputError as e:
+        except (InputError, SolveError) as e:
             c.fault("mesh", f"cannot use the mesh {str(mesh_path)!r}: {e}")
         return str(mesh_path)
 
@@ -687,18 +677,14 @@ class _Reader:
         import gmsh
 
         err = None
-        if comm.rank == 0:
-            try:
-                gmsh.initialize()
-                gmsh.option.setNumber("General.Terminal", 0)
-                gens[name](**kwargs)
-            except Exception as e:  # noqa: BLE001 - reported as a fault on every rank
-                err = f"{type(e).__name__}: {e}"
-        err = comm.bcast(err, root=0)
         try:
-            if err is None:
-                self.mesh = read_gmsh(None, comm)
-        except InputError as e:
+            with collective(comm, "mesh"):
+                if comm.rank == 0:
+                    gmsh.initialize()
+                    gmsh.option.setNumber("General.Terminal", 0)
+                    gens[name](**kwargs)
+            self.mesh = read_gmsh(None, comm)
+        except (InputError, SolveError) as e:  # reported as a fault on every rank
             err = str(e)
         finally:
             if comm.rank == 0:
@@ -914,6 +900,12 @@ class _Reader:
             return None, m
         if what == "contact" and s is not None and m is not None and mesh is not None:
             sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
+            shared = np.intersect1d(mesh.facet_groups[s], mesh.facet_groups[m])
+            if shared.size:
+                c.fault(key, f"slave {s!r} and master {m!r} share {shared.size} nodes: the "
+                        "bodies are glued there (common nodes), not in contact; bodies in "
+                        "contact need their own nodes on the surfaces")
+                return None, m
             if sb & mb:
                 c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
                         f"{mesh.body_names[min(sb & mb)]!r}: contact is between two bodies")
@@ -1128,17 +1120,19 @@ class _Reader:
         s = c.table(self.data.get("solver", {}), "solver", SOLVER_KEYS)
         if s is None:
             return {}
-        kinds = {f.name: str(f.type) for f in fields(SolverOptions)}
         out = {}
         for k, v in s.items():
-            if k not in kinds:
+            if k not in DECLARED:
                 continue
             key = _key("solver", k)
-            kind = kinds[k]
-            if "int" in kind:
+            if kind(k) == "int":
                 v = c.number(v, key, "an integer", integer=True)
-            elif "float" in kind:
+            elif kind(k) == "float":
                 v = c.number(v, key, "a number")
+            elif kind(k) == "bool":
+                if not isinstance(v, bool):
+                    c.fault(key, f"expected true or false, got {_describe(v)}")
+                    v = None
             else:
                 v = c.string(v, key)
             if v is None:
@@ -1189,6 +1183,10 @@ class _Reader:
         if len(set(paths)) != len(paths):
             c.fault("output", "two outputs have the same file name: "
                     f"{sorted({str(q) for q in paths if paths.count(q) > 1})}")
+        inputs = {self.path.resolve()} | ({self.mesh_path.resolve()} if self.mesh_path else set())
+        for q in sorted({str(q) for q in paths if q in inputs}):
+            c.fault("output", f"the output {q!r} is an input of this run (the problem file or "
+                    "its mesh): outputs never overwrite inputs")
         return spec
 
     def _plot(self, p: Any, directory: Path, stem: str, contact: list) -> PlotSpec | None:

@@ -18,7 +18,11 @@ class Report:
         method: Decomposition method ("TFETI").
         solver: QP solver used: "cg" (no inequality), "mprgp" (no equality), "smalbe".
         converged: Whether the solver met its stopping test.
-        reason: Why it stopped.
+        reason: Why it stopped (the label of ``converged_reason``).
+        converged_reason: The signed reason shared by all solvers
+            (:class:`~dolfinx_feti.qp.ConvergedReason`): positive converged and why (2 rtol,
+            5 SMALBE's test), negative diverged and why (-3 max_it, -4 max_outer, -5 unbounded,
+            -6 breakdown, -9 non-finite iterate, -10 Coulomb fixed point).
         sizes: primal, dual, equality and inequality rows, subdomains, coarse dimension, ranks.
         outer_iterations, iterations: SMALBE outer and (all) inner iterations.
         hessian_mults: F multiplications inside the QP solver (the figure of merit).
@@ -37,6 +41,7 @@ class Report:
     solver: str = ""
     converged: bool = False
     reason: str = ""
+    converged_reason: int = 0
     sizes: dict[str, int] = field(default_factory=dict)
     outer_iterations: int = 0
     iterations: int = 0
@@ -77,7 +82,7 @@ class Report:
         s = self.sizes
         lines = [
             f"{self.method} + {self.solver}: {'converged' if self.converged else 'NOT CONVERGED'}"
-            f" ({self.reason})",
+            f" ({self.reason}, reason {self.converged_reason:+d})",
             f"  sizes: {s.get('primal', 0)} primal dofs, {s.get('dual', 0)} multipliers "
             f"({s.get('inequality', 0)} contact), {s.get('subdomains', 0)} subdomains, "
             f"{s.get('ranks', 1)} rank(s)",

@@ -11,18 +11,23 @@ solve in a fixed point on the slip bounds.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from mpi4py import MPI
 
 from .constraints.friction import friction_data
 from .dual import DualQP, dual_qp
+from .errors import NotConverged, collective
+from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
 from .mortar_report import mortar_warnings
-from .options import SolverOptions
+from .options import PENALTY, SolverOptions
 from .problem import ContactProblem
 from .qp import (
+    ConvergedReason,
     ProjectedPreconditioner,
     cg,
     mpgp,
@@ -30,6 +35,8 @@ from .qp import (
     projected_operator,
     smalbe,
 )
+from .qp.mprgp import OPTIONS as MPRGP
+from .qp.smalbe import OPTIONS as SMALBE
 from .report import Report
 from .solution import Solution
 from .timing import Timer
@@ -39,26 +46,34 @@ KKT_WARN = 1e3
 
 
 def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
-          options: SolverOptions | None = None, **kwargs) -> Solution:
+          options: SolverOptions | Sequence[str] | None = None, **kwargs) -> Solution:
     """Solve a contact problem by Total FETI.
 
     Args:
         problem: The problem.
         comm: The ranks to spread the subdomains over.
-        options: Solver options; or give them as keyword arguments (``rtol=1e-8``, ...), which
-            override the ``-feti_*`` PETSc command-line options.
+        options: Solver options (:class:`SolverOptions`), or command-line tokens from which
+            to read ``-feti_<name> value`` options (``options=sys.argv``: the script's command
+            line, read only when passed); or give them as keyword arguments (``rtol=1e-8``,
+            ...), which override both and the PETSc options database.
         **kwargs: Fields of :class:`SolverOptions`; with ``options`` given, they override its
             fields.
 
     Returns:
         The solution (displacement, multipliers, contact pressure, report). A solve that does
-        not converge is returned with ``report.converged == False`` and its residuals.
+        not converge is returned with ``report.converged == False``, a negative
+        ``report.converged_reason`` and its residuals (unless ``error_if_not_converged``).
 
     Raises:
+        NotConverged: With ``error_if_not_converged``, when the solver did not converge (on
+            every rank; ``error.solution`` holds what was reached).
         InputError: For a problem that is ill-posed as described (e.g. a floating body with a
             load its constraints cannot balance).
     """
-    opts = SolverOptions.create(**kwargs) if options is None else options.replace(**kwargs)
+    if options is None or not isinstance(options, SolverOptions):
+        opts = SolverOptions.create(argv=options, **kwargs)
+    else:
+        opts = options.replace(**kwargs)
     progress = Progress(comm, opts.verbose)
     timer = Timer(progress.phase)
     report = Report()
@@ -66,7 +81,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.warnings.extend(qp.warnings)
     feti, dec, rows, ocon, ineq = qp.feti, qp.dec, qp.rows, qp.constraint, qp.ineq
     n_ineq = int(rows.inequality.sum())
-    fdata = friction_data(problem, rows)
+    with collective(comm, "friction"):
+        fdata = friction_data(problem, rows)
     friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
 
     with timer.phase("preconditioner"):
@@ -100,9 +116,11 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
             hint = -ocon.transform_transpose(res.multiplier - ocon.mult(g))
         alpha = feti.rigid_amplitudes(g, active, hint)
         u = feti.primal(lam, alpha)
+        remove_free_motions(feti, ocon.null_space, u)  # the same u for every decomposition
 
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
     report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"
+    report.converged_reason = int(ConvergedReason.of(report.reason))
     report.outer_iterations = res.outer_iterations
     report.iterations = res.iterations
     report.counts = dict(res.counts)
@@ -147,6 +165,9 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.extra["history"] = res.history[-50:] if comm.rank == 0 else []
     for v in (qp.b, qp.lb, g, x, qp.lam_hat):
         v.destroy()
+    if opts.error_if_not_converged and not report.converged:
+        raise NotConverged(f"the solver did not converge: {report.reason} (converged reason "
+                           f"{report.converged_reason}); see error.solution.report", sol)
     return sol
 
 
@@ -165,15 +186,14 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
     lb = dual.lb
     ub = multiplier = None
     solver = mprgp
-    inner = {"gamma": opts.mprgp_gamma, "expansion": opts.mprgp_expansion,
-             "alpha": opts.mprgp_alpha}
+    inner = opts.of(MPRGP)
     if friction is None:
         dual.start(x)
     else:
         lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
         if discs is not None:  # MPGP: the fixed expansion only
-            solver, inner = mpgp, {"gamma": opts.mprgp_gamma, "discs": discs}
+            solver, inner = mpgp, {"gamma": inner["gamma"], "discs": discs}
     if ocon.m == 0:
         report.solver = solver.__name__
         return solver(feti.F, feti.d, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
@@ -181,7 +201,7 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
         report.solver = f"{solver.__name__} (dual penalty)"
-        rho = opts.penalty_rho * norm_A
+        rho = opts.of(PENALTY)["rho"] * norm_A
         Arho = projected_operator(feti.F, ocon, rho=rho)
         if precond is not None:
             precond = ProjectedPreconditioner(precond, ocon, rho)
@@ -191,15 +211,16 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res
     report.solver = "smalbe" if solver is mprgp else "smalbe (mpgp)"
+    o = opts.of(SMALBE)  # rho and M relative to ||PFP||, eta to ||b||
     # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
     return smalbe(A, Pb, ocon, x, lb=lb, ub=ub, inner=solver.__name__, multiplier=multiplier,
                   rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
-                  eq_scale=norm_A, rho=opts.smalbe_rho * norm_A, M=opts.smalbe_M * norm_A,
-                  eta=None if opts.smalbe_eta is None else opts.smalbe_eta * Pb.norm(),
-                  beta=opts.smalbe_beta, norm_A=norm_A,
+                  eq_scale=norm_A, rho=o["rho"] * norm_A, M=o["M"] * norm_A,
+                  eta=None if o["eta"] is None else o["eta"] * Pb.norm(),
+                  beta=o["beta"], norm_A=norm_A,
                   inner_options={**inner, "monitor": progress.inner}, preconditioner=precond,
                   max_outer=opts.max_outer, max_it=opts.max_it, monitor=progress.outer,
-                  acceleration=opts.smalbe_acceleration, depth=opts.smalbe_depth)
+                  acceleration=o["acceleration"], depth=o["depth"])
 
 
 def _warn_loose_stop(report: Report, rtol: float) -> None:

@@ -134,12 +134,14 @@ def test_parts_balanced_per_body():
 
 def test_parts_invalid():
     mesh = _square(2)
-    with pytest.raises(df.InputError, match="plate"):
+    with pytest.raises(df.InputError, match="Parts.n must be an integer >= 1"):
         decompose(mesh, Parts(0), 1)
     with pytest.raises(df.InputError, match="unknown bodies"):
         decompose(mesh, Parts({"plate": 2, "nope": 1}), 1)
-    with pytest.raises(df.InputError, match="unknown method"):
+    with pytest.raises(df.InputError, match="Parts.method must be one of 'rcb', 'ptscotch'"):
         decompose(mesh, Parts(2, method="metis"), 1)
+    with pytest.raises(df.InputError, match="9 parts for body 'plate'"):
+        decompose(mesh, Parts(9), 1)
 
 
 # ------------------------------------------------------------------------------------------

@@ -70,7 +70,7 @@ DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
             "preconditioner_scaling": "stiffness",
-            "smalbe_depth": 3}
+            "smalbe_depth": 3, "error_if_not_converged": False}
 
 
 def test_defaults():
@@ -118,7 +118,8 @@ def test_petsc_options_are_validated():
             df.SolverOptions.create()
 
 
-@pytest.mark.parametrize("name, value", [("feti_rtol", "abc"), ("feti_max_it", "1e3")])
+@pytest.mark.parametrize("name, value", [("feti_rtol", "abc"), ("feti_max_it", "2.5"),
+                                         ("feti_error_if_not_converged", "maybe")])
 def test_bad_petsc_option_value_is_input_error(name, value):
     with petsc_options(**{name: value}):
         with pytest.raises(df.InputError, match=name.removeprefix("feti_")):
@@ -270,16 +271,71 @@ def test_non_converged_solve_report(b1_problem):
     json.dumps(rep.to_dict(), allow_nan=False)
 
 
-def test_command_line_options_reach_petsc():
-    """-feti_* tokens of argv land in PETSc's database (DOLFINx does not pass argv to PETSc)."""
-    from dolfinx_feti.options import SolverOptions, insert_command_line
+def test_command_line_is_read_only_when_passed(monkeypatch):
+    """-feti_* tokens are read from the argv the user passes (df.solve(options=sys.argv)),
+    never from sys.argv behind the user's back, and nothing is written into PETSc's database."""
+    import sys
 
-    opts = PETSc.Options()
-    try:
-        insert_command_line(["demo.py", "-feti_rtol", "1e-3", "--out", "x",
-                             "-feti_factor", "mumps", "-feti_verbose"][1:])
-        o = SolverOptions.create()
-        assert (o.rtol, o.factor, o.verbose) == (1e-3, "mumps", 1)
-    finally:
-        for name in ("feti_rtol", "feti_factor", "feti_verbose"):
-            opts.delValue(name)
+    monkeypatch.setattr(sys, "argv", ["demo.py", "-feti_rtol", "1e-3"])
+    assert df.SolverOptions.create().rtol == DEFAULTS["rtol"]
+    o = df.SolverOptions.create(argv=["demo.py", "-feti_rtol", "1e-3", "--out", "x",
+                                      "-feti_factor", "mumps", "-feti_verbose",
+                                      "-feti_error_if_not_converged"])
+    assert (o.rtol, o.factor, o.verbose, o.error_if_not_converged) == (1e-3, "mumps", 1, True)
+    assert not any(PETSc.Options().hasName(n) for n in ("feti_rtol", "feti_factor",
+                                                         "feti_verbose"))
+    # precedence: database < argv < keywords
+    with petsc_options(feti_rtol=1e-2, feti_max_it=7):
+        o = df.SolverOptions.create(argv=["-feti_rtol", "1e-3"], rtol=None, max_outer=5)
+        assert (o.rtol, o.max_it, o.max_outer) == (1e-3, 7, 5)
+        assert df.SolverOptions.create(argv=["-feti_rtol", "1e-3"], rtol=1e-4).rtol == 1e-4
+    with pytest.raises(df.InputError, match="did you mean 'rtol'"):
+        df.SolverOptions.create(argv=["-feti_rtl", "1e-3"])
+    with pytest.raises(df.InputError, match="solver option max_it must be an integer"):
+        df.SolverOptions.create(argv=["-feti_max_it", "lots"])
+
+
+def test_options_are_declared_next_to_each_solver():
+    """Each solver's options come from its own declaration, under its nested prefix."""
+    from dolfinx_feti.options import OPTION_SETS
+    from dolfinx_feti.qp.mprgp import OPTIONS as MPRGP
+    from dolfinx_feti.qp.smalbe import OPTIONS as SMALBE
+
+    names = {f.name for f in fields(df.SolverOptions)}
+    assert {f"smalbe_{k}" for k in SMALBE.options} <= names
+    assert {f"mprgp_{k}" for k in MPRGP.options} <= names
+    assert names == {s.key(k) for s in OPTION_SETS for k in s.options}
+    o = df.SolverOptions.create(smalbe_rho=3.0, mprgp_expansion="optimal")
+    assert o.of(SMALBE)["rho"] == 3.0 and o.of(MPRGP)["expansion"] == "optimal"
+    for s in OPTION_SETS:
+        for k, opt in s.options.items():
+            assert getattr(df.SolverOptions(), s.key(k)) == opt.default
+            assert s.key(k) in df.SolverOptions.__doc__
+
+
+@pytest.mark.parametrize("max_it, code, label", [(3, -3, "max_it"), (5000, 5, "converged")])
+def test_converged_reason(b1_problem, max_it, code, label):
+    sol = df.solve(b1_problem, max_it=max_it, rtol=1e-8)
+    rep = sol.report
+    assert (rep.converged_reason, rep.reason, rep.converged) == (code, label, code > 0)
+    assert f"reason {code:+d}" in rep.summary()
+    from dolfinx_feti.qp import ConvergedReason
+
+    assert ConvergedReason(code).label == label and ConvergedReason.of(label) == code
+
+
+def test_error_if_not_converged(b1_problem):
+    with pytest.raises(df.NotConverged, match="max_it") as info:
+        df.solve(b1_problem, max_it=3, error_if_not_converged=True)
+    assert info.value.solution.report.converged_reason == -3
+    assert isinstance(info.value, df.SolveError)
+    assert df.solve(b1_problem, rtol=1e-8, error_if_not_converged=True).report.converged
+
+
+def test_every_solver_reason_has_a_signed_code():
+    from dolfinx_feti.qp import ConvergedReason
+
+    labels = {"rtol", "atol", "stop", "converged", "max_it", "max_outer", "unbounded",
+              "breakdown", "non-finite iterate", "coulomb_max_steps"}
+    assert {r.label for r in ConvergedReason} == labels
+    assert all((r > 0) == r.name.startswith("CONVERGED") for r in ConvergedReason)

@@ -125,7 +125,7 @@ MALFORMED = {
     "unknown solver option": (edit(("rtol = 1e-6", "tol = 1e-6")), [],
                               [("solver.tol", "did you mean 'rtol'")]),
     "bad solver value": (edit(("rtol = 1e-6", 'rtol = 1e-6\nfactor = "superlu"')), [],
-                         [("solver.factor", "factor must be 'cholmod', 'mumps' or 'petsc'")]),
+                         [("solver.factor", "factor must be one of 'cholmod', 'mumps', 'petsc'")]),
     "solver options that do not go together": (
         edit(("rtol = 1e-6", 'rtol = 1e-6\nmprgp_alpha = "bb"\nmprgp_expansion = "optimal"')),
         [], [("solver", "mprgp_alpha 'bb' needs mprgp_expansion 'fixed'")]),
@@ -153,7 +153,8 @@ MALFORMED = {
     "unknown -feti_ option": (BASE, ["-feti_rtoll", "1e-8"],
                               [("command line -feti_rtoll", "did you mean -feti_rtol")]),
     "bad -feti_ value": (BASE, ["-feti_max_it", "many"],
-                         [("command line -feti_max_it", "expected an integer, got 'many'")]),
+                         [("command line -feti_max_it",
+                           "max_it must be an integer >= 1 and <= 1000000000, got 'many'")]),
     "poisson model with an obstacle": (
         edit(('type = "elasticity"\nE = 200.0\nnu = 0.3\ntractions = { load = [0.0, -0.625] }',
               'type = "poisson"'), ('type = "node_to_node"\nslave = "disk_contact"\nmaster = '
@@ -312,11 +313,13 @@ def test_generators_are_the_mesh_builders():
 def test_command_line_pairs():
     pairs, faults = pfile.check_command_line(["-feti_rtol", "1e-9", "-feti_smalbe_M", "-2",
                                               "-feti_norm_rtol", "-1", "-feti_verbose"])
-    assert pairs == [("-feti_rtol", "1e-9"), ("-feti_smalbe_M", "-2")]
-    assert [f.key for f in faults] == ["command line -feti_norm_rtol",
+    assert pairs == [("-feti_rtol", "1e-9")]
+    assert [f.key for f in faults] == ["command line -feti_smalbe_M",
+                                       "command line -feti_norm_rtol",
                                        "command line -feti_verbose"]
-    assert "must be positive" in faults[0].message
-    assert "expected a value" in faults[1].message
+    assert "smalbe_M must be a finite number > 0, got -2" in faults[0].message
+    assert "norm_rtol must be a finite number > 0 and < 1, got -1" in faults[1].message
+    assert "expected a value" in faults[2].message
 
 
 # ------------------------------------------------------------------------------------------

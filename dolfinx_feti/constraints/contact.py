@@ -53,12 +53,27 @@ def match_pairs(xs: np.ndarray, xm: np.ndarray, nm: np.ndarray, tol: float
     return cand[np.arange(xs.shape[0]), best], tang[np.arange(xs.shape[0]), best]
 
 
+def check_own_nodes(mesh: MeshData, name: str, s_nodes: np.ndarray, m_nodes: np.ndarray
+                    ) -> None:
+    """Refuse contact surfaces that share nodes: the bodies are glued there, not in contact."""
+    shared = np.intersect1d(s_nodes, m_nodes)
+    if shared.size:
+        bodies = np.unique(mesh.cell_body[np.isin(mesh.cells, shared).any(axis=1)])
+        raise InputError(f"{name}: the two surfaces share {shared.size} nodes (e.g. at "
+                         f"{mesh.x[shared[0]].round(6).tolist()}), so bodies "
+                         f"{[mesh.body_names[b] for b in bodies]} are glued there (one mesh, "
+                         "common nodes), not in contact: bodies in contact need their own "
+                         "nodes on the contact surfaces (mesh them apart, or do not fragment "
+                         "them together)")
+
+
 def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np.ndarray,
                       node_subs: np.ndarray, bs: int) -> Rows:
     """Rows (u_m − u_s)·n <= gap for matched node pairs, scaled to unit norm."""
     s_nodes, s_normals, _ = surface(mesh, spec.slave)
     m_nodes, m_normals, _ = surface(mesh, spec.master)
     name = f"contact pair {spec.slave!r} (slave) / {spec.master!r} (master)"
+    check_own_nodes(mesh, name, s_nodes, m_nodes)
     s_body = set(np.unique(mesh.cell_body[np.isin(mesh.cells, s_nodes).any(axis=1)]))
     m_body = set(np.unique(mesh.cell_body[np.isin(mesh.cells, m_nodes).any(axis=1)]))
     if s_body & m_body:
@@ -116,12 +131,16 @@ def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.
     nodes, normals, _ = surface(mesh, spec.group)
     try:
         phi, grad = spec.obstacle.distance(mesh.x[nodes])
+        phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
     except InputError as e:
         raise InputError(f"obstacle on {spec.group!r}: {e}") from None
-    phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
+    except Exception as e:  # a user's signed distance: say which one failed
+        raise InputError(f"obstacle on {spec.group!r}: its distance(x) raised "
+                         f"{type(e).__name__}: {e}") from e
     if phi.shape != (nodes.size,) or grad.shape != (nodes.size, mesh.gdim):
         raise InputError(f"obstacle on {spec.group!r}: distance() must return arrays of shape "
-                         f"({nodes.size},) and ({nodes.size}, {mesh.gdim})")
+                         f"({nodes.size},) and ({nodes.size}, {mesh.gdim}), got {phi.shape} and "
+                         f"{grad.shape}")
     if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(grad))):
         raise InputError(f"obstacle on {spec.group!r}: the signed distance is not finite")
     g = np.linalg.norm(grad, axis=1)

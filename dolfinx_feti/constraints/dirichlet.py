@@ -7,6 +7,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.gmsh_input import MeshData
 from ..problem import ContactProblem
+from ..validation import evaluate
 from .rows import Kind, Rows
 
 
@@ -19,7 +20,9 @@ def dirichlet_mask(problem: ContactProblem, mesh: MeshData) -> tuple[np.ndarray,
         nodes = np.unique(mesh.facets(bc.group))
         comps = list(range(bs)) if bc.components is None else [int(c) for c in bc.components]
         if callable(bc.value):
-            v = np.asarray(bc.value(mesh.x[nodes]), dtype=float).reshape(nodes.size, -1)
+            n = nodes.size
+            v = evaluate(bc.value, mesh.x[nodes], f"Dirichlet({bc.group!r}).value",
+                         [(n,), (n, len(comps))]).reshape(n, -1)
             if v.shape[1] == 1:
                 v = np.repeat(v, len(comps), axis=1)
         else:

@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.gmsh_input import MeshData
 from ..problem import ContactProblem, Coulomb, Tresca
+from ..validation import evaluate
 from .contact import surface
 from .rows import Kind, Rows
 
@@ -173,17 +174,8 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
 def _traction_bound(fr: Tresca, x: np.ndarray, group: str) -> np.ndarray:
     """The Tresca traction bound g(x) at the nodes x, checked."""
     if callable(fr.bound):
-        try:
-            g = np.asarray(fr.bound(x), dtype=float)
-        except InputError:
-            raise
-        except Exception as e:  # a user function: say where it failed
-            raise InputError(f"Tresca bound on {group!r}: evaluating it failed: {e}") from e
-        if g.size == 1:
-            g = np.full(x.shape[0], float(g.ravel()[0]))
-        if g.shape != (x.shape[0],):
-            raise InputError(f"Tresca bound on {group!r}: bound(x) must return shape "
-                             f"({x.shape[0]},), got {g.shape}")
+        g = evaluate(fr.bound, x, f"Tresca bound on {group!r}: bound", [(x.shape[0],), ()])
+        g = np.broadcast_to(g, (x.shape[0],))
     else:
         g = np.full(x.shape[0], float(fr.bound))
     if np.any(np.isnan(g)) or np.any(g < 0):

@@ -12,6 +12,28 @@ import numpy as np
 import ufl
 
 from ..errors import InputError
+from ..validation import (
+    SAFE_MAGNITUDE,
+    Either,
+    Function,
+    MappingOf,
+    Maybe,
+    Real,
+    Text,
+    Vector,
+    check_arguments,
+    per_body,
+)
+
+#: What the helpers accept, checked when they are made (ranges per body in ``check(mesh)``).
+_NUMBER = per_body(Real(finite=False))
+_VECTOR = Either(Vector(), Function(), what="a sequence of numbers (one per coordinate) or a "
+                 "function of the UFL spatial coordinate x")
+_SCALAR = Either(Real(finite=False), Function(), what="a number or a function of the UFL "
+                 "spatial coordinate x")
+ELASTICITY = {"E": _NUMBER, "nu": _NUMBER, "tractions": MappingOf(Text(), _VECTOR),
+              "body_force": Maybe(_VECTOR)}
+POISSON = {"source": _SCALAR, "flux": MappingOf(Text(), _SCALAR), "k": _NUMBER}
 
 Scalar = float | Mapping[str, float]
 
@@ -36,6 +58,14 @@ def _check_groups(groups: Mapping, mesh, what: str) -> None:
             raise InputError(f"{what} on {name!r} is not finite: {v}")
 
 
+def _check_magnitude(what: str, values, given: str) -> None:
+    """Refuse material constants whose products in the solver overflow or underflow."""
+    if any(not 1.0 / SAFE_MAGNITUDE <= abs(v) <= SAFE_MAGNITUDE for v in values):
+        raise InputError(f"{what} lie outside [{1 / SAFE_MAGNITUDE:.0e}, {SAFE_MAGNITUDE:.0e}] "
+                         f"({given}): the solver's products (K K⁺ K, norms) would overflow or "
+                         "underflow in double precision; choose other units")
+
+
 class Elasticity:
     """Small-strain isotropic linear elasticity, plane strain in 2D.
 
@@ -51,9 +81,11 @@ class Elasticity:
     def __init__(self, E: Scalar, nu: Scalar, *,
                  tractions: Mapping[str, Sequence[float]] | None = None,
                  body_force: Sequence[float] | Callable | None = None) -> None:
-        self.E, self.nu = E, nu
-        self.tractions = dict(tractions or {})
-        self.body_force = body_force
+        args = check_arguments("Elasticity", ELASTICITY, {
+            "E": E, "nu": nu, "tractions": tractions or {}, "body_force": body_force})
+        self.E, self.nu = args["E"], args["nu"]
+        self.tractions = args["tractions"]
+        self.body_force = args["body_force"]
         self._E = self._nu = None
 
     def check(self, mesh) -> None:
@@ -68,6 +100,10 @@ class Elasticity:
             if not np.isfinite(nu) or not -1.0 < nu < 0.5:
                 raise InputError(f"Poisson's ratio of body {body!r} must lie in (-1, 0.5), got "
                                  f"nu = {nu}" + (" (incompressible)" if nu == 0.5 else ""))
+            E = self._E[body]
+            lame = (E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu)))
+            _check_magnitude(f"the Lamé constants (mu, lambda) of body {body!r}",
+                             [v for v in (*lame, E) if v != 0], f"E = {E}, nu = {nu}")
         _check_groups(self.tractions, mesh, "traction")
         for name, t in self.tractions.items():
             if not callable(t) and np.asarray(t, dtype=float).size != mesh.gdim:
@@ -123,7 +159,8 @@ class Poisson:
 
     def __init__(self, source: float | Callable = 0.0, *, flux: Mapping | None = None,
                  k: Scalar = 1.0) -> None:
-        self.source, self.flux, self.k = source, dict(flux or {}), k
+        args = check_arguments("Poisson", POISSON, {"source": source, "flux": flux or {}, "k": k})
+        self.source, self.flux, self.k = args["source"], args["flux"], args["k"]
         self._k = None
 
     def check(self, mesh) -> None:
@@ -132,6 +169,7 @@ class Poisson:
         for body, k in self._k.items():
             if not np.isfinite(k) or k <= 0:
                 raise InputError(f"conductivity of body {body!r} must be positive, got {k}")
+            _check_magnitude(f"the conductivity of body {body!r}", [k], f"k = {k}")
         _check_groups(self.flux, mesh, "flux")
         if not callable(self.source) and not np.isfinite(self.source):
             raise InputError(f"source is not finite: {self.source}")

@@ -107,7 +107,7 @@ class TotalFETI:
         n_loc = int(sub_dofs[self.local_subs].sum())
         self.primal_size = (n_loc, int(self.sub_offset[-1]))
 
-        with timer.phase("assembly"), collective(comm):
+        with timer.phase("assembly"), collective(comm, "assembly"):
             facets = self._subdomain_facets(mesh, dec)
             cells_of = _cells_by_subdomain(dec.cell_sub, self.local_subs)
             K_parts, f_parts = [], []
@@ -121,7 +121,7 @@ class TotalFETI:
                 sp.csr_matrix((0, 0))
             self.R = {int(s): rigid_modes(mesh.x[dec.nodes(s)], bs) for s in self.local_subs}
             self.k = 1 if bs == 1 else (3 if mesh.gdim == 2 else 6)
-        with timer.phase("factorization"), collective(comm):
+        with timer.phase("factorization"), collective(comm, "factorization"):
             self.Kplus = FixingNodesInverse(
                 self.K_local, list(self.R.values()), factor,
                 [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in self.R])

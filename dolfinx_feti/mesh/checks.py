@@ -79,6 +79,7 @@ def check_mesh(mesh: MeshData) -> None:
                          f"{[n for n, c in zip(mesh.body_names, counts, strict=True) if c]}")
     _check_degenerate(mesh)
     _check_folds(mesh)
+    _check_bodies_apart(mesh)
     _CHECKED[:] = [x, cells]
 
 
@@ -150,6 +151,55 @@ def _check_folds(mesh: MeshData) -> None:
             f"{b} of bodies {', '.join(sorted({_body(mesh, a), _body(mesh, b)}))} at the facet "
             f"with nodes "
             f"at {_where(mesh, facet[k])}; a node was moved across an opposite facet: remesh")
+
+
+def overlapping_cells(mesh: MeshData, neighbours: int = 12) -> tuple[np.ndarray, np.ndarray]:
+    """Boundary cells of one body whose centre lies strictly inside a cell of another body.
+
+    Two bodies that overlap have a piece of boundary of one inside the other, so only the
+    cells at the boundary are tested, each against the cells with the ``neighbours`` nearest
+    centres (a containing cell is among them on any reasonable mesh).
+
+    Returns:
+        ``(inner, outer)``: the cells whose centre is inside, and the cells containing it.
+    """
+    none = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
+    x, cells, tdim = mesh.x, mesh.cells, mesh.tdim
+    if len(mesh.body_names) < 2 or mesh.gdim != tdim or cells.shape[0] < 2:
+        return none
+    pts = x[cells]  # (C, tdim + 1, gdim)
+    centre = pts.mean(axis=1)
+    inner = np.unique(boundary_facets(mesh)[1])
+    k = min(neighbours, cells.shape[0])
+    _, near = cKDTree(centre).query(centre[inner], k=k)
+    inner, outer = np.repeat(inner, k), near.reshape(-1)
+    other = mesh.cell_body[outer] != mesh.cell_body[inner]
+    outer, inner = outer[other], inner[other]
+    if outer.size == 0:
+        return none
+    T = np.swapaxes(pts[outer, 1:] - pts[outer, :1], 1, 2)  # (P, gdim, tdim) edge vectors
+    lam = np.linalg.solve(T, (centre[inner] - pts[outer, 0])[:, :, None])[:, :, 0]
+    bary = np.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+    inside = bary.min(axis=1) > 1e-9
+    return inner[inside], outer[inside]
+
+
+def _check_bodies_apart(mesh: MeshData) -> None:
+    """Refuse bodies that overlap in space (deeper than about a third of a cell)."""
+    inner, outer = overlapping_cells(mesh)
+    if inner.size == 0:
+        return
+    a, b = int(inner[0]), int(outer[0])
+    pairs = sorted({tuple(sorted((_body(mesh, i), _body(mesh, o))))
+                    for i, o in zip(inner, outer, strict=True)})
+    centre = np.round(mesh.x[mesh.cells[a]].mean(axis=0), 9).tolist()
+    raise InputError(
+        f"bodies overlap in space: {np.unique(inner).size} cells have their centre inside a "
+        f"cell of another body ({', '.join(' and '.join(p) for p in pairs)}), e.g. cell {a} of "
+        f"body {_body(mesh, a)} centred at {centre} inside cell {b} of body {_body(mesh, b)} "
+        f"with nodes at {_where(mesh, mesh.cells[b])}. Bodies are apart or touch along their "
+        "boundaries; move them apart (an initial penetration shallower than about a third of "
+        "a cell is accepted: contact pushes it out)")
 
 
 def boundary_facets(mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:

@@ -15,9 +15,13 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
-from ..errors import InputError
+from ..errors import InputError, collective
+from ..validation import Choice, Function, Integer, checked, per_body
 from .gmsh_input import MeshData
 from .topology import facet_neighbours
+
+#: The largest number of parts of one body that Parts accepts (it is also at most its cells).
+MAX_PARTS = 2**31 - 1
 
 
 @dataclass(frozen=True)
@@ -26,6 +30,7 @@ class ByTags:
 
 
 @dataclass(frozen=True)
+@checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"))
 class Parts:
     """Split every body into parts of (nearly) equal size.
 
@@ -43,6 +48,7 @@ class Parts:
 
 
 @dataclass(frozen=True)
+@checked(fn=Function("a function fn(midpoints (C, gdim)) -> (C,) integer labels"))
 class ByFunction:
     """Subdomains labelled by a function of the cell midpoints (e.g. a regular H×H grid).
 
@@ -126,19 +132,20 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
         label = np.empty(mesh.cells.shape[0], dtype=np.int64)
         for b, name in enumerate(mesh.body_names):
             n = how.n.get(name, 1) if isinstance(how.n, Mapping) else how.n
-            if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-                raise InputError(f"Parts: the number of parts of body {name!r} must be an "
-                                 f"integer >= 1, got {n!r}")
-            if int(n) < 1:
-                raise InputError(f"Parts: the number of parts of body {name!r} must be >= 1, "
-                                 f"got {n}")
             cells = np.flatnonzero(mesh.cell_body == b)
+            if n > cells.size:
+                raise InputError(f"Parts: {n} parts for body {name!r}, which has only "
+                                 f"{cells.size} cells")
             if how.method == "rcb":
                 part = rcb(midpoints[cells], int(n))
-            elif how.method == "ptscotch":
+            elif how.method == "ptscotch" and isinstance(comm, int):
                 part = graph_partition(mesh.cells[cells], int(n))
-                if not isinstance(comm, int):  # PT-Scotch may differ between processes
-                    part = comm.bcast(part, root=0)
+            elif how.method == "ptscotch":  # on rank 0: PT-Scotch may differ between processes
+                part = None
+                with collective(comm, "decomposition"):
+                    if comm.rank == 0:
+                        part = graph_partition(mesh.cells[cells], int(n))
+                part = comm.bcast(part, root=0)
             else:
                 raise InputError(f"Parts: unknown method {how.method!r}; use 'rcb' or 'ptscotch'")
             label[cells] = b * (1 << 32) + part
@@ -148,7 +155,10 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
                 raise InputError(f"Parts: unknown bodies {sorted(unknown)}; the bodies are "
                                  f"{list(mesh.body_names)}")
     elif isinstance(how, ByFunction):
-        label = np.asarray(how.fn(midpoints))
+        try:
+            label = np.asarray(how.fn(midpoints))
+        except Exception as e:  # the user's labeller: say which function failed
+            raise InputError(f"ByFunction.fn(midpoints) raised {type(e).__name__}: {e}") from e
         if label.shape != (mesh.cells.shape[0],) or not np.issubdtype(label.dtype, np.integer):
             raise InputError("ByFunction: the function must return one integer label per cell "
                              f"(shape ({mesh.cells.shape[0]},)), got {label.dtype} {label.shape}")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InputError
+from ..errors import InputError, collective
 from .topology import _row_keys
 
 #: gmsh element type → (cell name, topological dimension, number of nodes), first order only.
@@ -98,18 +98,13 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
             the cells are not first-order simplices, a cell is in two bodies, or the data is
             not finite.
     """
-    data, err = None, None
-    if comm.rank == 0:
-        try:
+    data = None
+    with collective(comm, "mesh"):
+        if comm.rank == 0:
             data = _extract(source, gdim)
             from .checks import check_mesh  # degenerate or inverted cells, empty bodies
 
             check_mesh(data)
-        except InputError as e:
-            err = e
-    err = comm.bcast(err, root=0)
-    if err is not None:
-        raise err
     data = comm.bcast(data, root=0)
     from .checks import mark_checked  # rank 0 checked it: the received copy needs no re-check
 
@@ -134,14 +129,15 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
     """
     import gmsh
 
-    if comm.rank == 0:
-        gmsh.initialize()
-        gmsh.option.setNumber("General.Terminal", 0)
-        try:
-            generator(*args, **kwargs)
-        except Exception:
-            gmsh.finalize()
-            raise
+    with collective(comm, "mesh"):
+        if comm.rank == 0:
+            gmsh.initialize()
+            gmsh.option.setNumber("General.Terminal", 0)
+            try:
+                generator(*args, **kwargs)
+            except Exception:
+                gmsh.finalize()
+                raise
     try:
         return read_gmsh(None, comm, gdim)
     finally:
@@ -164,18 +160,81 @@ def _extract(source, gdim: int | None) -> MeshData:
     gmsh.option.setNumber("General.Terminal", 0)
     previous = gmsh.model.getCurrent()
     name = f"dolfinx_feti_read_{path.stem}"
+    declared = check_msh_file(path)  # before gmsh sees it: a script would run its commands
     gmsh.model.add(name)
     try:
+        gmsh.logger.start()
         try:
             gmsh.merge(str(path))
         except Exception as e:
             raise InputError(f"gmsh cannot read {path}: {e}") from None
+        finally:
+            log = gmsh.logger.get()
+            gmsh.logger.stop()
+        _check_what_gmsh_kept(gmsh, path, declared, log)
         return _extract_current(gmsh, gdim)
     finally:
         gmsh.model.setCurrent(name)
         gmsh.model.remove()
         if previous in gmsh.model.list():
             gmsh.model.setCurrent(previous)
+
+
+def check_msh_file(path: Path) -> tuple[int, int] | None:
+    """Refuse a file that is not a gmsh mesh file, before gmsh opens it.
+
+    gmsh chooses its reader by the file's extension, and a ``.geo`` script runs its ``System``
+    commands when opened: so the name must end in ``.msh`` and the content must start with the
+    ``$MeshFormat`` section of a version 2 or 4 mesh file.
+
+    Returns:
+        The numbers of nodes and elements that an ASCII file declares (None for binary).
+    """
+    if path.suffix != ".msh":
+        raise InputError(f"{path}: not a gmsh mesh file (expected a name ending in .msh, not "
+                         f"{path.suffix or 'no extension'!r}); a .geo script is not read: mesh "
+                         "it with gmsh and save the mesh as .msh")
+    with open(path, "rb") as f:
+        head = f.read(64).split(b"\n")
+    version = head[1].split() if len(head) > 1 else []
+    if head[0].strip() != b"$MeshFormat" or not version or \
+            version[0].split(b".")[0] not in (b"2", b"4"):
+        raise InputError(f"{path}: not a gmsh mesh file (it does not start with the $MeshFormat "
+                         "section of a version 2 or 4 .msh file)")
+    if len(version) < 2 or version[1] != b"0":
+        return None  # binary: the counts are not text
+    import mmap
+
+    counts = []
+    with open(path, "rb") as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
+        for section in (b"\n$Nodes\n", b"\n$Elements\n"):
+            at = m.find(section)
+            if at < 0:
+                return None
+            line = m[at + len(section):m.find(b"\n", at + len(section))].split()
+            counts.append(int(line[0] if version[0].startswith(b"2") else line[1]))
+    return counts[0], counts[1]
+
+
+def _check_what_gmsh_kept(gmsh, path: Path, declared: tuple[int, int] | None,
+                          log: list[str]) -> None:
+    """Refuse a mesh file whose data gmsh repaired or dropped silently.
+
+    gmsh skips a node whose tag repeats (with a warning) and, in version 2 files, keeps one of
+    two elements with the same tag (without one): the mesh read would not be the one written.
+    """
+    bad = [line for line in log if line.startswith(("Warning", "Error"))]
+    if bad:
+        raise InputError(f"{path}: malformed mesh data: gmsh says {bad[0]!r}"
+                         + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""))
+    if declared is None:
+        return
+    nodes = gmsh.model.mesh.getNodes()[0].size
+    elements = sum(t.size for t in gmsh.model.mesh.getElements()[1])
+    if (nodes, elements) != declared:
+        raise InputError(f"{path}: malformed mesh data: the file declares {declared[0]} nodes and "
+                         f"{declared[1]} elements, gmsh read {nodes} and {elements} (repeated "
+                         "tags?)")
 
 
 def _group_name(gmsh, dim: int, tag: int) -> str:

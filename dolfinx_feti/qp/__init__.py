@@ -19,11 +19,12 @@ from .mpgp import Discs, SeparableSet, mpgp
 from .mprgp import mprgp
 from .norm import NormEstimate, estimate_norm
 from .precond import Preconditioner, ProjectedPreconditioner
-from .result import QPResult
+from .result import ConvergedReason, QPResult
 from .shell import python_shell
 from .smalbe import smalbe
 
 __all__ = [
+    "ConvergedReason",
     "Discs",
     "EqualityConstraint",
     "NormEstimate",

@@ -16,6 +16,7 @@ from collections.abc import Callable
 import numpy as np
 from petsc4py import PETSc
 
+from ..validation import Choice, Option, OptionSet, Real
 from .box import Box, check_finite
 from .precond import Preconditioner
 from .result import QPResult
@@ -23,6 +24,16 @@ from .start import Counter, feasible_start, step_length
 
 EXPANSIONS = ("fixed", "optimal", "projcg")
 ALPHAS = ("fixed", "bb")
+
+#: MPRGP's options (also those of MPGP): ``-feti_mprgp_<name>``, ``SolverOptions.mprgp_<name>``.
+OPTIONS = OptionSet(
+    "mprgp", "MPRGP (bounds) and MPGP (bounds and discs), alone or as SMALBE's inner solver",
+    gamma=Option(1.0, Real(gt=0), "the proportioning parameter Γ"),
+    expansion=Option("fixed", Choice(*EXPANSIONS), "the expansion step: 'fixed', 'optimal' or "
+                     "'projcg' (see mprgp())"),
+    alpha=Option("fixed", Choice(*ALPHAS), "the expansion step length: 'fixed' (1.95/||A||) or "
+                 "'bb' (Barzilai–Borwein, kept only if the energy decreases; needs expansion "
+                 "'fixed')"))
 # z^T phi below this fraction of ||z|| ||phi|| means that the preconditioned free gradient is
 # no descent direction (M^{-1} singular or not positive there): the step falls back to phi.
 _DESCENT_RTOL = 1e-12

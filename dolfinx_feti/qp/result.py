@@ -4,10 +4,55 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import IntEnum
 from typing import Any
 
 import numpy as np
 from petsc4py import PETSc
+
+
+class ConvergedReason(IntEnum):
+    """Why a solver stopped, shared by all solvers: positive converged, negative diverged.
+
+    PETSc's convention (``KSPConvergedReason``). Each solver reports the reason as its label
+    (``QPResult.reason``, e.g. ``'max_it'``); :meth:`of` gives the signed code.
+    """
+
+    CONVERGED_RTOL = 2  #: ``'rtol'``: ||g^P|| <= rtol ||b||
+    CONVERGED_ATOL = 3  #: ``'atol'``: ||g^P|| <= atol
+    CONVERGED_USER = 4  #: ``'stop'``: the caller's test (SMALBE's inner solves)
+    CONVERGED_KKT = 5  #: ``'converged'``: SMALBE, the gradient and the equality both small
+    DIVERGED_MAX_IT = -3  #: ``'max_it'``: the budget of (inner) iterations is spent
+    DIVERGED_MAX_OUTER = -4  #: ``'max_outer'``: the budget of outer iterations is spent
+    DIVERGED_UNBOUNDED = -5  #: ``'unbounded'``: a descent direction of no curvature, no bound
+    DIVERGED_BREAKDOWN = -6  #: ``'breakdown'``: non-finite values in the iteration
+    DIVERGED_NAN = -9  #: ``'non-finite iterate'``: the final iterate is not finite
+    DIVERGED_FIXED_POINT = -10  #: ``'coulomb_max_steps'``: the Coulomb fixed point did not settle
+
+    @property
+    def label(self) -> str:
+        """The solvers' name of the reason (``QPResult.reason``)."""
+        return _LABELS[self]
+
+    @classmethod
+    def of(cls, label: str) -> ConvergedReason:
+        """The reason of a label (``'rtol'`` → ``CONVERGED_RTOL``)."""
+        try:
+            return _CODES[label]
+        except KeyError:
+            raise ValueError(f"unknown stopping reason {label!r}; known: {sorted(_CODES)}"
+                             ) from None
+
+
+_LABELS = {
+    ConvergedReason.CONVERGED_RTOL: "rtol", ConvergedReason.CONVERGED_ATOL: "atol",
+    ConvergedReason.CONVERGED_USER: "stop", ConvergedReason.CONVERGED_KKT: "converged",
+    ConvergedReason.DIVERGED_MAX_IT: "max_it", ConvergedReason.DIVERGED_MAX_OUTER: "max_outer",
+    ConvergedReason.DIVERGED_UNBOUNDED: "unbounded",
+    ConvergedReason.DIVERGED_BREAKDOWN: "breakdown",
+    ConvergedReason.DIVERGED_NAN: "non-finite iterate",
+    ConvergedReason.DIVERGED_FIXED_POINT: "coulomb_max_steps"}
+_CODES = {label: code for code, label in _LABELS.items()}
 
 
 @dataclass
@@ -17,7 +62,8 @@ class QPResult:
     Attributes:
         x: The final iterate (the Vec the caller passed in, modified in place).
         converged: Whether the stopping test was met.
-        reason: Why the solver stopped: ``'rtol'``, ``'atol'``, ``'stop'`` (the user test),
+        reason: Why the solver stopped (:class:`ConvergedReason` by its label; the signed
+            code is ``converged_reason``): ``'rtol'``, ``'atol'``, ``'stop'`` (the user test),
             ``'converged'`` (SMALBE), ``'max_it'``, ``'max_outer'``, ``'unbounded'``,
             ``'breakdown'``.
         iterations: Inner iterations in total (CG steps, expansions and proportionings).
@@ -55,6 +101,11 @@ class QPResult:
     multiplier: np.ndarray | None = None
     objective: float | None = None
 
+    @property
+    def converged_reason(self) -> ConvergedReason:
+        """The signed reason (positive: converged, negative: diverged) of ``reason``."""
+        return ConvergedReason.of(self.reason)
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-serialisable summary without ``x`` and the local ``active`` mask.
 
@@ -63,6 +114,7 @@ class QPResult:
         return {
             "converged": bool(self.converged),
             "reason": str(self.reason),
+            "converged_reason": int(self.converged_reason),
             "iterations": int(self.iterations),
             "outer_iterations": int(self.outer_iterations),
             "hessian_mults": int(self.hessian_mults),

@@ -16,6 +16,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..validation import Choice, Integer, Maybe, Option, OptionSet, Real
 from .equality import EqualityConstraint, penalized_operator
 from .mprgp import mprgp
 from .norm import estimate_norm
@@ -26,6 +27,23 @@ _RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_
              "preconditioner")
 PRECONDITIONER_FORMS = ("projected", "plain")
 ACCELERATIONS = ("none", "anderson")
+
+#: SMALBE's options: ``-feti_smalbe_<name>``, ``SolverOptions.smalbe_<name>``. ``rho`` and
+#: ``M`` are relative to ||A||, ``eta`` to ||b|| (the caller scales them).
+OPTIONS = OptionSet(
+    "smalbe", "SMALBE-M (bounds and equalities, inner MPRGP/MPGP)",
+    rho=Option(1.1, Real(gt=0), "the penalty ρ relative to ||A||"),
+    M=Option(1.0, Real(gt=0), "the initial inner precision factor M relative to ||A|| (the "
+             "reference value 100 stalls the outer loop; 1 needs the fewest F-multiplications "
+             "on B1, 2D Hertz and the 3D blocks: docs/solvers.md)"),
+    eta=Option(None, Maybe(Real(gt=0)), "the inner precision cap η relative to ||b|| (None: "
+               "0.1)"),
+    beta=Option(2.0, Real(gt=1), "the divisor of M"),
+    acceleration=Option("anderson", Choice(*ACCELERATIONS), "'none' (the plain multiplier "
+                        "update μ += ρDx of the theory) or 'anderson' (Anderson acceleration of "
+                        "that update, memory reset when the active set changes)"),
+    depth=Option(3, Integer(ge=1, le=100), "the memory of the Anderson acceleration (number "
+                 "of past updates)"))
 
 
 def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, lb=None,
