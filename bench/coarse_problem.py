@@ -17,6 +17,7 @@ extrapolation from the largest measured dense run of the same kernel, marked "~"
     python bench/coarse_problem.py                        # the table (a few minutes)
     python bench/coarse_problem.py --crossover            # dense vs sparse over m (DENSE_MAX)
     mpirun -n 2 python bench/coarse_problem.py --sizes 2  # the same with the rows on 2 ranks
+    python bench/coarse_problem.py --kernels 3 --ns 10 20 --methods sparse   # docs § 7.6
 """
 
 from __future__ import annotations
@@ -52,12 +53,23 @@ def constraint(Gt) -> tuple[RowBlockConstraint, PETSc.Vec]:
     return RowBlockConstraint(Gt[lo:hi], COMM), x
 
 
+def vm_hwm_mib() -> float:
+    """Peak resident set size of this process so far (MiB)."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024.0
+    return float("nan")
+
+
 def measure(Gt, method: str, repeat: int) -> dict:
     con, x = constraint(Gt)
     COMM.Barrier()
+    hwm = vm_hwm_mib()
     t0 = time.perf_counter()
     ocon = orthonormalize(con, method=method)
     setup = COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    growth = COMM.allreduce(vm_hwm_mib() - hwm, op=MPI.MAX)
     proj, out = Projector(ocon), x.duplicate()
     times = []
     for _ in range(repeat):
@@ -65,7 +77,7 @@ def measure(Gt, method: str, repeat: int) -> dict:
         t0 = time.perf_counter()
         proj.apply(x, out)
         times.append(COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX))
-    return {"setup": setup, "projection": float(np.median(times)),
+    return {"setup": setup, "projection": float(np.median(times)), "peak_growth_MiB": growth,
             "Px": out.copy(), "method": ocon.method}
 
 
@@ -81,7 +93,8 @@ def run(kernel: str, ns: int, methods, repeat: int, dense_mem: float) -> dict:
         if method == "dense" and 3 * 8 * m * m > dense_mem * 1e9:
             continue
         results[method] = measure(Gt, method, repeat)
-        row[method] = {k: v for k, v in results[method].items() if k in ("setup", "projection")}
+        row[method] = {k: v for k, v in results[method].items()
+                       if k in ("setup", "projection", "peak_growth_MiB")}
     if len(results) == 2:
         a, b = results["dense"]["Px"], results["sparse"]["Px"]
         d = a.copy()
@@ -150,6 +163,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kernels", default="2,3", help="comma-separated: 2, 3, 2s, 3s")
     ap.add_argument("--sizes", default="0,1,2", help="indices into 10², 10³, 10⁴ subdomains")
+    ap.add_argument("--ns", nargs="*", type=int, default=None,
+                    help="subdomains per direction (instead of --sizes)")
     ap.add_argument("--methods", default="dense,sparse")
     ap.add_argument("--repeat", type=int, default=20)
     ap.add_argument("--dense-mem", type=float, default=6.0,
@@ -164,9 +179,9 @@ def main() -> None:
     else:
         rows = []
         for kernel in args.kernels.split(","):
-            for i in (int(s) for s in args.sizes.split(",")):
-                r = run(kernel, KERNELS[kernel][2][i], args.methods.split(","), args.repeat,
-                        args.dense_mem)
+            sizes = args.ns or [KERNELS[kernel][2][int(i)] for i in args.sizes.split(",")]
+            for ns in sizes:
+                r = run(kernel, ns, args.methods.split(","), args.repeat, args.dense_mem)
                 rows.append(r)
                 if COMM.rank == 0:
                     print(json.dumps(r), flush=True)
