@@ -35,6 +35,9 @@ parser.add_argument("--parts", type=int, default=2, help="subdomains per body")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance of the solver")
 parser.add_argument("--out", type=Path, default=Path("output/hertz2d"), help="output folder")
 parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
+parser.add_argument("--mesh", type=Path, default=None,
+                    help="read this gmsh file instead of building the mesh (the same mesh "
+                    "whatever the installed gmsh; meshes/disk_on_block.msh is the one of --h 0.1)")
 args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 # -
@@ -46,13 +49,17 @@ comm = MPI.COMM_WORLD
 # `generate` call: the nodes on the arc and on the block's top do not match. Physical groups
 # name the bodies (`disk`, `block`) and the boundary parts (`disk_contact` = the whole arc,
 # `block_contact` = the whole top of the block, `load`, `symmetry`, `bottom`). `build_mesh`
-# runs the generator on rank 0 and broadcasts the mesh (`read_gmsh("file.msh")` reads a file).
+# runs the generator on rank 0 and broadcasts the mesh; `--mesh FILE` reads a file instead
+# (`read_gmsh`): gmsh versions mesh the geometry slightly differently, a file is the same mesh.
 
 # +
 R, P, E, nu = 8.0, 10.0, 200.0, 0.3
 t0 = time.perf_counter()
-mesh = df.build_mesh(meshes_occ.disk_on_block, h_contact_disk=args.h,
-                     h_contact_block=args.h_block or args.h, R=R, comm=comm)
+if args.mesh is None:
+    mesh = df.build_mesh(meshes_occ.disk_on_block, h_contact_disk=args.h,
+                         h_contact_block=args.h_block or args.h, R=R, comm=comm)
+else:
+    mesh = df.read_gmsh(args.mesh, comm=comm)
 t_mesh = time.perf_counter() - t0
 # -
 

@@ -10,6 +10,8 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
     solution = dolfinx_feti.solve(problem, rtol=1e-8)
 """
 
+# compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
+from . import compat  # noqa: F401
 from .dual import DualQP, dual_qp
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain

@@ -1,11 +1,22 @@
-"""Every call that depends on the DOLFINx version lives here (Debian bookworm: DOLFINx 0.5.2).
+"""Every call that depends on the DOLFINx version lives here: 0.5.2 (Debian 12) and 0.11.
 
-A port to a newer DOLFINx (0.9/0.10 renamed ``VectorFunctionSpace``, ``Mesh._mesh``, the
-``dolfinx.fem.petsc`` helpers and the mesh constructors) should only touch this module.
+Nothing else in the package, its tests, demos or benchmarks calls version-specific DOLFINx API;
+they call the functions below. The module is organized by topic (imports and versions, meshes,
+tags, spaces and Functions, forms and assembly, linear solves, files); each branch names the
+version that changed the call. Between 0.5 and 0.11 DOLFINx renamed the function space
+constructors (``FunctionSpace``/``VectorFunctionSpace`` → ``functionspace``), the coordinate
+elements (``ufl.VectorElement`` → ``basix.ufl.element``), the argument order of
+``mesh.create_mesh``, the dofmap layouts (AdjacencyList → 2D array), the gmsh module
+(``io.gmshio`` → ``io.gmsh``, returning a ``MeshData``) and a few keyword names.
 """
 
 from __future__ import annotations
 
+# DOLFINx 0.11's PyPI wheel finds its MPI library only once mpi4py.MPI has loaded it: import it
+# before dolfinx and petsc4py. (Harmless on 0.5.2.)
+from mpi4py import MPI  # isort: skip
+
+import re
 from pathlib import Path
 
 import dolfinx
@@ -15,31 +26,74 @@ import dolfinx.io
 import dolfinx.mesh
 import numpy as np
 import ufl
-from mpi4py import MPI
 from petsc4py import PETSc
 
+# ---------------------------------------------------------------------------------------------
+# Versions
+# ---------------------------------------------------------------------------------------------
+
 DOLFINX_VERSION = dolfinx.__version__
+#: (major, minor) of DOLFINx, e.g. (0, 5) or (0, 11).
+VERSION = tuple(int(p) for p in re.match(r"(\d+)\.(\d+)", DOLFINX_VERSION).groups())
 
-_UFL_CELL = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron}
+if VERSION >= (0, 9):
+    import basix.ufl
+    import dolfinx.graph
 
 
-def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray,
-                cell_type: str) -> dolfinx.mesh.Mesh:
-    """A first-order simplex mesh from a cell-to-node array and node coordinates.
+def version_label() -> str:
+    """'DOLFINx 0.11.0 (PETSc 3.25.5)': for messages that depend on the installed stack."""
+    petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
+    return f"DOLFINx {DOLFINX_VERSION} (PETSc {petsc})"
+
+
+# ---------------------------------------------------------------------------------------------
+# Meshes: creation and numbering
+# ---------------------------------------------------------------------------------------------
+
+def ufl_domain(cell_type: str, gdim: int, degree: int = 1) -> ufl.Mesh:
+    """The UFL domain of a Lagrange geometry (also for UFL expressions without a mesh)."""
+    if VERSION >= (0, 9):
+        return ufl.Mesh(basix.ufl.element("Lagrange", cell_type, degree, shape=(gdim,)))
+    return ufl.Mesh(ufl.VectorElement("Lagrange", getattr(ufl, cell_type), degree, dim=gdim))
+
+
+def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str,
+                degree: int = 1) -> dolfinx.mesh.Mesh:
+    """A mesh of Lagrange geometry of ``degree`` from a cell-to-node array and coordinates.
 
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
-    DOLFINx distributes it. On one rank the partitioner is skipped (every cell stays here): the
-    default one builds the dual graph first, a third of the time of creating the mesh.
+    DOLFINx distributes it. On one rank under DOLFINx 0.5 the partitioner is skipped (every cell
+    stays here): the default one builds the dual graph first, a third of the mesh creation.
     """
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", _UFL_CELL[cell_type], 1, dim=x.shape[1]))
-    extra = {"partitioner": _all_here} if comm.size == 1 else {}
-    return dolfinx.mesh.create_mesh(comm, np.ascontiguousarray(cells, dtype=np.int64),
-                                    np.ascontiguousarray(x, dtype=np.float64), domain, **extra)
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    domain = ufl_domain(cell_type, x.shape[1], degree)
+    if VERSION >= (0, 10):  # the element moved before the coordinates
+        return dolfinx.mesh.create_mesh(comm, cells, domain, x)
+    if VERSION < (0, 6) and comm.size == 1:  # 0.5's partitioner signature
+        return dolfinx.mesh.create_mesh(comm, cells, x, domain, partitioner=_all_here)
+    return dolfinx.mesh.create_mesh(comm, cells, x, domain)
 
 
 def _all_here(comm, nparts, tdim, cells, ghost_mode):
-    """A cell partitioner that sends every cell to rank 0 (for a mesh on one rank)."""
+    """A cell partitioner (DOLFINx 0.5) that keeps every cell on rank 0 (a mesh on one rank)."""
     return dolfinx.cpp.graph.AdjacencyList_int32(np.zeros(cells.num_nodes, dtype=np.int32))
+
+
+def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The geometry nodes of each local cell (ghosts included): a (cells × nodes) array."""
+    if VERSION >= (0, 10):  # one dofmap per coordinate element (mixed-topology meshes)
+        return msh.geometry.dofmaps[0]
+    if VERSION >= (0, 9):
+        return msh.geometry.dofmap
+    ncells = _local_cell_count(msh)
+    return msh.geometry.dofmap.array.reshape(ncells, -1)
+
+
+def _local_cell_count(msh: dolfinx.mesh.Mesh) -> int:
+    imap = msh.topology.index_map(msh.topology.dim)
+    return imap.size_local + imap.num_ghosts
 
 
 def node_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
@@ -52,39 +106,17 @@ def cell_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
     return np.asarray(msh.topology.original_cell_index, dtype=np.int64)
 
 
-def function_space(msh: dolfinx.mesh.Mesh, value_size: int) -> dolfinx.fem.FunctionSpace:
-    """The continuous P1 space, scalar (``value_size == 1``) or vector valued."""
-    if value_size == 1:
-        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", 1))
-    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=value_size)
-
-
-def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
-    """The piecewise constant scalar space (for cell-wise material data)."""
-    return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
-
-
-def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
-    """For each (unblocked) dof of a P1 space, the geometry node it sits on.
-
-    P1 dofs and first-order geometry nodes are listed in the same order within each cell, so
-    the two cell-wise maps, read side by side, pair them.
-    """
-    msh = V.mesh
-    ncells = msh.topology.index_map(msh.topology.dim).size_local + \
-        msh.topology.index_map(msh.topology.dim).num_ghosts
-    nv = msh.geometry.dofmap.array.size // ncells
-    dofs = V.dofmap.list.array.reshape(-1, nv)
-    geom = msh.geometry.dofmap.array.reshape(-1, nv)
-    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
-    out = np.empty(n_dofs, dtype=np.int64)
-    out[dofs.ravel()] = geom.ravel()
+def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    tdim = msh.topology.dim
+    c_to_v = msh.topology.connectivity(tdim, 0).array
+    out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
+    out[cell_geometry_nodes(msh).ravel()] = c_to_v
     return out
 
 
-def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
-    """Number of (unblocked) dofs owned by this rank."""
-    return V.dofmap.index_map.size_local
+# ---------------------------------------------------------------------------------------------
+# Mesh tags
+# ---------------------------------------------------------------------------------------------
 
 
 def facet_tags(msh: dolfinx.mesh.Mesh, facets: np.ndarray, values: np.ndarray):
@@ -93,8 +125,12 @@ def facet_tags(msh: dolfinx.mesh.Mesh, facets: np.ndarray, values: np.ndarray):
     msh.topology.create_connectivity(tdim - 1, tdim)
     # For P1 meshes geometry nodes and vertices coincide but are numbered separately.
     vertex_of_node = _geometry_node_to_vertex(msh)
-    ents = vertex_of_node[np.asarray(facets, dtype=np.int64)]
-    adj = dolfinx.cpp.graph.AdjacencyList_int32(np.ascontiguousarray(ents, dtype=np.int32))
+    ents = np.ascontiguousarray(vertex_of_node[np.asarray(facets, dtype=np.int64)],
+                                dtype=np.int32)
+    if VERSION >= (0, 9):
+        adj = dolfinx.graph.adjacencylist(ents)
+    else:
+        adj = dolfinx.cpp.graph.AdjacencyList_int32(ents)
     return dolfinx.mesh.meshtags_from_entities(msh, tdim - 1, adj,
                                                np.ascontiguousarray(values, dtype=np.int32))
 
@@ -107,13 +143,69 @@ def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
                                  np.ascontiguousarray(values[order], dtype=np.int32))
 
 
-def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
-    tdim = msh.topology.dim
-    c_to_v = msh.topology.connectivity(tdim, 0).array
-    geom = msh.geometry.dofmap.array
-    out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
-    out[geom] = c_to_v
+# ---------------------------------------------------------------------------------------------
+# Function spaces and Functions
+# ---------------------------------------------------------------------------------------------
+
+
+def function_space(msh: dolfinx.mesh.Mesh, value_size: int,
+                   degree: int = 1) -> dolfinx.fem.FunctionSpace:
+    """The continuous Lagrange space of ``degree``, scalar (``value_size == 1``) or vector."""
+    if VERSION >= (0, 9):
+        shape = () if value_size == 1 else (value_size,)
+        return dolfinx.fem.functionspace(msh, ("Lagrange", degree, shape))
+    if value_size == 1:
+        return dolfinx.fem.FunctionSpace(msh, ("Lagrange", degree))
+    return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=value_size)
+
+
+def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
+    """The piecewise constant scalar space (for cell-wise material data)."""
+    if VERSION >= (0, 9):
+        return dolfinx.fem.functionspace(msh, ("DG", 0))
+    return dolfinx.fem.FunctionSpace(msh, ("DG", 0))
+
+
+def cell_dofs(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
+    """The (unblocked) dofs of each local cell: a (cells × dofs per cell) array."""
+    dofs = V.dofmap.list
+    if VERSION >= (0, 9):  # a 2D array already
+        return dofs
+    return dofs.array.reshape(_local_cell_count(V.mesh), -1)
+
+
+def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
+    """For each (unblocked) dof of a P1 space, the geometry node it sits on.
+
+    P1 dofs and first-order geometry nodes are listed in the same order within each cell, so
+    the two cell-wise maps, read side by side, pair them.
+    """
+    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
+    out = np.empty(n_dofs, dtype=np.int64)
+    out[cell_dofs(V).ravel()] = cell_geometry_nodes(V.mesh).ravel()
     return out
+
+
+def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
+    """Number of (unblocked) dofs owned by this rank."""
+    return V.dofmap.index_map.size_local
+
+
+def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
+    """A zero Function with a name (the name is what ParaView shows)."""
+    u = dolfinx.fem.Function(V)
+    u.name = name
+    return u
+
+
+def scatter_forward(u: dolfinx.fem.Function) -> None:
+    """Update ghost values of a Function from their owners."""
+    u.x.scatter_forward()
+
+
+# ---------------------------------------------------------------------------------------------
+# Forms and assembly
+# ---------------------------------------------------------------------------------------------
 
 
 def measure(kind: str, msh: dolfinx.mesh.Mesh, tags=None) -> ufl.Measure:
@@ -140,16 +232,26 @@ def assemble_scalar(M: ufl.Form, comm: MPI.Comm) -> float:
     return comm.allreduce(dolfinx.fem.assemble_scalar(dolfinx.fem.form(M)), op=MPI.SUM)
 
 
-def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
-    """A zero Function with a name (the name is what ParaView shows)."""
-    u = dolfinx.fem.Function(V)
-    u.name = name
-    return u
+# ---------------------------------------------------------------------------------------------
+# Linear solves (monolithic references in tests and benchmarks)
+# ---------------------------------------------------------------------------------------------
 
 
-def scatter_forward(u: dolfinx.fem.Function) -> None:
-    """Update ghost values of a Function from their owners."""
-    u.x.scatter_forward()
+def solve_linear(a: ufl.Form, L: ufl.Form, bcs, petsc_options: dict,
+                 prefix: str = "dolfinx_feti_linear_") -> dolfinx.fem.Function:
+    """Solve a(u, v) = L(v) with Dirichlet conditions by ``fem.petsc.LinearProblem``."""
+    if VERSION >= (0, 10):  # the options prefix became a required argument
+        problem = dolfinx.fem.petsc.LinearProblem(a, L, bcs=bcs, petsc_options=petsc_options,
+                                                  petsc_options_prefix=prefix)
+        out = problem.solve()
+        return out[0] if isinstance(out, tuple) else out
+    problem = dolfinx.fem.petsc.LinearProblem(a, L, bcs=bcs, petsc_options=petsc_options)
+    return problem.solve()
+
+
+# ---------------------------------------------------------------------------------------------
+# Files: XDMF and gmsh
+# ---------------------------------------------------------------------------------------------
 
 
 def write_xdmf(path: str | Path, msh: dolfinx.mesh.Mesh, functions) -> None:
@@ -164,3 +266,16 @@ def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolf
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:
         return f.read_mesh(name=name)
+
+
+def gmsh_model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
+    """DOLFINx's conversion of a gmsh model held on ``rank``: (mesh, cell tags, facet tags)."""
+    if VERSION >= (0, 10):  # io.gmshio became io.gmsh and returns a MeshData
+        from dolfinx.io import gmsh as gmshio
+
+        data = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+        return data.mesh, data.cell_tags, data.facet_tags
+    from dolfinx.io import gmshio
+
+    out = gmshio.model_to_mesh(model, comm, rank, gdim=gdim)
+    return out[0], out[1], out[2]

@@ -100,7 +100,7 @@ class DualQP:
 
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
-            factor: str = "cholmod", norm_rtol: float = 1e-4,
+            factor: str | None = None, norm_rtol: float = 1e-4,
             timer: Timer | None = None) -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
 

@@ -31,6 +31,14 @@ def _size_in(entities: list[tuple[int, int]], h: float) -> None:
     gmsh.model.mesh.setSize(pts, h)
 
 
+def _sizes_from_points() -> None:
+    """Mesh sizes from the points only (another model of the session may have changed this)."""
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 1)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
+
+
 def _graded_sizes(bodies: list[tuple[int, float]], dim: int, h_far: float, refine: float) -> None:
     """Per body: size h within ``refine`` of the origin, growing to h_far (slope 0.2)."""
     origin = [t for _, t in gmsh.model.getEntitiesInBoundingBox(
@@ -238,4 +246,102 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     return physical_groups()
 
 
-__all__ = ["disk_on_block", "sphere_on_block", "stacked_blocks"]
+def slab_with_inclusions(h_matrix: float = 0.05, h_inclusion: float = 0.03,
+                         h_foundation: float = 0.08, conforming: bool = False,
+                         length: float = 2.0, thickness: float = 0.6, load_length: float = 0.8,
+                         inclusions: tuple[tuple[float, float, float], ...] = (
+                             (0.4, 0.3, 0.18), (1.0, 0.3, 0.18), (1.6, 0.3, 0.18)),
+                         foundation: tuple[float, float] = (3.0, 1.0)) -> dict:
+    """2D, half model: a composite slab (a matrix with disk inclusions) on a foundation block.
+
+    The slab [0, length] × [0, thickness] holds round inclusions (x, y, radius); it lies on
+    the block [0, foundation[0]] × [−foundation[1], 0], which is meshed on its own (the contact
+    surfaces do not match). With ``conforming=False`` the matrix has holes cut out of it and
+    each inclusion is a disk added afterwards, not fragmented against the matrix: the holes and
+    the inclusions are meshed independently (sizes h_matrix and h_inclusion), a non-conforming
+    interface to glue with :class:`~dolfinx_feti.Tie`. With ``conforming=True`` the slab is
+    fragmented instead: inclusions and matrix share their boundary curves and nodes (the
+    reference for a tie; the inclusions are then meshed with h_matrix on their boundary).
+
+    Physical groups: bodies "matrix" (2, 1), "inclusions" (2, 2), "foundation" (2, 3);
+    boundaries "load" (1, 11) = the slab's top on [0, load_length], "slab_bottom" (1, 12),
+    "foundation_top" (1, 13), "symmetry" (1, 14) = the x = 0 edges of the slab and of the
+    block, "bottom" (1, 15) = the block's base, and with ``conforming=False`` "holes" (1, 16)
+    = the matrix's hole boundaries and "inclusion_surface" (1, 17) = the inclusions' own
+    boundaries.
+    """
+    if min(h_matrix, h_inclusion, h_foundation, length, thickness, *foundation) <= 0 or \
+            not 0 < load_length < length:
+        raise ValueError("slab_with_inclusions: need positive sizes and 0 < load_length < length")
+    for xc, yc, r in inclusions:
+        if not (r < xc < length - r and r < yc < thickness - r):
+            raise ValueError(f"slab_with_inclusions: inclusion {(xc, yc, r)} is not inside the "
+                             "slab")
+    gmsh.model.add("slab_with_inclusions")
+    _set_output_options()
+    occ = gmsh.model.occ
+    # The outline as a polygon whose top is two curves: the loaded part and the rest.
+    corners = [(0.0, 0.0), (length, 0.0), (length, thickness), (load_length, thickness),
+               (0.0, thickness)]
+    pts = [occ.addPoint(x, y, 0.0) for x, y in corners]
+    lines = [occ.addLine(pts[k], pts[(k + 1) % len(pts)]) for k in range(len(pts))]
+    slab = occ.addPlaneSurface([occ.addCurveLoop(lines)])
+    disks = [(2, occ.addDisk(xc, yc, 0.0, r, r)) for xc, yc, r in inclusions]
+    if conforming:
+        out, _ = occ.fragment([(2, slab)], disks)
+    else:
+        out, _ = occ.cut([(2, slab)], disks)  # holes; the disks are removed with the tool
+        disks = [(2, occ.addDisk(xc, yc, 0.0, r, r)) for xc, yc, r in inclusions]
+    block = occ.addRectangle(0.0, -foundation[1], 0.0, foundation[0], foundation[1])
+    occ.synchronize()
+    tol = 1e-6 * max(length, *foundation)
+
+    def centre(dim: int, tag: int) -> tuple[float, float, float]:
+        return gmsh.model.occ.getCenterOfMass(dim, tag)
+
+    def curves(surfaces: list[int]) -> list[int]:
+        return sorted({abs(t) for s in surfaces
+                       for _, t in gmsh.model.getBoundary([(2, s)], oriented=False)})
+
+    def is_inclusion(tag: int, dim: int = 2) -> bool:
+        # by the bounding box: a centroid is ambiguous (the matrix may have the same)
+        x0, y0, _, x1, y1, _ = gmsh.model.getBoundingBox(dim, tag)
+        return any(abs(x0 - (xc - r)) < tol and abs(x1 - (xc + r)) < tol
+                   and abs(y0 - (yc - r)) < tol and abs(y1 - (yc + r)) < tol
+                   for xc, yc, r in inclusions)
+
+    slab_faces = [t for _, t in gmsh.model.getEntities(2) if t != block]
+    inc = [t for t in slab_faces if is_inclusion(t)]
+    matrix = [t for t in slab_faces if t not in inc]
+    m_curves, i_curves, b_curves = curves(matrix), curves(inc), curves([block])
+    holes = [c for c in m_curves if is_inclusion(c, 1)]
+    straight = [c for c in m_curves if c not in holes]
+
+    def on(cs: list[int], axis: int, value: float) -> list[int]:
+        return [c for c in cs if abs(centre(1, c)[axis] - value) < tol]
+
+    load = [c for c in on(straight, 1, thickness) if centre(1, c)[0] < load_length]
+    _sizes_from_points()
+    if conforming:
+        _size_in([(2, t) for t in matrix + inc], h_matrix)
+        _size_in([(2, t) for t in inc], h_matrix)
+    else:
+        _size_in([(2, t) for t in matrix], h_matrix)
+        _size_in([(2, t) for t in inc], h_inclusion)
+    _size_in([(2, block)], h_foundation)
+    _add_group(2, matrix, 1, "matrix")
+    _add_group(2, inc, 2, "inclusions")
+    _add_group(2, [block], 3, "foundation")
+    _add_group(1, load, 11, "load")
+    _add_group(1, on(straight, 1, 0.0), 12, "slab_bottom")
+    _add_group(1, on(b_curves, 1, 0.0), 13, "foundation_top")
+    _add_group(1, on(straight, 0, 0.0) + on(b_curves, 0, 0.0), 14, "symmetry")
+    _add_group(1, on(b_curves, 1, -foundation[1]), 15, "bottom")
+    if not conforming:
+        _add_group(1, holes, 16, "holes")
+        _add_group(1, i_curves, 17, "inclusion_surface")
+    gmsh.model.mesh.generate(2)
+    return physical_groups()
+
+
+__all__ = ["disk_on_block", "slab_with_inclusions", "sphere_on_block", "stacked_blocks"]

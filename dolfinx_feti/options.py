@@ -26,6 +26,7 @@ from typing import Any
 from petsc4py import PETSc
 
 from .errors import InputError
+from .factor import check_factor, default_factor
 from .qp.mprgp import OPTIONS as MPRGP
 from .qp.smalbe import OPTIONS as SMALBE
 from .validation import (
@@ -39,6 +40,19 @@ from .validation import (
     Real,
     checked,
 )
+
+
+class _Factor(Choice):
+    """A package name of :mod:`dolfinx_feti.factor` that this PETSc has."""
+
+    def __init__(self) -> None:
+        super().__init__("cholmod", "mumps", "petsc")
+
+    def __call__(self, value: Any, name: str) -> Any:  # noqa: D102
+        value = super().__call__(value, name)
+        check_factor(value)  # known, but not in this PETSc: say so, and what is
+        return value
+
 
 _TOL = Real(gt=0, lt=1)
 _COUNT = Integer(ge=1, le=10**9)
@@ -54,8 +68,9 @@ FETI = OptionSet(
     max_outer=Option(1000, _COUNT, "the budget of SMALBE outer iterations (an outer iteration "
                      "with no inner work costs no F-multiplication; 2D elasticity with 512 "
                      "subdomains needs 166, docs/benchmarks.md)"),
-    factor=Option("cholmod", Choice("cholmod", "mumps", "petsc"), "the sparse Cholesky package "
-                  "of the subdomain matrices"),
+    factor=Option(default_factor(), _Factor(), "the sparse Cholesky package of the subdomain "
+                  "matrices; by default the best this PETSc has (CHOLMOD, else PETSc's own: "
+                  "docs/solvers.md), and one it lacks is refused by name"),
     preconditioner=Option("lumped", Choice("none", "lumped", "dirichlet"), "'none', 'lumped' "
                           "(B K Bᵀ) or 'dirichlet' (B S Bᵀ), applied projected in CG and in the "
                           "face (free set) in MPRGP"),

@@ -136,7 +136,7 @@ def cell_function(mesh: MeshData, values: np.ndarray, name: str, msh):
     """A DG0 (cell-wise constant) Function on the parent mesh ``msh``, one value per input cell."""
     V = compat.dg0_space(msh)
     f = compat.function(V, name)
-    dofs = V.dofmap.list.array  # one dof per local cell, in cell order
+    dofs = compat.cell_dofs(V).ravel()  # one dof per local cell, in cell order
     cells = compat.cell_input_indices(msh)
     n = min(dofs.size, cells.size)
     f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cells[:n]]

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import compat
 from .errors import InputError
 from .fem import Elasticity
 from .mesh.gmsh_input import MeshData
@@ -252,7 +253,6 @@ def versions() -> dict[str, str]:
     """Versions of the libraries a solve depends on, for reports."""
     from importlib import metadata
 
-    import dolfinx
     import mpi4py
     import petsc4py
     from mpi4py import MPI
@@ -263,7 +263,7 @@ def versions() -> dict[str, str]:
     except metadata.PackageNotFoundError:
         own = "unknown"
     petsc = ".".join(str(v) for v in PETSc.Sys.getVersion())
-    return {"dolfinx_feti": own, "dolfinx": dolfinx.__version__, "petsc": petsc,
+    return {"dolfinx_feti": own, "dolfinx": compat.DOLFINX_VERSION, "petsc": petsc,
             "petsc4py": petsc4py.__version__, "numpy": np.__version__,
             "mpi4py": mpi4py.__version__,
             "mpi": MPI.Get_library_version().replace("\x00", "").split(",")[0].strip()}

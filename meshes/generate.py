@@ -21,6 +21,9 @@ MESHES: dict[str, Callable[[], object]] = {
     "blocks3d.msh": meshes.blocks3d,
     "disk_on_block.msh": lambda: meshes_occ.disk_on_block(0.1, 0.1),
     "stacked_blocks2d.msh": lambda: meshes_occ.stacked_blocks(2, 0.1, 0.17),
+    "disk_on_block_17.msh": lambda: meshes_occ.disk_on_block(0.1, 0.17),
+    "sphere_on_block.msh": lambda: meshes_occ.sphere_on_block(0.2, 0.34),
+    "slab_with_inclusions.msh": meshes_occ.slab_with_inclusions,
 }
 
 

@@ -1,27 +1,57 @@
 #!/usr/bin/env bash
-# Usage: bash scripts/run.sh demo|test|bench [args...]
+# Usage: bash scripts/run.sh demo|test|bench [--dolfinx 0.5|0.11] [args...]
 #   demo   solve the 2D Hertz contact demo (extra args go to demos/demo_hertz2d.py)
 #   test   ruff, then pytest serially, then pytest under mpirun -n 2 (extra args go to pytest);
 #          ends with one line "N passed, N failed" (both runs together), exits non-zero on any
 #          failure, including a pytest run that executed no test
 #   bench  run bench/run.py (extra args go to it)
+#   --dolfinx 0.5   (the default) Debian 12's DOLFINx 0.5.2 in .venv (scripts/setup.sh)
+#   --dolfinx 0.11  DOLFINx 0.11 from its PyPI wheel in .venv-dx011 of a Python >= 3.12
+#                   (scripts/setup_dolfinx011.sh), under that wheel's MPICH mpiexec; the tests
+#                   skip ruff there (the code is the same: the default run lints it)
 set -uo pipefail
 
 root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$root"
 
-usage() { echo "usage: bash scripts/run.sh demo|test|bench [args...]" >&2; exit 2; }
+usage() { echo "usage: bash scripts/run.sh demo|test|bench [--dolfinx 0.5|0.11] [args...]" >&2
+          exit 2; }
 [ $# -ge 1 ] || usage
 cmd="$1"
 shift
 case "$cmd" in demo | test | bench) ;; *) usage ;; esac
-
-bash scripts/setup.sh || { echo "run: setup failed" >&2; exit 1; }
+dolfinx=0.5
+if [ "${1:-}" = "--dolfinx" ]; then
+    [ $# -ge 2 ] || usage
+    dolfinx="$2"
+    shift 2
+elif [[ "${1:-}" == --dolfinx=* ]]; then
+    dolfinx="${1#--dolfinx=}"
+    shift
+fi
 
 export OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
-export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-PY="$root/.venv/bin/python"
 NPROCS=2
+case "$dolfinx" in
+0.5 | 0.5.2)
+    bash scripts/setup.sh || { echo "run: setup failed" >&2; exit 1; }
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+    PY="$root/.venv/bin/python"
+    MPIEXEC=(mpirun -n "$NPROCS" --allow-run-as-root --oversubscribe)
+    reports="$root/output/test-reports"
+    lint=yes
+    ;;
+0.11 | 0.11.0)
+    PY="$(bash scripts/setup_dolfinx011.sh)" || { echo "run: setup failed" >&2; exit 1; }
+    MPIEXEC=("$(dirname "$PY")/mpiexec" -n "$NPROCS")
+    reports="$root/output/test-reports-dolfinx0.11"
+    lint=no
+    ;;
+*)
+    echo "run: unknown DOLFINx version '$dolfinx' (known: 0.5 = Debian 12's 0.5.2, 0.11)" >&2
+    exit 2
+    ;;
+esac
 
 case "$cmd" in
 demo) exec "$PY" demos/demo_hertz2d.py "$@" ;;
@@ -32,7 +62,6 @@ bench)
 esac
 
 # ---- test -------------------------------------------------------------------------------------
-reports="$root/output/test-reports"
 rm -rf "$reports"
 mkdir -p "$reports"
 status=0
@@ -40,14 +69,16 @@ status=0
 lint_paths=()
 for d in dolfinx_feti tests demos bench meshes scripts; do [ -e "$d" ] && lint_paths+=("$d"); done
 echo "== ruff check ${lint_paths[*]}"
-if [ ${#lint_paths[@]} -eq 0 ]; then
+if [ "$lint" = no ]; then
+    echo "ruff: skipped with DOLFINx $dolfinx (the default run lints the same code)"
+elif [ ${#lint_paths[@]} -eq 0 ]; then
     echo "ruff: nothing to check"
 elif ! .venv/bin/ruff check --no-cache --output-format=concise "${lint_paths[@]}"; then
     echo "ruff: FAILED"
     status=1
 fi
 
-echo "== pytest (serial)"
+echo "== pytest (serial, DOLFINx $dolfinx)"
 "$PY" -m pytest -q --junitxml="$reports/serial.xml" "$@"
 rc=$?
 if [ $rc -ne 0 ]; then
@@ -62,9 +93,9 @@ color=no
 
 # Under mpirun every rank runs pytest; rank 0 prints to the terminal, the other ranks write their
 # output to output/test-reports/mpi-rank<r>.log. Each rank writes its own JUnit XML report.
-echo "== pytest (mpirun -n $NPROCS, -m 'not serial')"
+echo "== pytest (${MPIEXEC[0]##*/} -n $NPROCS, -m 'not serial', DOLFINx $dolfinx)"
 timeout --signal=TERM "${MPI_TEST_TIMEOUT:-1800}" \
-    mpirun -n "$NPROCS" --allow-run-as-root --oversubscribe \
+    "${MPIEXEC[@]}" \
     bash -c '
         rank="${OMPI_COMM_WORLD_RANK:-${PMI_RANK:-0}}"
         reports="$1"; shift

@@ -81,9 +81,10 @@ def api_problem(name: str) -> df.ContactProblem:
             mesh, forms, dirichlet=dirichlet,
             contact=[df.RigidObstacle("disk_contact", df.Plane((0.0, 0.0), (0.0, 1.0)))],
             decomposition=df.Parts({"disk": 2, "block": 1}))
-    if name == "hertz2d_mortar":
+    if name in ("hertz2d_mortar", "disk_block2d"):  # element sizes 1 : 1 and 1 : 1.7
+        msh = "disk_on_block.msh" if name == "hertz2d_mortar" else "disk_on_block_17.msh"
         return df.ContactProblem(
-            df.read_gmsh(MESHES / "disk_on_block.msh"),
+            df.read_gmsh(MESHES / msh),
             df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 2 / 8.0)}),
             dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
             contact=[df.Mortar(slave="disk_contact", master="block_contact")],
@@ -95,6 +96,8 @@ def api_problem(name: str) -> df.ContactProblem:
             dirichlet=[df.Dirichlet("bottom", components=[1]),
                        df.Dirichlet("sym0", components=[0])],
             ties=[df.Tie(slave="upper_bottom", master="lower_top")], decomposition=df.Parts(2))
+    if name in ("sphere_block3d", "inclusions"):
+        return _mortar_demo_problem(name)
     if name in ("membranes", "membranes_8"):
         n = 16 if name == "membranes" else 8
         mesh = df.read_gmsh(MESHES / f"membranes_{n}.msh")
@@ -111,6 +114,26 @@ def api_problem(name: str) -> df.ContactProblem:
             contact=[df.NodeToNode(slave="contact_upper", master="contact_lower")],
             decomposition=df.Parts(2))
     return _friction_problem(name)
+
+
+def _mortar_demo_problem(name: str) -> df.ContactProblem:
+    """The problems of the mortar demos sphere_block3d and inclusions."""
+    if name == "sphere_block3d":
+        return df.ContactProblem(
+            df.read_gmsh(MESHES / "sphere_on_block.msh"),
+            df.Elasticity(200.0, 0.3, tractions={"load": (0.0, 0.0, -20.0 / (np.pi * 64.0))}),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
+                       df.Dirichlet("sym_y", components=[1])],
+            contact=[df.Mortar(slave="sphere_contact", master="block_contact")],
+            decomposition=df.Parts(2))
+    return df.ContactProblem(
+        df.read_gmsh(MESHES / "slab_with_inclusions.msh"),
+        df.Elasticity({"matrix": 100.0, "inclusions": 1e5, "foundation": 100.0}, 0.3,
+                      tractions={"load": (0.0, -1.0)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+        contact=[df.Mortar(slave="slab_bottom", master="foundation_top")],
+        ties=[df.Tie(slave="holes", master="inclusion_surface")],
+        decomposition=df.Parts({"matrix": 2, "inclusions": 1, "foundation": 2}))
 
 
 def _friction_problem(name: str) -> df.ContactProblem:
@@ -149,7 +172,7 @@ def _friction_problem(name: str) -> df.ContactProblem:
 
 FRICTION = ("coulomb_cylinders", "tresca2d", "tresca3d")
 SHIPPED = ("blocks3d", "hertz2d", "hertz2d_rigid", "hertz2d_mortar", "membranes", "membranes_8",
-           "blocks2d_tie", *FRICTION)
+           "blocks2d_tie", "sphere_block3d", "disk_block2d", "inclusions", *FRICTION)
 HAS_FRICTION = hasattr(df, "Tresca") and hasattr(df, "Coulomb")
 
 

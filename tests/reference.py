@@ -23,21 +23,16 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-import dolfinx
-import dolfinx.fem
-import dolfinx.fem.petsc
-import dolfinx.mesh
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 import ufl
 from mpi4py import MPI
 
+from dolfinx_feti import compat  # thin DOLFINx wrappers, version-independent (no FETI in it)
+
 #: Tolerance of the reference's own KKT certificate (relative).
 CERT_TOL = 1e-12
-
-_CELLS = {"triangle": ufl.triangle, "tetrahedron": ufl.tetrahedron}
-
 
 # ---------------------------------------------------------------------------------------------
 # Forms written here (not the package's helpers)
@@ -86,19 +81,16 @@ def _body_mesh(mesh, b: int):
     cells_g = mesh.cells[mesh.cell_body == b]
     nodes = np.unique(cells_g)
     local = np.searchsorted(nodes, cells_g)
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", _CELLS[mesh.cell_type], 1, dim=mesh.gdim))
-    msh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, np.ascontiguousarray(local, dtype=np.int64),
-                                   np.ascontiguousarray(mesh.x[nodes]), domain)
+    msh = compat.create_mesh(MPI.COMM_SELF, local, mesh.x[nodes], mesh.cell_type)
     return msh, nodes
 
 
 def _dof_nodes(V, nodes: np.ndarray, x_global: np.ndarray) -> np.ndarray:
     """Global node of each (block) dof of the P1 space V, checked against the dof coordinates."""
     msh = V.mesh
-    nv = msh.topology.dim + 1
-    geom = msh.geometry.dofmap.array.reshape(-1, nv)
-    dofs = V.dofmap.list.array.reshape(-1, nv)
-    input_index = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
+    geom = compat.cell_geometry_nodes(msh)
+    dofs = compat.cell_dofs(V)
+    input_index = compat.node_input_indices(msh)
     ndofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
     node = np.full(ndofs, -1, dtype=np.int64)
     node[dofs.ravel()] = nodes[input_index[geom.ravel()]]
@@ -117,17 +109,13 @@ def assemble(mesh, bs: int, forms) -> tuple[sp.csr_matrix, np.ndarray]:
     f = np.zeros(n)
     for b, name in enumerate(mesh.body_names):
         msh, nodes = _body_mesh(mesh, b)
-        if bs == 1:
-            V = dolfinx.fem.FunctionSpace(msh, ("Lagrange", 1))
-        else:
-            V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=bs)
+        V = compat.function_space(msh, bs)
         assert V.dofmap.index_map_bs == bs
         node = _dof_nodes(V, nodes, mesh.x)
         glob = (bs * node[:, None] + np.arange(bs)[None, :]).ravel()  # local dof bs*d+c → global
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         a, L = forms(u, v, ufl.SpatialCoordinate(msh), name)
-        A = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(a))
-        A.assemble()
+        A = compat.assemble_matrix(a)
         indptr, indices, data = A.getValuesCSR()
         Kb = sp.csr_matrix((data, indices, indptr), shape=A.getSize()).tocoo()
         A.destroy()
@@ -135,7 +123,7 @@ def assemble(mesh, bs: int, forms) -> tuple[sp.csr_matrix, np.ndarray]:
         cols.append(glob[Kb.col])
         vals.append(Kb.data)
         if L is not None:
-            vec = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(L))
+            vec = compat.assemble_vector(L)
             np.add.at(f, glob, vec.array)
             vec.destroy()
     K = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),

@@ -41,8 +41,8 @@ def n(request):
 
 
 @pytest.fixture(scope="module")
-def mesh(n):
-    return df.read_gmsh(f"meshes/membranes_{n}.msh")
+def mesh(n, root):
+    return df.read_gmsh(root / f"meshes/membranes_{n}.msh")
 
 
 @pytest.fixture(scope="module")
@@ -148,9 +148,9 @@ def test_independent_kkt(mono, sol):
     assert sol.report.max_penetration <= 1e-8 * np.abs(sol.nodal_values()).max()
 
 
-def test_decompositions_agree():
+def test_decompositions_agree(root):
     """ByTags and an 8×4 grid of 32 subdomains give the same solution to 1e-8."""
-    mesh = df.read_gmsh("meshes/membranes_16.msh")
+    mesh = df.read_gmsh(root / "meshes/membranes_16.msh")
     a = df.solve(problem(mesh, df.ByTags()), rtol=RTOL)
     b = df.solve(problem(mesh, grid(0.25)), rtol=RTOL)
     assert ref.rel_max_diff(a.nodal_values(), b.nodal_values()) <= 1e-8

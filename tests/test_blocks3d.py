@@ -37,8 +37,8 @@ def monolithic(mesh, variant: str, extra_fixed=()) -> ref.MonolithicProblem:
 
 
 @pytest.fixture(scope="module")
-def mesh():
-    return df.read_gmsh("meshes/blocks3d.msh")
+def mesh(root):
+    return df.read_gmsh(root / "meshes/blocks3d.msh")
 
 
 @pytest.fixture(scope="module")

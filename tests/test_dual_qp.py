@@ -15,8 +15,8 @@ RTOL = 1e-10
 
 
 @pytest.fixture(scope="module")
-def problem():
-    mesh = df.read_gmsh("meshes/membranes_8.msh")
+def problem(root):
+    mesh = df.read_gmsh(root / "meshes/membranes_8.msh")
     H = 0.25
     return df.ContactProblem(
         mesh, df.Poisson(source=ref.membrane_source), dirichlet=[df.Dirichlet("dirichlet")],

@@ -28,8 +28,8 @@ def problem(mesh, decomposition) -> df.ContactProblem:
 
 
 @pytest.fixture(scope="module")
-def mesh():
-    return df.read_gmsh("meshes/hertz2d.msh")
+def mesh(root):
+    return df.read_gmsh(root / "meshes/hertz2d.msh")
 
 
 @pytest.fixture(scope="module")

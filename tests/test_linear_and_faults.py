@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import dolfinx
-import dolfinx.fem.petsc
+import dolfinx.fem
 import gmsh
 import numpy as np
 import pytest
@@ -12,6 +11,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx_feti as df
+from dolfinx_feti import compat
 
 
 def _square_model(n: int):
@@ -45,11 +45,8 @@ def plate():
 
 def _monolithic(mesh: df.MeshData, E: float, nu: float, traction) -> np.ndarray:
     """Plain DOLFINx solve of the undecomposed plate, clamped on the left (serial, COMM_SELF)."""
-    import basix.ufl_wrapper  # noqa: F401  (DOLFINx 0.5 needs it imported for elements)
-
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.triangle, 1))
-    msh = dolfinx.mesh.create_mesh(MPI.COMM_SELF, mesh.cells, mesh.x, domain)
-    V = dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", 1))
+    msh = compat.create_mesh(MPI.COMM_SELF, mesh.cells, mesh.x, mesh.cell_type)
+    V = compat.function_space(msh, 2)
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
     mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
 
@@ -62,12 +59,10 @@ def _monolithic(mesh: df.MeshData, E: float, nu: float, traction) -> np.ndarray:
     L = right * ufl.inner(ufl.as_vector(traction), v) * ufl.ds
     dofs = dolfinx.fem.locate_dofs_geometrical(V, lambda p: np.isclose(p[0], 0.0))
     bc = dolfinx.fem.dirichletbc(np.zeros(2), dofs, V)
-    problem = dolfinx.fem.petsc.LinearProblem(
-        a, L, bcs=[bc], petsc_options={"ksp_type": "preonly", "pc_type": "lu"})
-    uh = problem.solve()
-    node = np.asarray(msh.geometry.input_global_indices)
-    geom = msh.geometry.dofmap.array.reshape(-1, 3)
-    dofs_c = V.dofmap.list.array.reshape(-1, 3)
+    uh = compat.solve_linear(a, L, [bc], {"ksp_type": "preonly", "pc_type": "lu"})
+    node = compat.node_input_indices(msh)
+    geom = compat.cell_geometry_nodes(msh)
+    dofs_c = compat.cell_dofs(V)
     out = np.zeros((mesh.num_nodes, 2))
     out[node[geom.ravel()]] = uh.x.array.reshape(-1, 2)[dofs_c.ravel()]
     return out
@@ -105,9 +100,9 @@ def test_prescribed_displacement(plate):
     assert np.abs(sol.nodal_values() - exact).max() < 1e-10 * theta
 
 
-def test_error_on_one_rank_is_raised_on_every_rank():
+def test_error_on_one_rank_is_raised_on_every_rank(root):
     """A subdomain with NaN data on one rank: every rank raises the same InputError (no hang)."""
-    mesh = df.read_gmsh("meshes/blocks3d.msh")
+    mesh = df.read_gmsh(root / "meshes/blocks3d.msh")
 
     class NaNOnUpper(df.Elasticity):
         def __call__(self, V, sub):

@@ -254,8 +254,8 @@ def test_mortar_equals_node_to_node_on_matching_meshes_2d():
         assert np.allclose(fa[1], fb[1], rtol=1e-8, atol=1e-10 * np.abs(fb[1]).max())
 
 
-def test_mortar_equals_node_to_node_on_matching_meshes_3d():
-    mesh = df.read_gmsh("meshes/blocks3d.msh")
+def test_mortar_equals_node_to_node_on_matching_meshes_3d(root):
+    mesh = df.read_gmsh(root / "meshes/blocks3d.msh")
 
     def problem(contact):
         return df.ContactProblem(

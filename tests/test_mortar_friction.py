@@ -13,6 +13,7 @@ import pytest
 import reference as ref
 import scipy.sparse as sp
 from friction_reference import FrictionReference
+from test_friction import compare
 from test_mortar import occ_mesh
 
 import dolfinx_feti as df
@@ -49,17 +50,6 @@ def case(request):
                           dirichlet=[("bottom", (0.0,) * dim), ("top", shift(dim))],
                           slave="upper_bottom", normal=normal, weights=W)
     return dim, mesh, r
-
-
-def compare(sol, r, tol=1e-6):
-    c = sol.contact
-    assert ref.rel_max_diff(sol.nodal_values(), r.u) <= tol
-    scale = r.normal_force.max()
-    assert np.abs(r.by_node(c.node, c.force) - r.normal_force).max() <= tol * scale
-    ft = r.by_node(c.node, c.tangential_force)
-    assert np.abs(ft - r.tangential_force).max() <= tol * scale
-    slip = r.by_node(c.node, c.slip)
-    assert np.abs(slip - r.slip).max() <= tol * np.abs(r.u).max()
 
 
 def test_tresca_on_mortar_rows(case):

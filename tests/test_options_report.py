@@ -17,6 +17,8 @@ import ufl
 from petsc4py import PETSc
 
 import dolfinx_feti as df
+from dolfinx_feti import factor as factor_module
+from dolfinx_feti.factor import available_factors, default_factor
 
 MESHES = Path(__file__).resolve().parents[1] / "meshes"
 
@@ -65,7 +67,7 @@ def b1_solution(b1_problem):
 # ------------------------------------------------------------------------------------------
 
 DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
-            "factor": "cholmod", "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
+            "factor": default_factor(), "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
@@ -79,6 +81,37 @@ def test_defaults():
     assert {f.name for f in fields(df.SolverOptions)} == set(DEFAULTS)
     assert df.SolverOptions.create() == opts
     opts.validate()
+
+
+def test_default_factor_is_the_measured_choice():
+    """CHOLMOD where PETSc has it, else PETSc's own Cholesky (docs/solvers.md); MUMPS is in
+    every PETSc that DOLFINx runs on, and PETSc's own Cholesky is built in."""
+    assert {"petsc", "mumps"} <= set(available_factors())
+    expect = "cholmod" if "cholmod" in available_factors() else "petsc"
+    assert default_factor() == expect == df.SolverOptions().factor
+
+
+@pytest.mark.parametrize("name", ["cholmod", "mumps", "petsc"])
+def test_unavailable_factor_is_refused_by_name(name):
+    """A package this PETSc lacks (CHOLMOD with DOLFINx 0.11's wheel) is an InputError that
+    names it and the packages there are; an available one is accepted as it is."""
+    if name in available_factors():
+        assert df.SolverOptions.create(factor=name).factor == name
+        return
+    with pytest.raises(df.InputError, match=f"factor '{name}' is not available.*available: "):
+        df.SolverOptions.create(factor=name)
+
+
+def test_missing_cholmod_is_refused_and_not_the_default(monkeypatch):
+    """A PETSc without CHOLMOD (as DOLFINx 0.11's wheel has), simulated on any stack."""
+    monkeypatch.setattr(factor_module, "available_factors", lambda: ("petsc", "mumps"))
+    assert factor_module.default_factor() == "petsc"
+    with pytest.raises(df.InputError, match="factor 'cholmod' is not available in this PETSc "
+                                            r"\(.*\); available: petsc, mumps"):
+        df.SolverOptions.create(factor="cholmod")
+    with pytest.raises(df.InputError, match="factor must be one of 'cholmod', 'mumps', "
+                                            "'petsc', got 'superlu'"):
+        df.SolverOptions.create(factor="superlu")
 
 
 def test_keyword_override():

@@ -15,8 +15,8 @@ def _b1_source(x):
 
 
 @pytest.fixture(scope="module")
-def b1():
-    mesh = df.read_gmsh("meshes/membranes_16.msh")
+def b1(root):
+    mesh = df.read_gmsh(root / "meshes/membranes_16.msh")
     grid = df.ByFunction(lambda m: (np.floor(m[:, 0] / 0.25)
                                     + 100 * np.floor(m[:, 1] / 0.25)).astype(np.int64))
     return df.ContactProblem(mesh, df.Poisson(source=_b1_source),
@@ -26,8 +26,8 @@ def b1():
 
 
 @pytest.fixture(scope="module")
-def hertz():
-    mesh = df.read_gmsh("meshes/hertz2d.msh")
+def hertz(root):
+    mesh = df.read_gmsh(root / "meshes/hertz2d.msh")
     return df.ContactProblem(
         mesh, df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 16)}),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
@@ -73,10 +73,10 @@ def test_dirichlet_preconditioner_saves_f_multiplications(hertz):
     assert "precond" not in plain.counts and lumped.counts["precond"] > 0
 
 
-def test_redundant_rows_fall_back_to_multiplicity_scaling():
+def test_redundant_rows_fall_back_to_multiplicity_scaling(root):
     """B diag(K)⁻¹ Bᵀ is singular with redundant gluing rows: the stiffness-scaled default
     says so and uses multiplicity scaling; the solve is the same."""
-    mesh = df.read_gmsh("meshes/membranes_8.msh")
+    mesh = df.read_gmsh(root / "meshes/membranes_8.msh")
     prob = df.ContactProblem(
         mesh, df.Poisson(source=_b1_source), dirichlet=[df.Dirichlet("dirichlet")],
         contact=[df.NodeToNode("contact_left", "contact_right")],
@@ -100,9 +100,9 @@ def test_preconditioned_b1_is_exact(b1, preconditioner, scaling):
     assert abs(sol.energy - (-0.26012652)) <= 1e-6 * 0.26012652
 
 
-def test_preconditioned_projected_cg_on_a_glued_problem():
+def test_preconditioned_projected_cg_on_a_glued_problem(root):
     """No contact: PCG with the projected Dirichlet preconditioner; prescribed u = x on x = 0."""
-    mesh = df.read_gmsh("meshes/membranes_16.msh")
+    mesh = df.read_gmsh(root / "meshes/membranes_16.msh")
     grid = df.ByFunction(lambda m: (np.floor(m[:, 0] / 0.25)
                                     + 100 * np.floor(m[:, 1] / 0.25)).astype(np.int64))
     left_only = df.Poisson(source=-1.0, k={"left": 1.0, "right": 1.0})

@@ -22,6 +22,7 @@ from cli_helpers import (
 )
 
 import dolfinx_feti as df
+from dolfinx_feti import compat
 from dolfinx_feti import problemfile as pfile
 from dolfinx_feti.cli import main
 from dolfinx_feti.postprocess import surface_arclength, von_mises
@@ -300,7 +301,7 @@ master = "contact_right"
     assert np.abs(u_file - u_api).max() <= 1e-8 * np.abs(u_api).max()
 
     t = pfile.AffineTraction((1.0, 2.0), ((0.0, 3.0), (4.0, 0.0)))
-    x = ufl.SpatialCoordinate(ufl.Mesh(ufl.VectorElement("Lagrange", ufl.triangle, 1)))
+    x = ufl.SpatialCoordinate(compat.ufl_domain("triangle", 2))
     assert str(t(x)) == str(ufl.as_vector((1.0 + 3.0 * x[1], 2.0 + 4.0 * x[0])))
 
 

@@ -20,6 +20,7 @@ import pytest
 import stress_cases as sc
 from mpi4py import MPI
 from scratch import scratch_cwd_fixture
+from stack import factor_params
 
 import dolfinx_feti as df
 from dolfinx_feti.cli import main
@@ -333,7 +334,7 @@ def pushed(mesh, forms):
                              contact=[df.NodeToNode("contact_right", "contact_left")])
 
 
-@pytest.mark.parametrize("factor", ["cholmod", "mumps"])
+@pytest.mark.parametrize("factor", factor_params("cholmod", "mumps", "petsc"))
 def test_factorization_fault_on_one_rank(membranes, factor):
     """E = 0 in the right body (a forms callback that returns a zero matrix): its
     factorization fails; every rank raises, naming the subdomain and the body."""
@@ -358,7 +359,7 @@ def test_assembly_fault_on_one_rank(membranes):
         df.solve(pushed(membranes, Boom(1.0, 0.3)))
 
 
-@pytest.mark.parametrize("factor", ["cholmod", "mumps", "petsc"])
+@pytest.mark.parametrize("factor", factor_params("cholmod", "mumps", "petsc"))
 def test_fewer_subdomains_than_ranks(block, factor):
     """One subdomain: under mpirun a rank holds no subdomain and factors an empty matrix."""
     sol = df.solve(sc.block_on_plane(block, load=(0.0, -0.1)), factor=factor, rtol=1e-10)

@@ -14,9 +14,10 @@ triangles and integrated with a rule exact for the product of two linear functio
 pairs are processed at once: the loops run over the vertices of a facet, never over facets.
 
 Contact search: the user may name candidate surfaces much larger than the contact zone.
-Candidate pairs come from a k-d tree on facet centroids (radius: the search distance plus the
-two facets' circumradii); a pair is kept when the facets face each other and the master facet
-lies within the search distance of the slave facet's plane, on either side.
+Candidate pairs come from a k-d tree on the master facets' centroids, queried along each slave
+facet's normal line (within the search distance plus the two facets' circumradii); a pair is
+kept when the facets face each other, their projections onto the slave facet's plane may
+overlap, and the master facet lies within the search distance of that plane, on either side.
 
 A slave node j gets a row when the master surface covers at least half of the weight of its
 support, Σ_k M_jk >= ½ D_j (Σ_k M_jk = ∫ over the covered part of ψ_j, which equals D_j where
@@ -30,6 +31,7 @@ the rim of the master surface still moves rigidly with a rigid motion of both bo
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -164,17 +166,71 @@ def _rows_in(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.isin(va, vb)
 
 
+def _near_normal_lines(cs: np.ndarray, ns: np.ndarray, rs: np.ndarray, cm: np.ndarray,
+                       rm: np.ndarray, distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """(slave, master) facet pairs that may face each other, a superset of the final ones.
+
+    A pair survives :func:`candidate_pairs` only if the master centroid lies within
+    rs_i + rm_j of the slave facet's normal line through cs_i (its projection must overlap
+    the slave facet) and within distance + rm_j of the slave plane (a master vertex must lie
+    within ``distance``). That region is a cylinder, not a ball: one k-d tree query with a
+    ball of radius distance + rs + rm returns (distance / h)^(d−1) times too many pairs on
+    fine meshes. So each slave facet's segment of the normal line is bisected, breadth
+    first, keeping the pieces whose enclosing ball holds a master centroid (a count, no
+    list) until a piece is no longer than the cylinder is wide; the balls of those pieces
+    give the pairs. The master facets are split into size classes (factors of 2) so that the
+    cylinder's radius fits the masters of each class on graded meshes.
+    """
+    slack = 1.0 + 1e-9
+    cls = np.floor(np.log2(rm.max() / rm)).astype(np.int64)  # 0: the largest master facets
+    found_i, found_j = [], []
+    for c in np.unique(cls):  # a few size classes, not facets
+        J = np.flatnonzero(cls == c)
+        tree = cKDTree(cm[J])
+        r_c = rm[J].max()
+        R = (rs + r_c) * slack  # the cylinder's radius, per slave facet
+        # Pieces of the normal lines: owner slave facet, centre t, half-length.
+        owner = np.arange(cs.shape[0])
+        t = np.zeros(owner.size)
+        half = np.full(owner.size, (distance + r_c) * slack)
+        while owner.size:  # about log2(distance / h) rounds
+            ball = cs[owner] + t[:, None] * ns[owner]
+            rho = np.sqrt(R[owner] ** 2 + half**2) * slack  # the ball around a piece's slice
+            leaf = half <= R[owner]
+            hits = tree.query_ball_point(ball[leaf], rho[leaf], return_sorted=False)
+            count = np.fromiter(map(len, hits), dtype=np.int64, count=len(hits))
+            found_j.append(J[np.fromiter(itertools.chain.from_iterable(hits), dtype=np.int64,
+                                         count=int(count.sum()))])
+            found_i.append(np.repeat(owner[leaf], count))
+            split = np.flatnonzero(~leaf)
+            split = split[tree.query_ball_point(ball[split], rho[split],
+                                                return_length=True) > 0]
+            owner = np.repeat(owner[split], 2)
+            half = np.repeat(0.5 * half[split], 2)
+            t = np.repeat(t[split], 2) + np.tile([-1.0, 1.0], split.size) * half
+    key = np.unique(np.concatenate(found_i) * cm.shape[0] + np.concatenate(found_j))
+    return key // cm.shape[0], key % cm.shape[0]
+
+
 def candidate_pairs(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np.ndarray,
                     nm: np.ndarray, distance: float) -> tuple[np.ndarray, np.ndarray]:
     """(slave facet, master facet) pairs that face each other within ``distance``."""
     cs, cm = x[slave].mean(axis=1), x[master].mean(axis=1)
     rs = np.linalg.norm(x[slave] - cs[:, None], axis=2).max(axis=1)
     rm = np.linalg.norm(x[master] - cm[:, None], axis=2).max(axis=1)
-    radius = distance + rs.max() + rm.max()
-    coo = cKDTree(cs).sparse_distance_matrix(cKDTree(cm), radius, output_type="coo_matrix")
-    i, j, d = coo.row, coo.col, coo.data
+    i, j = _near_normal_lines(cs, ns, rs, cm, rm, distance)
+    d = np.linalg.norm(cm[j] - cs[i], axis=1)
     keep = d <= distance + rs[i] + rm[j]
     keep &= np.einsum("ij,ij->i", ns[i], nm[j]) < -FACING_MIN
+    i, j = i[keep], j[keep]
+    # The projections onto the slave facet's plane must overlap: the slave facet lies in the
+    # disc of radius rs about its centroid, the projected master facet in the disc of radius rm
+    # about its projected centroid (a projection shortens distances). Most pairs within the
+    # search distance fail this, and it is far cheaper than clipping them.
+    dc = cm[j] - cs[i]
+    dn = np.einsum("ij,ij->i", dc, ns[i])
+    reach = (rs[i] + rm[j]) * (1.0 + 1e-9)
+    keep = np.einsum("ij,ij->i", dc, dc) - dn**2 <= reach**2
     i, j = i[keep], j[keep]
     # Signed distances of the master vertices from the slave facet's plane.
     h = np.einsum("ikl,il->ik", x[master[j]] - x[slave[i, :1]], ns[i])
@@ -214,9 +270,11 @@ def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray) -> tuple[np.
 
     Convex polygons ``subject`` (P, V, 2) with ``count`` vertices each are clipped by
     counter-clockwise triangles ``clip`` (P, 3, 2); returns the polygons and their counts.
+    A polygon clipped away by one edge stays empty: only the others are carried on.
     """
     P = subject.shape[0]
-    rng = np.arange(P)
+    alive = np.flatnonzero(count > 0)
+    subject, count, clip = subject[alive], count[alive], clip[alive]
     for e in range(3):
         p0, p1 = clip[:, e], clip[:, (e + 1) % 3]
         edge = p1 - p0
@@ -224,9 +282,10 @@ def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray) -> tuple[np.
         def side(v, p0=p0, edge=edge):  # > 0 inside (left of a counter-clockwise edge)
             return edge[..., 0] * (v[..., 1] - p0[..., 1]) - edge[..., 1] * (v[..., 0] - p0[..., 0])
 
-        V = subject.shape[1]
-        out = np.zeros((P, 2 * V, 2))
-        n_out = np.zeros(P, dtype=np.int64)
+        n, V = subject.shape[:2]
+        rng = np.arange(n)
+        out = np.zeros((n, 2 * V, 2))
+        n_out = np.zeros(n, dtype=np.int64)
         for k in range(V):
             valid = k < count
             cur = subject[:, k]
@@ -241,8 +300,15 @@ def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray) -> tuple[np.
             put = valid & inn  # the end point is inside
             out[rng[put], n_out[put]] = nxt[put]
             n_out += put
-        subject, count = out, n_out
-    return subject, count
+        # At most V + 3 vertices survive the three edges: keep only the columns in use.
+        subject, count = out[:, :max(int(n_out.max(initial=0)), 1)], n_out
+        live = count > 0
+        alive, subject, count, clip = alive[live], subject[live], count[live], clip[live]
+    poly = np.zeros((P, subject.shape[1], 2))
+    poly[alive] = subject
+    counts = np.zeros(P, dtype=np.int64)
+    counts[alive] = count
+    return poly, counts
 
 
 def _triangle_integrals(x, slave, ns, master, i, j):
@@ -280,13 +346,16 @@ def _triangle_integrals(x, slave, ns, master, i, j):
         l2 = (E[:, 0, 0] * d[:, 1] - E[:, 1, 0] * d[:, 0]) / det
         return np.stack([1.0 - l1 - l2, l1, l2], axis=1)
 
+    # Only the pairs that overlap are integrated (row by row: the others would add zeros).
+    idx = np.flatnonzero(ok)
+    poly, count = poly[idx], count[idx]
+    s0, SE, sdet, m0, ME, mdet = s0[idx], SE[idx], sdet[idx], m0[idx], ME[idx], mdet[idx]
     c = poly.sum(axis=1) / np.maximum(count, 1)[:, None]  # the overlap's centroid (convex)
-    acc = np.zeros((i.size, 3, 3))
-    safe_mdet = np.where(ok, mdet, 1.0)
+    acc_ok = np.zeros((idx.size, 3, 3))
     safe_sdet = np.where(sdet == 0.0, 1.0, sdet)
-    rng = np.arange(i.size)
-    for k in range(poly.shape[1]):  # the fan triangles (centroid, vertex k, vertex k + 1)
-        use = ok & (k < count)
+    rng = np.arange(idx.size)
+    for k in range(int(count.max(initial=0))):  # fan triangles (centroid, vertex k, vertex k + 1)
+        use = k < count
         p1 = poly[:, k]
         p2 = poly[rng, (k + 1) % np.maximum(count, 1)]
         area = 0.5 * np.abs((p1[:, 0] - c[:, 0]) * (p2[:, 1] - c[:, 1])
@@ -295,9 +364,11 @@ def _triangle_integrals(x, slave, ns, master, i, j):
         for (q1, q2), w in zip(_TRI_X, _TRI_W, strict=True):
             p = c + q1 * (p1 - c) + q2 * (p2 - c)
             Ns = bary(p, s0, SE, safe_sdet)
-            Nm = bary(p, m0, ME, safe_mdet)
+            Nm = bary(p, m0, ME, mdet)
             psi = 4.0 * Ns - 1.0
-            acc += (w * area)[:, None, None] * psi[:, :, None] * Nm[:, None, :]
+            acc_ok += (w * area)[:, None, None] * psi[:, :, None] * Nm[:, None, :]
+    acc = np.zeros((i.size, 3, 3))
+    acc[idx] = acc_ok
     # Undo the guard's vertex reversal: slave vertex order (2, 1, 0) back to (0, 1, 2).
     acc = np.where((s_perm == 1)[:, None, None], acc[:, ::-1], acc)
     keep = np.flatnonzero(ok & (np.abs(acc).sum(axis=(1, 2)) > 0.0))

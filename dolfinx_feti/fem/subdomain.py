@@ -163,7 +163,7 @@ class Subdomain:
         q = compat.function(Q, "cellwise")
         table = np.array([values.get(b, np.nan) for b in self._mesh_data.body_names])
         body_of_cell = self._cell_tags.values[np.argsort(self._cell_tags.indices)]
-        dofs = Q.dofmap.list.array  # one dof per cell, in cell order
+        dofs = compat.cell_dofs(Q).ravel()  # one dof per cell, in cell order
         q.x.array[dofs] = table[body_of_cell]
         return q
 

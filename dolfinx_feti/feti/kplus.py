@@ -15,6 +15,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from ..errors import SolveError
+from ..factor import default_factor, set_cholesky
 
 
 def choose_fixing_dofs(R: np.ndarray) -> np.ndarray:
@@ -29,10 +30,14 @@ def choose_fixing_dofs(R: np.ndarray) -> np.ndarray:
 
 
 class SparseCholesky:
-    """Sparse Cholesky factorization of an SPD SciPy matrix through PETSc (COMM_SELF)."""
+    """Sparse Cholesky factorization of an SPD SciPy matrix through PETSc (COMM_SELF).
 
-    def __init__(self, A: sp.csr_matrix, factor: str = "cholmod") -> None:
+    ``factor`` names the package (see :mod:`dolfinx_feti.factor`; None: the default).
+    """
+
+    def __init__(self, A: sp.csr_matrix, factor: str | None = None) -> None:
         """Factor ``A`` (raises PETSc.Error if it is not positive definite)."""
+        factor = factor or default_factor()
         A = A.tocsr()
         A.sort_indices()
         self._A = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr.astype(PETSc.IntType),
@@ -47,9 +52,7 @@ class SparseCholesky:
         self._ksp = PETSc.KSP().create(PETSc.COMM_SELF)
         self._ksp.setOperators(self._A)
         self._ksp.setType("preonly")
-        pc = self._ksp.getPC()
-        pc.setType("cholesky")
-        pc.setFactorSolverType(factor)
+        set_cholesky(self._ksp.getPC(), factor)
         self._ksp.setUp()
 
     def solve_in_place(self) -> None:
@@ -84,12 +87,13 @@ class FixingNodesInverse:
     Args:
         K: The block-diagonal matrix diag(K_i) of a rank's subdomains.
         kernels: R_i per block, in order (the block sizes are their row counts).
-        factor: PETSc Cholesky package: "cholmod", "mumps" or "petsc".
+        factor: PETSc Cholesky package: "cholmod", "mumps" or "petsc" (None: the default of
+            :mod:`dolfinx_feti.factor`).
         labels: Names of the blocks for error messages.
     """
 
     def __init__(self, K: sp.csr_matrix, kernels: Sequence[np.ndarray],
-                 factor: str = "cholmod", labels: Sequence[str] | None = None) -> None:
+                 factor: str | None = None, labels: Sequence[str] | None = None) -> None:
         """Choose the fixing dofs, factor once, and check K K⁺ K = K per block."""
         labels = list(labels) if labels is not None else [f"block {i}"
                                                           for i in range(len(kernels))]
@@ -103,6 +107,7 @@ class FixingNodesInverse:
         keep = sp.diags(free.astype(float))
         A = (keep @ K @ keep + sp.diags((~free).astype(float))).tocsr()
         A.eliminate_zeros()
+        factor = factor or default_factor()
         self._factor = factor
         try:
             self._chol = SparseCholesky(A, factor)

@@ -230,7 +230,7 @@ class LumpedPreconditioner:
 
     name = "lumped"
 
-    def __init__(self, feti, scaling: str = "multiplicity", factor: str = "cholmod") -> None:
+    def __init__(self, feti, scaling: str = "multiplicity", factor: str | None = None) -> None:
         """Use the subdomain matrices of a :class:`~dolfinx_feti.feti.TotalFETI`."""
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
@@ -289,7 +289,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
 
     name = "dirichlet"
 
-    def __init__(self, feti, factor: str = "cholmod", scaling: str = "multiplicity") -> None:
+    def __init__(self, feti, factor: str | None = None, scaling: str = "multiplicity") -> None:
         """Factor the interior blocks of the local subdomains."""
         super().__init__(feti, scaling, factor)
         rows, dec, bs = feti.rows, feti.dec, feti.bs
@@ -329,7 +329,7 @@ class DirichletPreconditioner(LumpedPreconditioner):
             self._chol.destroy()
 
 
-def make_preconditioner(kind: str, feti, factor: str = "cholmod",
+def make_preconditioner(kind: str, feti, factor: str | None = None,
                         scaling: str = "multiplicity"):
     """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module)."""
     if kind == "none":

@@ -93,7 +93,7 @@ class TotalFETI:
     """
 
     def __init__(self, problem: ContactProblem, dec: Decomposition, rows: Rows,
-                 comm: MPI.Comm, timer: Timer, factor: str = "cholmod") -> None:
+                 comm: MPI.Comm, timer: Timer, factor: str | None = None) -> None:
         """Assemble, factor and build the dual operators (collective on ``comm``)."""
         self.comm, self.problem, self.dec, self.rows = comm, problem, dec, rows
         mesh, bs = problem.mesh, problem.value_size
@@ -140,8 +140,10 @@ class TotalFETI:
             self.c = self.B.createVecLeft()
             self.c.array[:] = rows.rhs[self.rows_local]
             self.f = self.B.createVecRight()
-            if f_parts:
-                self.f.array[:] = np.concatenate(f_parts)
+            # every rank writes (also an empty part): a write moves the Vec's state, and PETSc
+            # reuses a norm cached at the old state (VecSet caches one) on a rank that did not
+            # write, so that rank would skip the reduction of the next norm and hang the others
+            self.f.array[:] = np.concatenate(f_parts) if f_parts else 0.0
             self._shell = _DualShell(self)
             self.F = python_shell(self._shell, self.c)
 
@@ -149,7 +151,7 @@ class TotalFETI:
             m_loc = self.k * self.local_subs.size
             self.coarse_size = (m_loc, self.k * dec.num_subdomains)
             if self.R:  # columns are global coarse indices: k per subdomain, in order
-                Rloc = sp.block_diag(list(self.R.values()), format="csr")
+                Rloc = sp.block_diag([sp.csr_matrix(R) for R in self.R.values()], format="csr")
                 Rloc = sp.csr_matrix((Rloc.data, Rloc.indices + self.k * int(self.local_subs[0]),
                                       Rloc.indptr), shape=(Rloc.shape[0], self.coarse_size[1]))
             else:
