@@ -114,7 +114,7 @@ def output_functions(solution) -> list:
         # there: no array of the whole mesh's displacements.
         d = mesh.gdim
         n_cells = compat.cell_input_indices(msh).size
-        geom = msh.geometry.dofmap.array.reshape(-1, d + 1)[:n_cells]
+        geom = np.asarray(compat.cell_geometry_nodes(msh))[:n_cells]
         u_geom = np.zeros((msh.geometry.x.shape[0], d))
         u_geom[compat.vertex_dof_nodes(V)] = u.x.array.reshape(-1, d)
         local = SimpleNamespace(x=msh.geometry.x[:, :d], cells=geom, gdim=d,
@@ -122,7 +122,7 @@ def output_functions(solution) -> list:
                                 body_names=mesh.body_names)
         Q = compat.dg0_space(msh)
         vm = compat.function(Q, "von_mises")
-        dofs = Q.dofmap.list.array[:n_cells]
+        dofs = compat.cell_dofs(Q).ravel()[:n_cells]
         vm.x.array[dofs] = von_mises(local, u_geom, forms.E, forms.nu)
         compat.scatter_forward(vm)
         out.append(vm)

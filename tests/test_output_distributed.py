@@ -65,6 +65,6 @@ def test_von_mises_from_the_local_cells(solution):
     vm = {f.name: f for f in output_functions(solution)}["von_mises"]
     Q = vm.function_space
     cells = compat.cell_input_indices(Q.mesh)
-    dofs = Q.dofmap.list.array[:cells.size]
+    dofs = compat.cell_dofs(Q).ravel()[:cells.size]
     ref = von_mises(solution.problem.mesh, solution.nodal_values(), 1000.0, 0.3)
     assert np.allclose(vm.x.array[dofs], ref[cells], rtol=1e-10, atol=1e-12 * ref.max())
