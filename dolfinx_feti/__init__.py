@@ -15,7 +15,7 @@ from . import compat  # noqa: F401
 from .dual import DualQP, dual_qp
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
-from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, read_gmsh
+from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
 from .options import SolverOptions
 from .problem import (
                       ContactProblem,
@@ -40,4 +40,4 @@ __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "
            "NotConverged",
            "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
            "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
-           "dual_qp", "read_gmsh", "solve"]
+           "dual_qp", "from_dolfinx", "read_gmsh", "solve"]

@@ -62,6 +62,8 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str
                 degree: int = 1) -> dolfinx.mesh.Mesh:
     """A mesh of Lagrange geometry of ``degree`` from a cell-to-node array and coordinates.
 
+    ``cells`` in DOLFINx's node order: the vertices (tensor-product order for quadrilaterals
+    and hexahedra), then for ``degree`` 2 the edge, face and interior nodes in basix's order.
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it. On one rank under DOLFINx 0.5 the partitioner is skipped (every cell
     stays here): the default one builds the dual graph first, a third of the mesh creation.
@@ -81,19 +83,54 @@ def _all_here(comm, nparts, tdim, cells, ghost_mode):
     return dolfinx.cpp.graph.AdjacencyList_int32(np.zeros(cells.num_nodes, dtype=np.int32))
 
 
+def is_mesh(obj) -> bool:
+    """Whether ``obj`` is a DOLFINx mesh."""
+    return isinstance(obj, dolfinx.mesh.Mesh)
+
+
+def describe_mesh(msh: dolfinx.mesh.Mesh) -> tuple[str, int, int]:
+    """``(cell type name, geometric dimension, degree of the coordinate element)``."""
+    return (msh.topology.cell_type.name, int(msh.geometry.dim),
+            int(msh.geometry.cmap.degree))
+
+
+def cell_counts(msh: dolfinx.mesh.Mesh) -> tuple[int, int]:
+    """``(owned cells, owned + ghost cells)`` of this rank."""
+    im = msh.topology.index_map(msh.topology.dim)
+    return im.size_local, im.size_local + im.num_ghosts
+
+
+def geometry_x(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """Coordinates of the local geometry nodes, (nodes, gdim)."""
+    return msh.geometry.x[:, :msh.geometry.dim]
+
+
+def entity_geometry_nodes(msh: dolfinx.mesh.Mesh, dim: int, entities: np.ndarray) -> np.ndarray:
+    """The geometry nodes of local entities (e.g. facets), (n, nodes per entity).
+
+    The vertices come first, those of a quadrilateral facet in the reference (tensor) order.
+    """
+    msh.topology.create_connectivity(dim, msh.topology.dim)
+    ents = np.ascontiguousarray(entities, dtype=np.int32)
+    if hasattr(dolfinx.mesh, "entities_to_geometry"):  # a Python wrapper in newer DOLFINx
+        nodes = dolfinx.mesh.entities_to_geometry(msh, dim, ents, False)
+    else:
+        nodes = dolfinx.cpp.mesh.entities_to_geometry(msh._mesh, dim, ents, False)
+    return np.asarray(nodes, dtype=np.int64).reshape(ents.size, -1)
+
+
 def cell_geometry_nodes(msh: dolfinx.mesh.Mesh) -> np.ndarray:
-    """The geometry nodes of each local cell (ghosts included): a (cells × nodes) array."""
+    """The geometry nodes of each local cell (ghosts included): a (cells × nodes) array.
+
+    In basix's order: the vertices first (in the reference order), then for a second-order
+    mesh the nodes on edges, faces and the interior.
+    """
     if VERSION >= (0, 10):  # one dofmap per coordinate element (mixed-topology meshes)
         return msh.geometry.dofmaps[0]
     if VERSION >= (0, 9):
         return msh.geometry.dofmap
-    ncells = _local_cell_count(msh)
+    ncells = cell_counts(msh)[1]
     return msh.geometry.dofmap.array.reshape(ncells, -1)
-
-
-def _local_cell_count(msh: dolfinx.mesh.Mesh) -> int:
-    imap = msh.topology.index_map(msh.topology.dim)
-    return imap.size_local + imap.num_ghosts
 
 
 def node_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
@@ -107,10 +144,12 @@ def cell_input_indices(msh: dolfinx.mesh.Mesh) -> np.ndarray:
 
 
 def _geometry_node_to_vertex(msh: dolfinx.mesh.Mesh) -> np.ndarray:
+    """The topological vertex of each geometry node (-1 for edge, face and interior nodes)."""
     tdim = msh.topology.dim
     c_to_v = msh.topology.connectivity(tdim, 0).array
-    out = np.empty(msh.geometry.x.shape[0], dtype=np.int64)
-    out[cell_geometry_nodes(msh).ravel()] = c_to_v
+    nv = c_to_v.size // cell_counts(msh)[1]
+    out = np.full(msh.geometry.x.shape[0], -1, dtype=np.int64)
+    out[cell_geometry_nodes(msh)[:, :nv].ravel()] = c_to_v
     return out
 
 
@@ -133,6 +172,12 @@ def facet_tags(msh: dolfinx.mesh.Mesh, facets: np.ndarray, values: np.ndarray):
         adj = dolfinx.cpp.graph.AdjacencyList_int32(ents)
     return dolfinx.mesh.meshtags_from_entities(msh, tdim - 1, adj,
                                                np.ascontiguousarray(values, dtype=np.int32))
+
+
+def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
+    """``(dimension, local entity indices, values)`` of MeshTags."""
+    return int(tags.dim), np.asarray(tags.indices, dtype=np.int64), \
+        np.asarray(tags.values, dtype=np.int64)
 
 
 def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
@@ -159,6 +204,24 @@ def function_space(msh: dolfinx.mesh.Mesh, value_size: int,
     return dolfinx.fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=value_size)
 
 
+def space_mesh(V) -> dolfinx.mesh.Mesh:
+    """The mesh of a function space."""
+    return V.mesh
+
+
+def same_space(W, V) -> bool:
+    """Whether the UFL function space ``W`` is ``V`` (the same element on the same mesh)."""
+    return W is V or (W.ufl_element() == V.ufl_element()
+                      and getattr(W, "mesh", None) is V.mesh)
+
+
+def describe_space(W) -> str:
+    """A short description of a UFL function space, for messages."""
+    mesh = getattr(W, "mesh", None)
+    return f"{W.ufl_element()}" + ("" if mesh is None else
+                                   f" on a mesh of {cell_counts(mesh)[0]} local cells")
+
+
 def dg0_space(msh: dolfinx.mesh.Mesh) -> dolfinx.fem.FunctionSpace:
     """The piecewise constant scalar space (for cell-wise material data)."""
     if VERSION >= (0, 9):
@@ -171,19 +234,33 @@ def cell_dofs(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
     dofs = V.dofmap.list
     if VERSION >= (0, 9):  # a 2D array already
         return dofs
-    return dofs.array.reshape(_local_cell_count(V.mesh), -1)
+    return dofs.array.reshape(cell_counts(V.mesh)[1], -1)
 
 
-def vertex_dof_nodes(V: dolfinx.fem.FunctionSpace) -> np.ndarray:
-    """For each (unblocked) dof of a P1 space, the geometry node it sits on.
+def dof_entities(V: dolfinx.fem.FunctionSpace, entities: dict[int, int]
+                 ) -> list[tuple[int, int]]:
+    """For each dof of a cell (reference order), the entity (dim, local index) it sits on.
 
-    P1 dofs and first-order geometry nodes are listed in the same order within each cell, so
-    the two cell-wise maps, read side by side, pair them.
+    ``entities``: the number of entities of each dimension of the cell.
     """
-    n_dofs = V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
-    out = np.empty(n_dofs, dtype=np.int64)
-    out[cell_dofs(V).ravel()] = cell_geometry_nodes(V.mesh).ravel()
-    return out
+    layout = V.dofmap.dof_layout
+    out: dict[int, tuple[int, int]] = {}
+    for dim, n in entities.items():
+        for i in range(n):
+            for j in layout.entity_dofs(dim, i):
+                out[int(j)] = (dim, i)
+    return [out[j] for j in range(len(out))]
+
+
+def space_degree(V) -> int:
+    """The polynomial degree of a function space's element."""
+    degree = V.ufl_element().degree
+    return int(degree() if callable(degree) else degree)  # a property of basix.ufl elements
+
+
+def dof_count(V: dolfinx.fem.FunctionSpace) -> int:
+    """Number of (blocked) dofs of this rank, owned and ghost."""
+    return V.dofmap.index_map.size_local + V.dofmap.index_map.num_ghosts
 
 
 def owned_dof_count(V: dolfinx.fem.FunctionSpace) -> int:
@@ -196,6 +273,13 @@ def function(V: dolfinx.fem.FunctionSpace, name: str) -> dolfinx.fem.Function:
     u = dolfinx.fem.Function(V)
     u.name = name
     return u
+
+
+def interpolate_expression(f: dolfinx.fem.Function, expr) -> None:
+    """Interpolate a UFL expression into ``f`` (at its element's interpolation points)."""
+    points = f.function_space.element.interpolation_points
+    points = points() if callable(points) else points  # a property since DOLFINx 0.8
+    f.interpolate(dolfinx.fem.Expression(expr, points))
 
 
 def scatter_forward(u: dolfinx.fem.Function) -> None:
@@ -255,7 +339,7 @@ def solve_linear(a: ufl.Form, L: ufl.Form, bcs, petsc_options: dict,
 
 
 def write_xdmf(path: str | Path, msh: dolfinx.mesh.Mesh, functions) -> None:
-    """Write a mesh and P1 Functions to XDMF (readable by ParaView and DOLFINx)."""
+    """Write a mesh and Functions of its geometry degree (or DG0) to XDMF."""
     with dolfinx.io.XDMFFile(msh.comm, str(path), "w") as f:
         f.write_mesh(msh)
         for u in functions:

@@ -121,7 +121,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
         with collective(comm, "decomposition"):
-            dec = decompose(problem.mesh, problem.decomposition, comm)
+            dec = decompose(problem.mesh, problem.decomposition, comm,
+                                problem.dof_points)
         mortar = []
         with collective(comm, "constraints"):
             rows = build_rows(problem, dec, mortar)

@@ -1,9 +1,15 @@
-"""Output on the whole (undecomposed) mesh: merged Functions and XDMF files.
+"""Output on the whole (undecomposed) mesh: Functions and XDMF files.
 
-The Functions are filled from the distributed solution: each rank of the parent mesh asks for
-the values at its own nodes through a directory (rank r keeps the nodes r·N // size to
-(r + 1)·N // size − 1), so no rank holds an array of the whole mesh's values. (The parent mesh
-itself is still built from the global mesh arrays on rank 0, as long as the input is global.)
+The output mesh is the user's own DOLFINx mesh when the problem came from
+:func:`~dolfinx_feti.from_dolfinx`, else a mesh built once from the :class:`MeshData` and
+distributed over the communicator. Values at the global dof points (:mod:`.mesh.dofpoints`)
+become Lagrange Functions of the problem's degree on it; values per cell become DG0 Functions.
+
+The Lagrange Functions are filled from the distributed solution: each rank gives its own
+(dof point, value) pairs, and asks for the values at the dof points of its own dofs of the
+output space through a directory (rank r keeps the points r·M // size to (r + 1)·M // size − 1),
+so no rank holds an array of the whole mesh's values. (The parent mesh itself is still built
+from the global mesh arrays on rank 0, as long as the input is global.)
 """
 
 from __future__ import annotations
@@ -16,54 +22,91 @@ from mpi4py import MPI
 
 from . import compat
 from .errors import collective
+from .fem.dofmap import dof_points_of_space
+from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.gmsh_input import MeshData
 
 _PARENT_CACHE: dict[tuple[int, int], object] = {}
 
 
 def parent_mesh(mesh: MeshData, comm: MPI.Comm):
-    """The whole mesh as a DOLFINx mesh distributed over ``comm`` (built once per MeshData)."""
+    """The whole mesh as a DOLFINx mesh distributed over ``comm`` (built once per MeshData).
+
+    Its input nodes are the global vertices, or for a curved mesh the global dof points of
+    degree 2 (its geometry nodes).
+    """
     key = (id(mesh), comm.py2f())
     if key not in _PARENT_CACHE:
-        if comm.rank == 0:
-            cells, x = mesh.cells, mesh.x
-        else:
-            cells = np.empty((0, mesh.cells.shape[1]), dtype=np.int64)
-            x = np.empty((0, mesh.gdim))
+        degree = mesh.geometry_degree
+        points = dof_points(mesh, degree)
+        cells, x = points.cell_points, points.x
+        if comm.rank != 0:
+            cells, x = cells[:0], x[:0]
         _PARENT_CACHE.clear()  # keep at most one parent mesh alive
-        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type)
+        _PARENT_CACHE[key] = compat.create_mesh(comm, cells, x, mesh.cell_type, degree)
     return _PARENT_CACHE[key]
 
 
-def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
-                         comm: MPI.Comm, name: str, msh=None, local: bool = False):
-    """A P1 Function on the parent mesh from (global node, value) pairs.
+def output_mesh(mesh: MeshData, comm: MPI.Comm, msh=None) -> tuple[object, np.ndarray, np.ndarray]:
+    """The mesh to put results on, and the global vertex and cell of its local ones.
 
     Args:
-        mesh: The global mesh (for the parent mesh).
-        nodes: Global node of each pair.
-        values: The pairs' values, shape (pairs, bs).
-        comm: The ranks.
-        name: The Function's name.
-        msh: The parent mesh, if already made.
-        local: The pairs are the same on every rank (e.g. gathered contact data): values of
-            repeated nodes are summed, no communication. Otherwise each rank gives its own
-            pairs and the value at a node is the mean over all ranks' pairs there.
+        mesh: The mesh data.
+        comm: The communicator of the parent mesh (unused with a user's mesh).
+        msh: The parent mesh, if already made (e.g. that of ``solution.u``: the cache keeps
+            only the last parent mesh, and Functions combined in UFL or in one file must live
+            on one mesh object).
+
+    Returns:
+        ``(msh, vertex, cell)``: the user's mesh (input from DOLFINx) or the parent mesh; the
+        global vertex of each local geometry node; the global cell of each local cell.
     """
-    msh = msh if msh is not None else parent_mesh(mesh, comm)
+    if mesh.source is not None:
+        return mesh.source.mesh, mesh.source.vertex_ids(), mesh.source.cell_ids()
+    msh = parent_mesh(mesh, comm) if msh is None else msh
+    return msh, compat.node_input_indices(msh), compat.cell_input_indices(msh)
+
+
+def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
+                         comm: MPI.Comm, name: str, points: DofPoints | None = None,
+                         degree: int | None = None, local: bool = False, msh=None):
+    """A Lagrange Function on the output mesh from (global dof point, value) pairs.
+
+    Args:
+        mesh: The mesh data.
+        nodes: Global dof point of each pair.
+        values: The pairs' values, shape (pairs, value size).
+        comm: The ranks that hold the pairs (those of the output mesh).
+        name: The Function's name.
+        points: The dof points of the pairs (default: the vertices).
+        degree: The Lagrange degree of the Function (default: that of ``points``); a degree-1
+            Function of degree-2 values takes their values at the vertices.
+        local: The pairs are the same on every rank (e.g. gathered contact data): values of
+            repeated points are summed, no communication. Otherwise each rank gives its own
+            pairs and the value at a point is the mean over all ranks' pairs there.
+        msh: The parent mesh, if already made (see :func:`output_mesh`).
+    """
+    points = dof_points(mesh, 1) if points is None else points
+    degree = points.degree if degree is None else degree
+    nodes = np.asarray(nodes, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64)
+    if degree != points.degree:  # the vertices are the first dof points of every degree
+        keep = nodes < mesh.num_nodes
+        points, nodes, values = dof_points(mesh, degree), nodes[keep], values[keep]
+    msh, vertex, _ = output_mesh(mesh, comm, msh)
     bs = values.shape[1]
-    V = compat.function_space(msh, bs)
+    V = compat.function_space(msh, bs, degree)
     u = compat.function(V, name)
-    wanted = compat.node_input_indices(msh)[compat.vertex_dof_nodes(V)]
+    wanted = dof_points_of_space(V, vertex, points)
     if local:
-        keys, inv = np.unique(np.asarray(nodes, dtype=np.int64), return_inverse=True)
+        keys, inv = np.unique(nodes, return_inverse=True)
         summed = np.zeros((keys.size, bs))
         np.add.at(summed, inv, values)
         pos = np.minimum(np.searchsorted(keys, wanted), max(keys.size - 1, 0))
         hit = keys[pos] == wanted if keys.size else np.zeros(wanted.size, dtype=bool)
         out = np.where(hit[:, None], summed[pos] if keys.size else 0.0, 0.0)
     else:
-        out = node_values(nodes, values, wanted, mesh.num_nodes, comm)
+        out = node_values(nodes, values, wanted, points.num_points, comm)
     u.x.array[:] = out.ravel()
     return u
 
@@ -100,17 +143,17 @@ def _answer(comm: MPI.Comm, values: np.ndarray, order: np.ndarray, counts: np.nd
 
 def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_nodes: int,
                 comm: MPI.Comm) -> np.ndarray:
-    """The mean of the given (node, value) pairs of all ranks at the ``wanted`` nodes.
+    """The mean of the given (point, value) pairs of all ranks at the ``wanted`` points.
 
     Args:
-        nodes: Global node of each local pair (a node may repeat: subdomain copies).
+        nodes: Global (dof) point of each local pair (a point may repeat: subdomain copies).
         values: The pairs' values, shape (pairs, bs).
-        wanted: Global nodes whose values this rank needs.
-        num_nodes: Number of nodes of the whole mesh.
+        wanted: Global points whose values this rank needs.
+        num_nodes: Number of (dof) points of the whole mesh.
         comm: The ranks.
 
     Returns:
-        Shape (wanted, bs); zero at a node no rank gave.
+        Shape (wanted, bs); zero at a point no rank gave.
     """
     size = comm.size
     lo = np.arange(size + 1, dtype=np.int64) * num_nodes // size  # directory blocks
@@ -132,20 +175,26 @@ def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_n
     return _answer(comm, mean[asked - lo[comm.rank]], order, counts, rcounts)
 
 
-def cell_function(mesh: MeshData, values: np.ndarray, name: str, msh):
-    """A DG0 (cell-wise constant) Function on the parent mesh ``msh``, one value per input cell."""
+def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm, msh=None):
+    """A DG0 (cell-wise constant) Function on the output mesh, one value per global cell.
+
+    ``msh``: the parent mesh, if already made (see :func:`output_mesh`).
+    """
+    msh, _, cell = output_mesh(mesh, comm, msh)
     V = compat.dg0_space(msh)
     f = compat.function(V, name)
     dofs = compat.cell_dofs(V).ravel()  # one dof per local cell, in cell order
-    cells = compat.cell_input_indices(msh)
-    n = min(dofs.size, cells.size)
-    f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cells[:n]]
+    n = min(dofs.size, cell.size)
+    f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cell[:n]]
     compat.scatter_forward(f)
     return f
 
 
 def write_xdmf(path: str | os.PathLike, u, functions) -> None:
     """Write Functions on one mesh to XDMF; the files appear under their names only when done.
+
+    XDMF holds Lagrange Functions of the mesh's own geometry degree: on a straight-sided mesh
+    pass degree-2 fields as their vertex values (:func:`distributed_function` with ``degree=1``).
 
     Collective; a failure on any rank (the folder cannot be made, the disk is full) raises on
     every rank and leaves no file behind.

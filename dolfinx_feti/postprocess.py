@@ -1,10 +1,12 @@
 """What comes after a solve: derived fields, the pressure plot, NumPy output, run metadata.
 
-- :func:`von_mises`: the von Mises stress per cell (exact for P1 displacements, whose strain
-  is constant in each cell; in 2D with the plane-strain σ_zz = λ tr ε).
+- :func:`von_mises`: the von Mises stress per cell of a P1 displacement on simplices, from
+  nodal arrays (exact: the strain is constant in each cell; in 2D with the plane-strain
+  σ_zz = λ tr ε).
 - :func:`output_functions`: the cell fields that :meth:`Solution.write_xdmf` writes besides
   the displacement and the contact pressure: ``subdomain`` (the subdomain of each cell) and,
-  for :class:`~dolfinx_feti.Elasticity`, ``von_mises``, both piecewise constant (DG0).
+  for :class:`~dolfinx_feti.Elasticity`, ``von_mises`` at the cell midpoints, computed in UFL
+  from ``solution.u`` (any element), both piecewise constant (DG0).
 - :func:`pressure_profile` / :func:`plot_pressure`: the contact pressure along a contact
   surface (against x, y, z or, in 2D, the arc length) and its PNG plot.
 - :func:`save_nodal_values`: the solution as NumPy arrays in the mesh's node order (``.npz``).
@@ -22,6 +24,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+import ufl
 
 from . import compat
 from .errors import InputError
@@ -67,8 +70,9 @@ def von_mises(mesh: MeshData, u: np.ndarray, E, nu) -> np.ndarray:
     """The von Mises stress in each cell of a P1 displacement field.
 
     Args:
-        mesh: The mesh.
-        u: Nodal displacements, shape (N, gdim).
+        mesh: The mesh (of simplices).
+        u: Nodal displacements, shape (N, gdim) (for a degree-2 solution: its vertex rows,
+            which give the P1 interpolant's stress).
         E: Young's modulus: a number or body name → number.
         nu: Poisson's ratio: a number or body name → number.
 
@@ -76,6 +80,9 @@ def von_mises(mesh: MeshData, u: np.ndarray, E, nu) -> np.ndarray:
         One value per cell, sqrt(3/2 s:s) with s the deviator of the 3×3 stress (plane strain
         in 2D: σ_zz = λ tr ε).
     """
+    if mesh.cell_type not in ("triangle", "tetrahedron"):
+        raise InputError(f"von_mises from nodal arrays needs simplices, not {mesh.cell_type} "
+                         "cells: use output_functions (UFL) instead")
     x, cells, d = mesh.x, mesh.cells, mesh.gdim
     G = x[cells[:, 1:]] - x[cells[:, :1]]  # (C, d, d): edge vectors from the first vertex
     dU = u[cells[:, 1:]] - u[cells[:, :1]]  # (C, d, d)
@@ -97,36 +104,39 @@ def output_functions(solution) -> list:
     """DG0 Functions for the XDMF output besides the displacement and the contact pressure.
 
     ``subdomain`` (the subdomain index of each cell) always; ``von_mises`` when the forms are
-    :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown).
+    :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown). The von
+    Mises stress is interpolated on each rank's own cells from the distributed ``solution.u``:
+    no rank holds the whole mesh's displacements.
     """
-    from types import SimpleNamespace
-
-    from . import compat
     from .output import cell_function
 
-    mesh = solution.problem.mesh
-    u = solution.u
-    V, msh = u.function_space, u.function_space.mesh
-    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", msh)]
+    mesh, comm = solution.problem.mesh, solution.comm
+    msh = solution.u.function_space.mesh
+    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", comm, msh)]
     forms = solution.problem.forms
     if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        # From the rank's own cells of the parent mesh and the (distributed) Function's values
-        # there: no array of the whole mesh's displacements.
-        d = mesh.gdim
-        n_cells = compat.cell_input_indices(msh).size
-        geom = np.asarray(compat.cell_geometry_nodes(msh))[:n_cells]
-        u_geom = np.zeros((msh.geometry.x.shape[0], d))
-        u_geom[compat.vertex_dof_nodes(V)] = u.x.array.reshape(-1, d)
-        local = SimpleNamespace(x=msh.geometry.x[:, :d], cells=geom, gdim=d,
-                                cell_body=mesh.cell_body[compat.cell_input_indices(msh)],
-                                body_names=mesh.body_names)
-        Q = compat.dg0_space(msh)
-        vm = compat.function(Q, "von_mises")
-        dofs = compat.cell_dofs(Q).ravel()[:n_cells]
-        vm.x.array[dofs] = von_mises(local, u_geom, forms.E, forms.nu)
-        compat.scatter_forward(vm)
+        E = cell_function(mesh, _per_cell(forms.E, mesh), "E", comm, msh)
+        nu = cell_function(mesh, _per_cell(forms.nu, mesh), "nu", comm, msh)
+        vm = cell_function(mesh, np.zeros(mesh.cells.shape[0]), "von_mises", comm, msh)
+        compat.interpolate_expression(vm, _von_mises_ufl(solution.u, E, nu))
         out.append(vm)
     return out
+
+
+def _von_mises_ufl(u, E, nu):
+    """The von Mises stress of a displacement Function as a UFL expression (as von_mises)."""
+    d = len(u)
+    mu = E / (2 * (1 + nu))
+    lmbda = E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = ufl.sym(ufl.grad(u))
+    sigma = 2 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(d)
+    if d == 3:
+        s = ufl.dev(sigma)
+        return ufl.sqrt(1.5 * ufl.inner(s, s))
+    szz = lmbda * ufl.tr(eps)  # plane strain
+    mean = (ufl.tr(sigma) + szz) / 3
+    s = sigma - mean * ufl.Identity(d)
+    return ufl.sqrt(1.5 * (ufl.inner(s, s) + (szz - mean) ** 2))
 
 
 # ------------------------------------------------------------------------------------------

@@ -119,7 +119,9 @@ class NodeToNode:
         master: Boundary group of the master side.
         gap: Override of the initial gap (a number for every pair).
         match_tol: Pairing tolerance relative to the mean edge length of the slave surface,
-            in (0, 1).
+            in (0, 1). On a curved (second-order) mesh the edge nodes of the two sides are
+            placed by the mesher independently (on an arc at its mid-angle, on a segment at
+            its midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
             slip is the tangential part of u_slave − u_master.
     """
@@ -299,14 +301,15 @@ Contact = NodeToNode | Mortar | RigidObstacle
 
 
 @dataclass
-@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh)"),
+@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh; for a DOLFINx mesh, "
+                       "from_dolfinx(mesh, cell_tags, facet_tags))"),
          forms=Function("a function forms(V, sub) -> (a, L)"),
          value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
          contact=SequenceOf(Instance(object, what="a contact condition")),
          decomposition=Instance(ByTags, Parts, ByFunction,
                                 what="a decomposition: ByTags(), Parts(n) or ByFunction(fn)"),
          gluing=Choice("orthonormal", "redundant", "nonredundant"),
-         ties=SequenceOf(Instance(Tie)))
+         ties=SequenceOf(Instance(Tie)), degree=Maybe(Integer(ge=1, le=2)))
 class ContactProblem:
     """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
 
@@ -323,6 +326,9 @@ class ContactProblem:
         decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
+        degree: Degree of the Lagrange space ``V`` given to ``forms`` (1 or 2); taken from
+            ``forms.degree`` when the helpers are used, else the degree of the mesh's geometry
+            (1, or 2 for a curved second-order mesh: isoparametric).
         ties: :class:`Tie` conditions gluing non-matching interfaces by mortar rows.
     """
 
@@ -334,9 +340,15 @@ class ContactProblem:
     decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
     gluing: str = "orthonormal"
     ties: Sequence[Tie] = field(default_factory=list)
+    degree: int | None = None
 
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
+        self.degree = _degree(self.degree, self.forms, self.mesh.geometry_degree)
+        if self.mesh.geometry_degree == 2 and self.degree != 2:
+            raise InputError("the mesh is of second order (curved cells): it needs a degree-2 "
+                             "space (isoparametric), e.g. df.Elasticity(..., degree=2); a "
+                             "degree-1 space on curved cells does not hold the rigid motions")
         if self.value_size is None:
             vs = getattr(self.forms, "value_size", None)
             self.value_size = self.mesh.gdim if vs == "vector" else vs
@@ -380,10 +392,42 @@ class ContactProblem:
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
         check_dimensions(self)
-        _check_mesh(self.mesh, [g for c in [*self.contact, *self.ties] for g in
-                                ((c.group,) if isinstance(c, RigidObstacle) else
-                                 (c.slave, c.master))],
-                    self.forms)
+        contact_groups = [g for c in [*self.contact, *self.ties] for g in
+                          ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
+        _check_mesh(self.mesh, contact_groups, self.forms)
+        mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
+        if mortar and (self.degree != 1 or self.mesh.cell_type not in ("triangle",
+                                                                        "tetrahedron")):
+            raise InputError(
+                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
+                "implemented for degree 1 on triangles and tetrahedra, not for degree "
+                f"{self.degree} on {self.mesh.cell_type} cells: use NodeToNode (matching "
+                "meshes) or RigidObstacle there")
+        if contact_groups and np.any(self.dof_points.facet_weights <= 0):
+            raise InputError(
+                f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
+                "cells is not supported: the vertex dofs of its quadratic triangular facets "
+                "have zero lumped area, so nodal contact rows give no consistent contact "
+                "pressure there; use degree 1 (or hexahedra, whose degree-2 facets work)")
+
+    @property
+    def dof_points(self):
+        """The global dof points of the space (:mod:`.mesh.dofpoints`): the vertices for P1."""
+        from .mesh.dofpoints import dof_points
+        return dof_points(self.mesh, self.degree)
+
+
+def _degree(degree, forms, default: int) -> int:
+    """The Lagrange degree from the problem or the forms helper (they must agree)."""
+    helper = getattr(forms, "degree", None)
+    if degree is None:
+        degree = default if helper is None else helper
+    elif helper is not None and helper != degree:
+        raise InputError(f"degree={degree} given to ContactProblem but the forms have "
+                         f"degree={helper}")
+    if isinstance(degree, bool) or degree not in (1, 2):
+        raise InputError(f"degree must be 1 or 2 (Lagrange elements), got {degree!r}")
+    return int(degree)
 
 
 def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:

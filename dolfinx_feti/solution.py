@@ -136,7 +136,7 @@ class Solution:
         area = np.ones(node.size)
         for i, c in enumerate(self.problem.contact):
             group = c.group
-            nodes, _, a = surface(mesh, group)
+            nodes, _, a = surface(mesh, group, self.problem.dof_points)
             m = spec == i
             area[m] = a[np.searchsorted(nodes, node[m])]
         extra = {}
@@ -146,7 +146,8 @@ class Solution:
                                                  (self._Bu.array_r - feti.c.array_r) / scale,
                                                  mesh.gdim)
             extra["tangential_traction"] = extra["tangential_force"] / area[:, None]
-        return ContactData(spec=spec, node=node, x=mesh.x[node], partner=rows.partner[sel],
+        return ContactData(spec=spec, node=node, x=self.problem.dof_points.x[node],
+                           partner=rows.partner[sel],
                            normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap,
                            **extra)
 
@@ -191,36 +192,57 @@ class Solution:
 
     @property
     def u(self):
-        """The solution as a DOLFINx Function (P1) on the whole mesh (distributed on comm)."""
+        """The solution as a DOLFINx Function on the whole mesh.
+
+        A Lagrange Function of the problem's degree: on the user's own mesh when the problem
+        came from :func:`~dolfinx_feti.from_dolfinx` (``u.function_space.mesh is mesh``), else
+        on a mesh built from the MeshData and distributed over ``comm``.
+        """
         if self._function is None:
-            from .output import distributed_function
-            dec, bs = self.dec, self.problem.value_size
-            subs = self.feti.local_subs  # consecutive: their pairs are one slice, in dof order
-            pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
-                else slice(0, 0)
-            self._function = distributed_function(
-                self.problem.mesh, dec.pair_node[pairs], self.u_vec.array_r.reshape(-1, bs),
-                self.comm, "displacement" if bs > 1 else "u")
+            self._function = self._local_pairs_function(
+                self.u_vec.array_r.reshape(-1, self.problem.value_size),
+                "displacement" if self.problem.value_size > 1 else "u")
         return self._function
 
-    def pressure_function(self):
-        """The contact pressure as a P1 scalar Function on the whole mesh (zero off contact)."""
+    def _local_pairs_function(self, values: np.ndarray, name: str, degree: int | None = None):
+        """A Function from this rank's subdomain values (in the pairs' order), exchanged."""
+        from .output import distributed_function
+        dec = self.dec
+        subs = self.feti.local_subs  # consecutive: their pairs are one slice, in dof order
+        pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
+            else slice(0, 0)
+        msh = None if self._function is None else self._function.function_space.mesh
+        return distributed_function(self.problem.mesh, dec.pair_node[pairs], values, self.comm,
+                                    name, self.problem.dof_points, degree, msh=msh)
+
+    def pressure_function(self, degree: int | None = None):
+        """The contact pressure as a scalar Lagrange Function on the whole mesh.
+
+        Of the problem's degree unless ``degree`` is given (1: the values at the vertices);
+        zero off the contact surfaces.
+        """
         from .output import distributed_function
         c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
         return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
-                                    "contact_pressure", msh=self.u.function_space.mesh,
-                                    local=True)
+                                    "contact_pressure", self.problem.dof_points, degree,
+                                    local=True, msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:
         """Write the solution to XDMF (for ParaView), atomically.
 
-        Fields: the displacement (P1; ``u`` for a scalar problem), ``contact_pressure`` (P1,
-        zero off contact), ``subdomain`` (DG0) and, for :class:`~dolfinx_feti.Elasticity`,
-        ``von_mises`` (DG0; see :mod:`dolfinx_feti.postprocess`).
+        Fields: the displacement (``u`` for a scalar problem), ``contact_pressure`` (zero off
+        contact), ``subdomain`` (DG0) and, for :class:`~dolfinx_feti.Elasticity`,
+        ``von_mises`` (DG0; see :mod:`dolfinx_feti.postprocess`). XDMF holds fields of the
+        mesh's geometry degree: for a degree-2 problem on a straight-sided mesh the
+        displacement and the pressure are written by their values at the vertices
+        (``solution.u`` keeps the whole field).
         """
         from .output import write_xdmf
         from .postprocess import output_functions
-        write_xdmf(path, self.u, [self.u, self.pressure_function(), *output_functions(self)])
+        degree = self.problem.mesh.geometry_degree
+        u = self.u if self.problem.degree == degree else self._local_pairs_function(
+            self.u_vec.array_r.reshape(-1, self.problem.value_size), self.u.name, degree)
+        write_xdmf(path, u, [u, self.pressure_function(degree=degree), *output_functions(self)])
 
     def multipliers(self, kind: Kind | None = None) -> np.ndarray:
         """Physical multipliers (nodal forces) of all rows, or of one kind, on every rank."""

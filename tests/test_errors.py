@@ -113,7 +113,8 @@ def gmsh_model(name: str):
             gmsh.option.setNumber(k, v)
 
 
-def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool = False):
+def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool = False,
+                 order: int = 1, incomplete: bool = False):
     """A meshed unit square on rank 0: body "plate", boundary group "edge" (x = 0)."""
     s = gmsh.model.occ.addRectangle(0.0, 0.0, 0.0, 1.0, 1.0)
     gmsh.model.occ.synchronize()
@@ -130,7 +131,9 @@ def square_model(*, groups: bool = True, quads: bool = False, empty_group: bool 
         gmsh.model.setPhysicalName(1, 12, "nothing")
     gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
     gmsh.option.setNumber("Mesh.RecombineAll", 1 if quads else 0)
+    gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1 if incomplete else 0)
     gmsh.model.mesh.generate(2)
+    gmsh.model.mesh.setOrder(order)
 
 
 def assert_honest_failure(sol: df.Solution) -> None:
@@ -194,11 +197,21 @@ def test_no_physical_groups():
             df.read_gmsh(None)
 
 
-def test_quadrilateral_cells():
+def test_quadrilateral_cells_are_read_serendipity_refused():
     with gmsh_model("quads") as root:
         if root:
             square_model(quads=True)
-        with input_error("'plate'", "quadrangle", "triangles"):
+        mesh = df.read_gmsh(None)
+    assert mesh.cell_type == "quadrilateral" and mesh.tdim == 2
+    with gmsh_model("quads2") as root:
+        if root:
+            square_model(quads=True, order=2)
+        mesh = df.read_gmsh(None)
+    assert mesh.cell_type == "quadrilateral" and mesh.geometry_degree == 2
+    with gmsh_model("quads8") as root:
+        if root:
+            square_model(quads=True, order=2, incomplete=True)
+        with input_error("'plate'", "8-node (serendipity) quadrangle", "order 1 or 2"):
             df.read_gmsh(None)
 
 

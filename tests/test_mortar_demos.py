@@ -1,6 +1,7 @@
 """The mortar demos run as a user runs them, and their figures hold.
 
-Each demo runs once in a subprocess (serially; the sphere also under ``mpirun -n 2``) and
+Each demo runs once in a subprocess (serially; the sphere also under ``mpirun -n 2``; these
+runs stand for those of tests/test_demos.py, which skips them) and
 writes its report with the comparison it prints; the assertions are on those figures, with
 bounds from what the demos measure at their default sizes (the demo texts give the numbers):
 
@@ -25,23 +26,23 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
+from stack import mpi_launcher
 
 import dolfinx_feti as df
 from dolfinx_feti import meshes_occ
 
 ROOT = Path(__file__).resolve().parents[1]
-MPIRUN = ["mpirun", "-n", "2", "--allow-run-as-root", "--oversubscribe"]
 
 # An MPI process cannot start another MPI program: the demos run in the serial pass only.
 subprocess_test = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,
                                      reason="no MPI program inside an MPI job")
 
 
-def run_demo(name: str, folder: Path, *args: str, launcher: tuple[str, ...] = ()) -> dict:
+def run_demo(name: str, folder: Path, *args: str, launcher: list[str] | None = None) -> dict:
     """Run demos/demo_<name>.py; its JSON report, with its stdout and output folder."""
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     report = folder / f"{name}.json"
-    r = subprocess.run([*launcher, sys.executable, str(ROOT / "demos" / f"demo_{name}.py"),
+    r = subprocess.run([*(launcher or []), sys.executable, str(ROOT / "demos" / f"demo_{name}.py"),
                         "--out", str(folder), "--json", str(report), *args], cwd=ROOT, env=env,
                        capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
@@ -75,7 +76,8 @@ def test_sphere_on_block_against_hertz(sphere, tmp_path_factory):
 @pytest.mark.serial
 @subprocess_test
 def test_sphere_on_block_under_mpirun_gives_the_serial_figures(sphere, tmp_path_factory):
-    par = run_demo("sphere_block3d", tmp_path_factory.mktemp("sphere_mpi"), launcher=MPIRUN)
+    par = run_demo("sphere_block3d", tmp_path_factory.mktemp("sphere_mpi"),
+                   launcher=mpi_launcher(2))
     assert par["sizes"]["ranks"] == 2 and par["converged"] and not par["warnings"]
     s, p = sphere["extra"]["hertz"], par["extra"]["hertz"]
     assert p["a_h"] == s["a_h"] and p["nodes"] == s["nodes"]  # the same active set

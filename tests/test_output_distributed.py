@@ -3,13 +3,15 @@ the directory exchange, and the Functions against the gathered nodal values."""
 
 from __future__ import annotations
 
+import element_models as em
 import numpy as np
 import pytest
 from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti import compat
-from dolfinx_feti.output import node_values
+from dolfinx_feti.fem.dofmap import dof_points_of_space
+from dolfinx_feti.output import distributed_function, node_values
 
 COMM = MPI.COMM_WORLD
 
@@ -38,17 +40,66 @@ def solution():
         rtol=1e-10)
 
 
-def test_functions_equal_the_gathered_values(solution):
+def dof_point_of_each_dof(V, points):
+    """The global dof point of each local dof of a Function space on a parent mesh."""
+    return dof_points_of_space(V, compat.node_input_indices(V.mesh), points)
+
+
+def check_against_gathered(solution, degree=None):
+    """solution.u and the pressure Function equal the gathered nodal values at every dof."""
+    points = solution.problem.dof_points
+    bs = solution.problem.value_size
     u = solution.u
-    V = u.function_space
-    node = compat.node_input_indices(V.mesh)[compat.vertex_dof_nodes(V)]
-    assert np.allclose(u.x.array.reshape(-1, 3), solution.nodal_values()[node],
-                       rtol=0, atol=1e-15 * np.abs(solution.nodal_values()).max())
-    p = solution.pressure_function()
+    node = dof_point_of_each_dof(u.function_space, points)
+    nodal = solution.nodal_values()
+    assert np.allclose(u.x.array.reshape(-1, bs), nodal[node],
+                       rtol=0, atol=1e-15 * np.abs(nodal).max())
     full = np.zeros(solution.dec.num_nodes)
     np.add.at(full, solution.contact.node, solution.contact.pressure)
-    assert np.array_equal(p.x.array, full[node])
+    p = solution.pressure_function()
+    assert np.array_equal(p.x.array, full[dof_point_of_each_dof(p.function_space, points)])
     assert COMM.allreduce(float(np.abs(p.x.array).max()), op=MPI.MAX) > 0
+    if points.degree == 2:  # degree-1 Functions of the degree-2 values: the vertex values
+        p1 = solution.pressure_function(degree=1)
+        vertex = dof_point_of_each_dof(p1.function_space, df.mesh.dofpoints.dof_points(
+            solution.problem.mesh, 1))
+        assert compat.space_degree(p1.function_space) == 1
+        assert np.array_equal(p1.x.array, full[vertex])
+        dec, subs = solution.dec, solution.feti.local_subs
+        pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
+            else slice(0, 0)
+        u1 = distributed_function(solution.problem.mesh, dec.pair_node[pairs],
+                                  solution.u_vec.array_r.reshape(-1, bs), COMM, "u1", points,
+                                  degree=1)
+        assert np.allclose(u1.x.array.reshape(-1, bs),
+                           nodal[dof_point_of_each_dof(u1.function_space, points)],
+                           rtol=0, atol=1e-15 * np.abs(nodal).max())
+
+
+def test_functions_equal_the_gathered_values(solution):
+    check_against_gathered(solution)
+
+
+@pytest.mark.parametrize("quads", [False, True], ids=["P2-triangles", "Q2-quadrilaterals"])
+def test_degree2_functions_equal_the_gathered_values(quads):
+    """Degree 2 (edge and face dofs) on triangles and quadrilaterals, with contact."""
+    mesh = df.build_mesh(em.rectangle, quads=quads)
+    sol = df.solve(df.ContactProblem(
+        mesh, df.Elasticity(100.0, 0.3, tractions={"top": (0.0, -1.0)}, degree=2),
+        dirichlet=[df.Dirichlet("left", components=[0])],
+        contact=[df.RigidObstacle("bottom", df.Plane((0.0, 0.0), (0.0, 1.0)))],
+        decomposition=df.Parts(3)), rtol=1e-10)
+    check_against_gathered(sol)
+
+
+def test_q2_hexahedra_function_equals_the_gathered_values():
+    mesh = df.build_mesh(em.box, hexes=True)
+    sol = df.solve(df.ContactProblem(
+        mesh, df.Elasticity(100.0, 0.3, tractions={"z1": (0.0, 0.0, -1.0)}, degree=2),
+        dirichlet=[df.Dirichlet("x0", components=[0]), df.Dirichlet("y0", components=[1])],
+        contact=[df.RigidObstacle("z0", df.Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)))],
+        decomposition=df.Parts(3)), rtol=1e-10)
+    check_against_gathered(sol)
 
 
 def test_xdmf_is_written(solution, tmp_path_factory):

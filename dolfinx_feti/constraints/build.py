@@ -27,7 +27,7 @@ def build_rows(problem: ContactProblem, dec: Decomposition,
     tangential (friction) rows of a contact node touch the same subdomains, so they stay
     consecutive.
     """
-    mesh, bs = problem.mesh, problem.value_size
+    mesh, bs, points = problem.mesh, problem.value_size, problem.dof_points
     node_ptr, node_subs = dec.node_subdomains()
     fixed, values = dirichlet_mask(problem, mesh)
     blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
@@ -43,9 +43,9 @@ def build_rows(problem: ContactProblem, dec: Decomposition,
             blocks.append(block)
             found.append(info)
         elif isinstance(c, NodeToNode):
-            blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs))
+            blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs, points))
         elif isinstance(c, RigidObstacle):
-            blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs))
+            blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
             blocks[-1] = with_tangential_rows(blocks[-1])
     rows = Rows.concatenate(blocks)

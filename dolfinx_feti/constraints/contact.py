@@ -6,16 +6,25 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.gmsh_input import MeshData
-from ..mesh.topology import nodal_normals_and_areas
+from ..mesh.topology import surface_points
 from ..problem import NodeToNode, RigidObstacle
 from .rows import Kind, Rows
 
 
-def surface(mesh: MeshData, group: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Nodes, outward unit normals and lumped areas of a boundary group."""
+def surface(mesh: MeshData, group: str, points: DofPoints | None = None
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Dof points, outward unit normals and lumped areas of a boundary group.
+
+    The points are the vertices (degree 1, the default) or all dof points on the group's
+    facets; the lumped area of a point is the integral of its basis function over the group.
+    """
+    points = dof_points(mesh, 1) if points is None else points
     try:
-        return nodal_normals_and_areas(mesh.x, mesh.cells, mesh.facets(group))
+        facets = mesh.facets(group)
+        return surface_points(mesh.x, mesh.cells, facets, points.facet_points(mesh, facets),
+                              points.facet_weights, mesh.cell_type)
     except ValueError as e:
         raise InputError(f"boundary group {group!r}: {e} (is it a boundary of a body?)") from None
 
@@ -68,10 +77,12 @@ def check_own_nodes(mesh: MeshData, name: str, s_nodes: np.ndarray, m_nodes: np.
 
 
 def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np.ndarray,
-                      node_subs: np.ndarray, bs: int) -> Rows:
-    """Rows (u_m − u_s)·n <= gap for matched node pairs, scaled to unit norm."""
-    s_nodes, s_normals, _ = surface(mesh, spec.slave)
-    m_nodes, m_normals, _ = surface(mesh, spec.master)
+                      node_subs: np.ndarray, bs: int, points: DofPoints | None = None) -> Rows:
+    """Rows (u_m − u_s)·n <= gap for matched pairs of dof points, scaled to unit norm."""
+    points = dof_points(mesh, 1) if points is None else points
+    s_nodes, s_normals, _ = surface(mesh, spec.slave, points)
+    m_nodes, m_normals, _ = surface(mesh, spec.master, points)
+    x = points.x
     name = f"contact pair {spec.slave!r} (slave) / {spec.master!r} (master)"
     check_own_nodes(mesh, name, s_nodes, m_nodes)
     s_body = set(np.unique(mesh.cell_body[np.isin(mesh.cells, s_nodes).any(axis=1)]))
@@ -81,13 +92,13 @@ def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np
                          f"{mesh.body_names[min(s_body & m_body)]!r}; node-to-node contact is "
                          "between two bodies")
     tol = spec.match_tol * _mean_edge(mesh, spec.slave)
-    j, mismatch = match_pairs(mesh.x[s_nodes], mesh.x[m_nodes], m_normals, tol)
+    j, mismatch = match_pairs(x[s_nodes], x[m_nodes], m_normals, tol)
     bad = mismatch > tol
     if np.any(bad):
         raise InputError(f"{name}: {int(bad.sum())} of {s_nodes.size} slave nodes have no "
                          f"matching master node (largest mismatch {mismatch.max():.3g}, "
                          f"tolerance {tol:.3g}; e.g. slave node at "
-                         f"{mesh.x[s_nodes[np.argmax(mismatch)]].round(6).tolist()}). "
+                         f"{x[s_nodes[np.argmax(mismatch)]].round(6).tolist()}). "
                          "Node-to-node contact needs matching meshes on the two surfaces")
     if np.unique(j).size != j.size:
         raise InputError(f"{name}: several slave nodes match the same master node; the "
@@ -100,7 +111,7 @@ def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np
             raise InputError(f"{name}: inconsistent normals: at {int(np.sum(facing > 0))} pairs "
                              "the two surfaces face the same way (their outward normals agree); "
                              "contact surfaces must face each other")
-        gap = np.einsum("ij,ij->i", mesh.x[s_nodes] - mesh.x[m], n)
+        gap = np.einsum("ij,ij->i", x[s_nodes] - x[m], n)
         coef_s, coef_m = -n, n
     else:
         gap = np.zeros(s_nodes.size)
@@ -126,11 +137,12 @@ def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np
 
 
 def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.ndarray,
-                  node_subs: np.ndarray) -> Rows:
-    """Rows −n·u <= φ/|∇φ| at the nodes of a boundary group, n = ∇φ/|∇φ|."""
-    nodes, normals, _ = surface(mesh, spec.group)
+                  node_subs: np.ndarray, points: DofPoints | None = None) -> Rows:
+    """Rows −n·u <= φ/|∇φ| at the dof points of a boundary group, n = ∇φ/|∇φ|."""
+    points = dof_points(mesh, 1) if points is None else points
+    nodes, normals, _ = surface(mesh, spec.group, points)
     try:
-        phi, grad = spec.obstacle.distance(mesh.x[nodes])
+        phi, grad = spec.obstacle.distance(points.x[nodes])
         phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
     except InputError as e:
         raise InputError(f"obstacle on {spec.group!r}: {e}") from None

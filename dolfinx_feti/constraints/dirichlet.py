@@ -12,16 +12,21 @@ from .rows import Kind, Rows
 
 
 def dirichlet_mask(problem: ContactProblem, mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
-    """(N, bs) masks of constrained components and their values (later conditions win)."""
+    """(N, bs) masks of constrained components and their values (later conditions win).
+
+    N is the number of dof points: every dof point on a group's facets (vertices, and for
+    degree 2 the edge and face points too) is constrained, with the value at its position.
+    """
     bs = problem.value_size
-    fixed = np.zeros((mesh.num_nodes, bs), dtype=bool)
-    values = np.zeros((mesh.num_nodes, bs))
+    points = problem.dof_points
+    fixed = np.zeros((points.num_points, bs), dtype=bool)
+    values = np.zeros((points.num_points, bs))
     for bc in problem.dirichlet:
-        nodes = np.unique(mesh.facets(bc.group))
+        nodes = points.group_points(mesh, bc.group)
         comps = list(range(bs)) if bc.components is None else [int(c) for c in bc.components]
         if callable(bc.value):
             n = nodes.size
-            v = evaluate(bc.value, mesh.x[nodes], f"Dirichlet({bc.group!r}).value",
+            v = evaluate(bc.value, points.x[nodes], f"Dirichlet({bc.group!r}).value",
                          [(n,), (n, len(comps))]).reshape(n, -1)
             if v.shape[1] == 1:
                 v = np.repeat(v, len(comps), axis=1)

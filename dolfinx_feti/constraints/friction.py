@@ -132,7 +132,7 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
     mesh: MeshData = problem.mesh
     nt = mesh.gdim - 1
     ineq = np.flatnonzero(rows.inequality)
-    N = np.int64(mesh.num_nodes)
+    N = np.int64(problem.dof_points.num_points)
     key_n = rows.spec[ineq].astype(np.int64) * N + rows.node[ineq]
     key_t = rows.spec[t].astype(np.int64) * N + rows.node[t]
     sorter = np.argsort(key_n, kind="stable")
@@ -157,12 +157,12 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
         if not np.any(m):
             continue
         group = c.group
-        nodes, _, a = surface(mesh, group)
+        nodes, _, a = surface(mesh, group, problem.dof_points)
         node = rows.node[t[m]]
         area[m] = a[np.searchsorted(nodes, node)]
         fr = c.friction
         if isinstance(fr, Tresca):
-            tresca[m] = _traction_bound(fr, mesh.x[node], group) * area[m]
+            tresca[m] = _traction_bound(fr, problem.dof_points.x[node], group) * area[m]
         elif isinstance(fr, Coulomb):
             coefficient[m] = float(fr.coefficient)
             rtol, max_steps = min(rtol, float(fr.rtol)), max(max_steps, int(fr.max_steps))

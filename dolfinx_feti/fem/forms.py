@@ -16,6 +16,7 @@ from ..validation import (
     SAFE_MAGNITUDE,
     Either,
     Function,
+    Integer,
     MappingOf,
     Maybe,
     Real,
@@ -31,9 +32,11 @@ _VECTOR = Either(Vector(), Function(), what="a sequence of numbers (one per coor
                  "function of the UFL spatial coordinate x")
 _SCALAR = Either(Real(finite=False), Function(), what="a number or a function of the UFL "
                  "spatial coordinate x")
+_DEGREE = Maybe(Integer(ge=1, le=2))
 ELASTICITY = {"E": _NUMBER, "nu": _NUMBER, "tractions": MappingOf(Text(), _VECTOR),
-              "body_force": Maybe(_VECTOR)}
-POISSON = {"source": _SCALAR, "flux": MappingOf(Text(), _SCALAR), "k": _NUMBER}
+              "body_force": Maybe(_VECTOR), "degree": _DEGREE}
+POISSON = {"source": _SCALAR, "flux": MappingOf(Text(), _SCALAR), "k": _NUMBER,
+           "degree": _DEGREE}
 
 Scalar = float | Mapping[str, float]
 
@@ -74,18 +77,23 @@ class Elasticity:
         nu: Poisson's ratio, in (−1, 0.5): one number or body name → number.
         tractions: Boundary group → traction vector (force per area) applied there.
         body_force: A constant vector, or ``body_force(x)`` of the UFL spatial coordinate.
+        degree: Degree of the Lagrange space of the displacement (1 or 2); by default the
+            degree of the mesh's geometry (2 on a curved second-order mesh, else 1).
     """
 
     value_size = "vector"
 
     def __init__(self, E: Scalar, nu: Scalar, *,
                  tractions: Mapping[str, Sequence[float]] | None = None,
-                 body_force: Sequence[float] | Callable | None = None) -> None:
+                 body_force: Sequence[float] | Callable | None = None,
+                 degree: int | None = None) -> None:
         args = check_arguments("Elasticity", ELASTICITY, {
-            "E": E, "nu": nu, "tractions": tractions or {}, "body_force": body_force})
+            "E": E, "nu": nu, "tractions": tractions or {}, "body_force": body_force,
+            "degree": degree})
         self.E, self.nu = args["E"], args["nu"]
         self.tractions = args["tractions"]
         self.body_force = args["body_force"]
+        self.degree = args["degree"]
         self._E = self._nu = None
 
     def check(self, mesh) -> None:
@@ -153,14 +161,17 @@ class Poisson:
         source: f: a number, or ``source(x)`` of the UFL spatial coordinate.
         flux: Boundary group → g (a number or a function of x).
         k: Conductivity: a number or body name → number (positive).
+        degree: Degree of the Lagrange space (1 or 2); by default that of the mesh's geometry.
     """
 
     value_size = 1
 
     def __init__(self, source: float | Callable = 0.0, *, flux: Mapping | None = None,
-                 k: Scalar = 1.0) -> None:
-        args = check_arguments("Poisson", POISSON, {"source": source, "flux": flux or {}, "k": k})
+                 k: Scalar = 1.0, degree: int | None = None) -> None:
+        args = check_arguments("Poisson", POISSON, {"source": source, "flux": flux or {}, "k": k,
+                                                  "degree": degree})
         self.source, self.flux, self.k = args["source"], args["flux"], args["k"]
+        self.degree = args["degree"]
         self._k = None
 
     def check(self, mesh) -> None:

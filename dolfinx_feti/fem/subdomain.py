@@ -1,8 +1,8 @@
 """One subdomain as a serial DOLFINx mesh, its tagged measures, and its assembled K_i, f_i.
 
 The assembled matrix and vector are permuted into the canonical order of
-:class:`~dolfinx_feti.mesh.decompose.Decomposition` (sorted global node, then component), so
-nothing downstream depends on DOLFINx's dof numbering.
+:class:`~dolfinx_feti.mesh.decompose.Decomposition` (sorted global dof point, then component),
+so nothing downstream depends on DOLFINx's dof numbering.
 """
 
 from __future__ import annotations
@@ -18,8 +18,10 @@ from ufl.corealg.traversal import unique_pre_traversal
 from .. import compat
 from ..errors import InputError
 from ..mesh.checks import check_boundary_group
+from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import _row_keys
+from .dofmap import cell_dof_points
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
 
@@ -53,39 +55,54 @@ class Subdomain:
     Attributes:
         indices: Subdomain numbers (global), in the order of their blocks.
         mesh: The DOLFINx mesh on ``MPI.COMM_SELF``.
-        nodes: Global node index of each mesh node (the canonical local order; a node shared
-            by two of the subdomains appears twice).
+        nodes: Global dof point of each canonical local dof point (a point shared by two of
+            the subdomains appears twice).
         bodies: Names of the bodies with cells here.
+        degree: Degree of the Lagrange space the forms are given.
     """
 
     def __init__(self, indices: Sequence[int], mesh: MeshData, cells: Sequence[np.ndarray],
-                 nodes: Sequence[np.ndarray], facets: Sequence[Mapping[str, np.ndarray]]) -> None:
+                 nodes: Sequence[np.ndarray], facets: Sequence[Mapping[str, np.ndarray]],
+                 points: DofPoints | None = None) -> None:
         """Build the serial mesh of the given subdomains and tag it.
 
         Args:
             indices: Subdomain numbers.
             mesh: The global mesh data.
             cells: Per subdomain, the global indices of its cells.
-            nodes: Per subdomain, the sorted global nodes of those cells.
-            facets: Per subdomain, boundary group name → the group's facets (global nodes) there.
+            nodes: Per subdomain, the sorted global dof points of those cells.
+            facets: Per subdomain, boundary group name → the group's facets (global vertices)
+                there.
+            points: The global dof points (default: the vertices, degree 1).
         """
         self.indices = tuple(int(i) for i in indices)
         self._mesh_data = mesh
-        offsets = np.cumsum([0] + [n.size for n in nodes[:-1]])
+        self._points = dof_points(mesh, 1) if points is None else points
+        self.degree = self._points.degree
         self.nodes = np.concatenate(nodes)
-        local_cells = np.concatenate([np.searchsorted(n, mesh.cells[c]) + o
-                                      for c, n, o in zip(cells, nodes, offsets, strict=True)])
-        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, mesh.x[self.nodes],
-                                       mesh.cell_type)
-        self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → local node
+        # The mesh's input nodes: the vertices (they come first among the sorted dof points of
+        # a subdomain), or all dof points of a curved mesh (its geometry nodes: degree 2).
+        curved = mesh.geometry_degree == 2
+        verts = nodes if curved else [n[:np.searchsorted(n, mesh.num_nodes)] for n in nodes]
+        conn, xg = (self._points.cell_points, self._points.x) if curved else (mesh.cells, mesh.x)
+        offsets = np.cumsum([0] + [v.size for v in verts[:-1]])
+        self._input_global = np.concatenate(verts)  # mesh input node → global dof point
+        local_cells = np.concatenate([np.searchsorted(v, conn[c]) + o
+                                      for c, v, o in zip(cells, verts, offsets, strict=True)])
+        self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, xg[self._input_global],
+                                       mesh.cell_type, mesh.geometry_degree)
+        self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → input node
         cell_input = compat.cell_input_indices(self.mesh)
+        block = np.repeat(np.arange(len(cells)), [c.size for c in cells])
+        self._cell_block = block[cell_input]
         body = mesh.cell_body[np.concatenate(cells)][cell_input]
         self.bodies = tuple(mesh.body_names[b] for b in np.unique(body))
         self._cell_tags = compat.cell_tags(self.mesh, np.arange(body.size), body)
+        self._node_ptr = np.cumsum([0] + [n.size for n in nodes])
         local_facets: dict[str, list[np.ndarray]] = {}
-        for f, n, o in zip(facets, nodes, offsets, strict=True):
+        for f, v, o in zip(facets, verts, offsets, strict=True):
             for name, fac in f.items():
-                local_facets.setdefault(name, []).append(np.searchsorted(n, fac) + o)
+                local_facets.setdefault(name, []).append(np.searchsorted(v, fac) + o)
         self._facet_ids, self._facet_data = self._group_facets(
             {name: np.concatenate(parts) for name, parts in local_facets.items()})
         self._facet_tags_made = None
@@ -167,13 +184,42 @@ class Subdomain:
         q.x.array[dofs] = table[body_of_cell]
         return q
 
+    def _canonical_points(self, V) -> np.ndarray:
+        """For each (blocked) dof of V, its index in the canonical order of the dof points."""
+        dofs, pts = cell_dof_points(V, self._input_global[self._node_of_geom], self._points)
+        # The block of a cell says which copy of a shared dof point its dofs are.
+        key_nodes = np.repeat(np.arange(len(self._node_ptr) - 1), np.diff(self._node_ptr)) \
+            * np.int64(self._points.num_points) + self.nodes
+        want = self._cell_block[:, None] * np.int64(self._points.num_points) + pts
+        out = np.empty(compat.dof_count(V), dtype=np.int64)
+        out[dofs] = np.searchsorted(key_nodes, want)
+        return out
+
+    def _check_space(self, forms, V) -> None:
+        """Refuse forms whose arguments live on a space other than V."""
+        for form, what in forms:
+            if not isinstance(form, ufl.Form):
+                continue
+            for arg in form.arguments():
+                W = arg.ufl_function_space()
+                if not compat.same_space(W, V):
+                    kind = "test" if arg.number() == 0 else "trial"
+                    raise InputError(
+                        f"subdomain(s) {self._ids}: the {what} form's {kind} function is "
+                        f"defined on a function space other than the one the library gives "
+                        f"(V: {compat.describe_space(V)}; the form's: "
+                        f"{compat.describe_space(W)}). Build the forms on the V passed to "
+                        "forms(V, sub); choose the degree with ContactProblem(..., degree=2) "
+                        "or Elasticity/Poisson(..., degree=2)")
+
     def assemble(self, forms, value_size: int) -> tuple[sp.csr_matrix, np.ndarray]:
         """Assemble the user's forms and return (K, f) in the canonical dof order.
 
         ``forms`` may return ``L = None`` (or an empty form) for an unloaded subdomain.
         """
-        V = compat.function_space(self.mesh, value_size)
+        V = compat.function_space(self.mesh, value_size, self.degree)
         a, L = forms(V, self)
+        self._check_space(((a, "bilinear"), (L, "linear")), V)
         for form, what in ((a, "bilinear"), (L, "linear")):
             _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
                                    f"the {what} form")
@@ -188,7 +234,7 @@ class Subdomain:
             f = b.array.copy()
             b.destroy()
         # canonical dof bs*node + c  ←  DOLFINx dof bs*d + c
-        node_of_dof = self._node_of_geom[compat.vertex_dof_nodes(V)]
+        node_of_dof = self._canonical_points(V)
         bs = value_size
         perm = np.empty(bs * node_of_dof.size, dtype=np.int64)
         for c in range(bs):

@@ -113,13 +113,16 @@ class TotalFETI:
             K_parts, f_parts = [], []
             for group in _runs_of_equal_bodies(mesh, dec, self.local_subs, cells_of):
                 sub = Subdomain(group, mesh, [cells_of[s] for s in group],
-                                [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group])
+                                [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group],
+                                problem.dof_points)
                 K, f = sub.assemble(problem.forms, bs)
                 K_parts.append(K)
                 f_parts.append(f)
             self.K_local = sp.block_diag(K_parts, format="csr") if K_parts else \
                 sp.csr_matrix((0, 0))
-            self.R = {int(s): rigid_modes(mesh.x[dec.nodes(s)], bs) for s in self.local_subs}
+            # The rigid motions are linear: their nodal interpolation at the dof points is exact.
+            x = problem.dof_points.x
+            self.R = {int(s): rigid_modes(x[dec.nodes(s)], bs) for s in self.local_subs}
             self.k = 1 if bs == 1 else (3 if mesh.gdim == 2 else 6)
         with timer.phase("factorization"), collective(comm, "factorization"):
             self.Kplus = FixingNodesInverse(
@@ -182,7 +185,7 @@ class TotalFETI:
         for name, f in mesh.facet_groups.items():
             if f.shape[0] == 0:
                 continue
-            cell, _ = locate_facets(mesh.cells, f)
+            cell, _ = locate_facets(mesh.cells, f, mesh.cell_type)
             sub = np.where(cell >= 0, dec.cell_sub[np.maximum(cell, 0)], -1)
             for s in np.unique(sub[sub >= 0]):
                 out.setdefault(int(s), {})[name] = f[sub == s]

@@ -1,7 +1,8 @@
 """Mesh input (gmsh), geometry utilities and decomposition into subdomains."""
 
 from .decompose import ByFunction, ByTags, Decomposition, Parts, decompose
+from .dolfinx_input import from_dolfinx
 from .gmsh_input import MeshData, build_mesh, read_gmsh
 
 __all__ = ["ByFunction", "ByTags", "Decomposition", "MeshData", "Parts", "build_mesh", "decompose",
-           "read_gmsh"]
+           "from_dolfinx", "read_gmsh"]

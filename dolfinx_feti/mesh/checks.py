@@ -31,7 +31,15 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from .gmsh_input import MeshData
-from .topology import _facet_index, _row_keys, cell_facets, cell_volumes
+from .topology import (
+    _facet_index,
+    _row_keys,
+    cell_facets,
+    cell_volumes,
+    corner_jacobians,
+    facets_per_cell,
+    reference,
+)
 
 #: A cell with |volume| <= DEGENERATE_RTOL · (its longest edge)^tdim has no volume.
 DEGENERATE_RTOL = 1e-10
@@ -93,13 +101,18 @@ def mark_checked(mesh: MeshData) -> None:
 
 def _check_degenerate(mesh: MeshData) -> None:
     x, cells, tdim = mesh.x, mesh.cells, mesh.tdim
-    nv = tdim + 1
+    ref = reference(cells, mesh.cell_type)
     longest = np.zeros(cells.shape[0])
-    for a in range(nv):  # the 3 or 6 edges of a simplex
-        for b in range(a + 1, nv):
-            longest = np.maximum(longest, np.linalg.norm(x[cells[:, a]] - x[cells[:, b]], axis=1))
-    vol = np.abs(cell_volumes(x, cells))
-    bad = np.flatnonzero(vol <= DEGENERATE_RTOL * longest**tdim)
+    for a, b in ref.edges:  # the 3 to 12 edges of a cell
+        longest = np.maximum(longest, np.linalg.norm(x[cells[:, a]] - x[cells[:, b]], axis=1))
+    if ref.simplex:
+        vol = np.abs(cell_volumes(x, cells, mesh.cell_type))
+        folded = np.zeros(cells.shape[0], dtype=bool)
+    else:  # every corner of a quadrilateral/hexahedron must span a volume, all of one sign
+        J = corner_jacobians(x, cells, mesh.cell_type)
+        vol = np.abs(J).min(axis=1)
+        folded = (J.max(axis=1) > 0) & (J.min(axis=1) < 0)
+    bad = np.flatnonzero((vol <= DEGENERATE_RTOL * longest**tdim) & ~folded)
     if bad.size:
         c = bad[0]
         what = "area" if tdim == 2 else "volume"
@@ -107,40 +120,49 @@ def _check_degenerate(mesh: MeshData) -> None:
             f"the mesh has {bad.size} degenerate cells (zero {what}: flat or with a repeated "
             f"node), e.g. cell {int(c)} of body {_body(mesh, c)} with nodes at "
             f"{_where(mesh, cells[c])}; remesh (or remove the cells)")
+    if np.any(folded):
+        c = int(np.flatnonzero(folded)[0])
+        raise InputError(
+            f"the mesh has {int(folded.sum())} folded (self-intersecting) {mesh.cell_type} "
+            f"cells, e.g. cell {c} of body {_body(mesh, c)} with nodes at "
+            f"{_where(mesh, cells[c])}: its corners do not all turn the same way (vertices "
+            "out of order, or a non-convex cell); remesh")
 
 
 def _check_folds(mesh: MeshData) -> None:
     """Facets in more than two cells; neighbours on the same side of their common facet."""
-    x, cells, tdim = mesh.x, mesh.cells, mesh.tdim
+    x, cells, tdim, ct = mesh.x, mesh.cells, mesh.tdim, mesh.cell_type
     if cells.shape[0] < 2:
         return
-    keys, order, _ = _facet_index(cells)
+    nf = facets_per_cell(cells, ct)
+    keys, order, _ = _facet_index(cells, ct)
     same = keys[1:] == keys[:-1]
     triple = same[1:] & same[:-1]
     if np.any(triple):
         i = int(np.flatnonzero(triple)[0])
-        cs = order[i:i + 3] // (tdim + 1)
+        cs = order[i:i + 3] // nf
         raise InputError(
             f"the mesh has {int(triple.sum())} facets shared by more than two cells (the cells "
             f"overlap), e.g. cells {cs.tolist()} of bodies "
             f"{', '.join(sorted({_body(mesh, c) for c in cs}))} at the facet with nodes at "
-            f"{_where(mesh, np.sort(cell_facets(cells[cs[:1]])[0, order[i] % (tdim + 1)]))}")
+            f"{_where(mesh, np.sort(cell_facets(cells[cs[:1]], ct)[0, order[i] % nf]))}")
     if mesh.gdim != tdim:
         return  # no orientation to compare for a surface mesh in 3D
     i = np.flatnonzero(same)
-    c1, l1 = order[i] // (tdim + 1), order[i] % (tdim + 1)
-    c2, l2 = order[i + 1] // (tdim + 1), order[i + 1] % (tdim + 1)
-    facet = np.sort(cell_facets(cells)[c1, l1], axis=1)  # the same node order for both sides
+    c1, l1 = order[i] // nf, order[i] % nf
+    c2 = order[i + 1] // nf
+    facet = np.sort(cell_facets(cells, ct)[c1, l1], axis=1)  # the same node order for both sides
     p = x[facet]
-    base = p[:, 1:] - p[:, :1]  # (P, tdim - 1, gdim)
+    base = p[:, 1:tdim] - p[:, :1]  # (P, tdim - 1, gdim): tdim vertices span the facet's plane
 
-    def side(v):  # det[base; x_v - p_0], written out (np.linalg.det is one LAPACK call a row)
-        d = x[v] - p[:, 0]
+    def side(c):  # the side of the cell's centroid (of the opposite vertex for a simplex):
+        # det[base; centroid - p_0], written out (np.linalg.det is one LAPACK call a row)
+        d = x[cells[c]].mean(axis=1) - p[:, 0]
         if tdim == 2:
             return base[:, 0, 0] * d[:, 1] - base[:, 0, 1] * d[:, 0]
         return np.einsum("ij,ij->i", np.cross(base[:, 0], base[:, 1]), d)
 
-    s1, s2 = side(cells[c1, l1]), side(cells[c2, l2])
+    s1, s2 = side(c1), side(c2)
     bad = np.flatnonzero(s1 * s2 >= 0.0)
     if bad.size:
         k = bad[0]
@@ -203,21 +225,28 @@ def _check_bodies_apart(mesh: MeshData) -> None:
 
 
 def boundary_facets(mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
-    """The facets that belong to one cell only, and that cell: ``(facets (F, tdim), cell)``."""
-    tdim = mesh.tdim
-    keys, order, _ = _facet_index(mesh.cells)
+    """The facets that belong to one cell only, and that cell: ``(facets (F, nvf), cell)``."""
+    ct = mesh.cell_type
+    nf = facets_per_cell(mesh.cells, ct)
+    keys, order, _ = _facet_index(mesh.cells, ct)
     n = keys.size
     single = np.ones(n, dtype=bool)
     same = keys[1:] == keys[:-1]
     single[1:] &= ~same
     single[:-1] &= ~same
     pos = order[single]
-    cell, local = pos // (tdim + 1), pos % (tdim + 1)
-    return cell_facets(mesh.cells)[cell, local], cell
+    cell, local = pos // nf, pos % nf
+    return cell_facets(mesh.cells, ct)[cell, local], cell
 
 
 def _point_facet_distance(pts: np.ndarray, facets: np.ndarray) -> np.ndarray:
-    """Distance of each point to the facet (segment or triangle) of the same row."""
+    """Distance of each point to the facet (segment, triangle or quad) of the same row.
+
+    A quadrilateral (tensor vertex order) is taken as its two triangles 0-1-3 and 0-3-2.
+    """
+    if facets.shape[1] == 4:
+        return np.minimum(_point_facet_distance(pts, facets[:, [0, 1, 3]]),
+                          _point_facet_distance(pts, facets[:, [0, 3, 2]]))
     a = facets[:, 0]
     if facets.shape[1] == 2:
         e = facets[:, 1] - a
@@ -269,9 +298,9 @@ def nonconforming_nodes(mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
         hit = dist <= CONFORMING_RTOL * diam[fi]
         out_node.append(ni[hit])
         out_facet.append(F[fi[hit]])
-    tdim = mesh.tdim
     result = (np.concatenate(out_node) if out_node else np.zeros(0, dtype=np.int64),
-              np.concatenate(out_facet) if out_facet else np.zeros((0, tdim), dtype=np.int64))
+              np.concatenate(out_facet) if out_facet else
+              np.zeros((0, facets.shape[1]), dtype=np.int64))
     _CONFORMING[:] = [mesh.x, mesh.cells, mesh.cell_body, result]
     return result
 
@@ -341,8 +370,8 @@ def check_boundary_group(mesh: MeshData, group: str, what: str = "boundary group
         InputError: Naming the group, what it is used for and the bodies on the two sides.
     """
     f = mesh.facets(group)
-    tdim = mesh.tdim
-    keys, order, bound = _facet_index(mesh.cells)
+    nf = facets_per_cell(mesh.cells, mesh.cell_type)
+    keys, order, bound = _facet_index(mesh.cells, mesh.cell_type)
     if not f.size or f.max() >= bound:
         return
     k = _row_keys(f, bound)
@@ -352,7 +381,7 @@ def check_boundary_group(mesh: MeshData, group: str, what: str = "boundary group
     if inner.size == 0:
         return
     i = inner[0]
-    cs = order[lo[i]:hi[i]] // (tdim + 1)
+    cs = order[lo[i]:hi[i]] // nf
     bodies = " and ".join(sorted({_body(mesh, c) for c in cs}))
     raise InputError(
         f"{what} {group!r}: {inner.size} of its {f.shape[0]} facets lie inside the mesh, "

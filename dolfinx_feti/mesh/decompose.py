@@ -17,6 +17,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
 from ..validation import Choice, Function, Integer, checked, per_body
+from .dofpoints import DofPoints
 from .gmsh_input import MeshData
 from .topology import facet_neighbours
 
@@ -66,9 +67,11 @@ class ByFunction:
 class Decomposition:
     """Subdomains, their owners, and the (subdomain, node) pairs that number the primal dofs.
 
-    The primal unknowns are ordered subdomain by subdomain, and inside a subdomain by global
-    node index then component: dof(s, node, c) = bs * pair_index(s, node) + c. This order does
-    not depend on DOLFINx's dof numbering nor on the number of ranks.
+    A "node" here is a dof point (:mod:`.dofpoints`): a vertex for degree 1; a vertex, edge,
+    face or cell interior point for degree 2. The primal unknowns are ordered subdomain by
+    subdomain, and inside a subdomain by global node index then component:
+    dof(s, node, c) = bs * pair_index(s, node) + c. This order does not depend on DOLFINx's dof
+    numbering nor on the number of ranks.
 
     Attributes:
         cell_sub: Subdomain of each cell.
@@ -76,6 +79,7 @@ class Decomposition:
         sub_rank: Rank owning each subdomain (subdomains of a rank are contiguous).
         pair_sub, pair_node: The (subdomain, node) pairs sorted by subdomain then node.
         sub_ptr: Pairs of subdomain s are ``sub_ptr[s]:sub_ptr[s+1]``.
+        num_nodes: Number of dof points of the whole mesh.
     """
 
     cell_sub: np.ndarray
@@ -116,13 +120,15 @@ class Decomposition:
         return np.cumsum(ptr), self.pair_sub[order]
 
 
-def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
+def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
+              points: DofPoints | None = None) -> Decomposition:
     """Split ``mesh`` into subdomains and assign them to the ranks of ``comm``.
 
     Args:
         mesh: The mesh.
         how: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
         comm: The communicator, or just its size (for planning without MPI).
+        points: The dof points that number the primal dofs (default: the vertices, degree 1).
     """
     comm_size = comm if isinstance(comm, int) else comm.size
     midpoints = mesh.x[mesh.cells].mean(axis=1)
@@ -139,12 +145,12 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
             if how.method == "rcb":
                 part = rcb(midpoints[cells], int(n))
             elif how.method == "ptscotch" and isinstance(comm, int):
-                part = graph_partition(mesh.cells[cells], int(n))
+                part = graph_partition(mesh.cells[cells], int(n), mesh.cell_type)
             elif how.method == "ptscotch":  # on rank 0: PT-Scotch may differ between processes
                 part = None
                 with collective(comm, "decomposition"):
                     if comm.rank == 0:
-                        part = graph_partition(mesh.cells[cells], int(n))
+                        part = graph_partition(mesh.cells[cells], int(n), mesh.cell_type)
                 part = comm.bcast(part, root=0)
             else:
                 raise InputError(f"Parts: unknown method {how.method!r}; use 'rcb' or 'ptscotch'")
@@ -165,16 +171,19 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int) -> Decomposition:
     else:
         raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
                          "ByFunction(fn)")
-    cell_sub = _split_components(mesh.cells, label)
-    return _build(mesh, cell_sub, comm_size)
+    cell_sub = _split_components(mesh.cells, label, mesh.cell_type)
+    cell_points = mesh.cells if points is None else points.cell_points
+    num_points = mesh.num_nodes if points is None else points.num_points
+    return _build(mesh, cell_sub, comm_size, cell_points, num_points)
 
 
-def _split_components(cells: np.ndarray, label: np.ndarray) -> np.ndarray:
+def _split_components(cells: np.ndarray, label: np.ndarray,
+                      cell_type: str | None = None) -> np.ndarray:
     """Subdomain id per cell: connected (through facets) pieces of equal label.
 
     Pieces are numbered in the order of their first cell, so the numbering is deterministic.
     """
-    pairs = facet_neighbours(cells)
+    pairs = facet_neighbours(cells, cell_type)
     same = label[pairs[:, 0]] == label[pairs[:, 1]]
     pairs = pairs[same]
     n = cells.shape[0]
@@ -188,11 +197,11 @@ def _split_components(cells: np.ndarray, label: np.ndarray) -> np.ndarray:
     return renumber[comp].astype(np.int32)
 
 
-def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int) -> Decomposition:
+def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int, cell_points: np.ndarray,
+           N: int) -> Decomposition:
     nsub = int(cell_sub.max()) + 1
-    N = mesh.num_nodes
-    keys = np.unique(np.repeat(cell_sub.astype(np.int64), mesh.cells.shape[1]) * N
-                     + mesh.cells.ravel())
+    keys = np.unique(np.repeat(cell_sub.astype(np.int64), cell_points.shape[1]) * N
+                     + cell_points.ravel())
     pair_sub = (keys // N).astype(np.int32)
     pair_node = keys % N
     sub_ptr = np.searchsorted(pair_sub, np.arange(nsub + 1)).astype(np.int64)
@@ -225,7 +234,7 @@ def _assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
     return rank
 
 
-def graph_partition(cells: np.ndarray, n: int) -> np.ndarray:
+def graph_partition(cells: np.ndarray, n: int, cell_type: str | None = None) -> np.ndarray:
     """Partition cells into ``n`` parts with PETSc's PT-Scotch on their facet adjacency graph.
 
     Runs on ``COMM_SELF`` on every rank with the same input, hence the same result everywhere.
@@ -234,7 +243,7 @@ def graph_partition(cells: np.ndarray, n: int) -> np.ndarray:
 
     if n == 1:
         return np.zeros(cells.shape[0], dtype=np.int64)
-    pairs = facet_neighbours(cells)
+    pairs = facet_neighbours(cells, cell_type)
     m = cells.shape[0]
     g = sp.coo_matrix((np.ones(2 * pairs.shape[0]), (np.r_[pairs[:, 0], pairs[:, 1]],
                                                       np.r_[pairs[:, 1], pairs[:, 0]])),

@@ -16,11 +16,23 @@ from mpi4py import MPI
 from ..errors import InputError, collective
 from .topology import _row_keys
 
-#: gmsh element type → (cell name, topological dimension, number of nodes), first order only.
-_GMSH_CELLS = {2: ("triangle", 2, 3), 4: ("tetrahedron", 3, 4)}
-_GMSH_FACETS = {2: 1, 3: 2}  # tdim → gmsh element type of its facets (line, triangle)
-_UNSUPPORTED = {3: "quadrangle", 5: "hexahedron", 6: "prism", 7: "pyramid",
-                9: "second-order triangle", 11: "second-order tetrahedron"}
+#: gmsh element type → (cell name, geometry order, number of nodes): first-order cells and
+#: the complete second-order ones (curved cells, nodes on edges, faces and interiors).
+_GMSH_CELLS = {2: ("triangle", 1, 3), 4: ("tetrahedron", 1, 4), 3: ("quadrilateral", 1, 4),
+               5: ("hexahedron", 1, 8), 9: ("triangle", 2, 6), 11: ("tetrahedron", 2, 10),
+               10: ("quadrilateral", 2, 9), 12: ("hexahedron", 2, 27)}
+_NUM_VERTICES = {"triangle": 3, "tetrahedron": 4, "quadrilateral": 4, "hexahedron": 8}
+#: gmsh's vertex order → DOLFINx's (tensor-product order for quadrilaterals and hexahedra).
+_GMSH_TO_DOLFINX = {"triangle": [0, 1, 2], "tetrahedron": [0, 1, 2, 3],
+                    "quadrilateral": [0, 1, 3, 2], "hexahedron": [0, 1, 3, 2, 4, 5, 7, 6]}
+#: cell type → (gmsh element types of its facets (order 1, 2), facet vertex order gmsh →
+#: DOLFINx; the vertices come first among a second-order facet's nodes).
+_GMSH_FACETS = {"triangle": ((1, 8), [0, 1]), "quadrilateral": ((1, 8), [0, 1]),
+                "tetrahedron": ((2, 9), [0, 1, 2]), "hexahedron": ((3, 10), [0, 1, 3, 2])}
+_TDIM = {"triangle": 2, "quadrilateral": 2, "tetrahedron": 3, "hexahedron": 3}
+_UNSUPPORTED = {6: "prism", 7: "pyramid", 13: "second-order prism", 14: "second-order pyramid",
+                16: "8-node (serendipity) quadrangle", 17: "20-node (serendipity) hexahedron",
+                21: "third-order triangle", 29: "third-order tetrahedron"}
 
 
 @dataclass
@@ -29,13 +41,24 @@ class MeshData:
 
     Attributes:
         x: Node coordinates, shape (N, gdim).
-        cells: Cell-to-node connectivity, shape (C, tdim + 1), node indices into ``x``.
-        cell_type: ``"triangle"`` or ``"tetrahedron"``.
+        cells: Cell-to-vertex connectivity, shape (C, vertices per cell), node indices into
+            ``x``, in DOLFINx's vertex order (tensor-product order for quadrilaterals and
+            hexahedra).
+        cell_type: ``"triangle"``, ``"tetrahedron"``, ``"quadrilateral"`` or ``"hexahedron"``
+            (first-order cells: the nodes are the vertices).
         cell_body: For each cell, the index of its body in ``body_names``.
         body_names: The physical volume (surface in 2D) groups, in tag order.
-        facet_groups: Boundary physical groups: name → facets as (F, tdim) node indices.
+        facet_groups: Boundary physical groups: name → facets as (F, vertices per facet)
+            node indices (vertex facets, whatever the degree of the space).
         node_tags: The gmsh tag of each node (for messages).
         group_tags: name → gmsh physical tag, for every group (bodies and facet groups).
+        source: The DOLFINx mesh this data was made from by :func:`~dolfinx_feti.from_dolfinx`
+            (the solution is returned on it), else None.
+        high_order: For a second-order (curved) mesh, the positions of its geometry nodes
+            besides the vertices: entity dimension → (the entities' vertices (n, vertices per
+            entity), the node's coordinates (n, gdim)), one node per edge, and per
+            quadrilateral face and cell interior of quadrilaterals and hexahedra; None for a
+            first-order mesh.
     """
 
     x: np.ndarray
@@ -46,6 +69,13 @@ class MeshData:
     facet_groups: dict[str, np.ndarray]
     node_tags: np.ndarray
     group_tags: dict[str, int] = field(default_factory=dict)
+    source: object = field(default=None, repr=False, compare=False)
+    high_order: dict | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def geometry_degree(self) -> int:
+        """1 for straight-sided cells, 2 for a second-order (curved) mesh."""
+        return 1 if self.high_order is None else 2
 
     @property
     def gdim(self) -> int:
@@ -55,7 +85,7 @@ class MeshData:
     @property
     def tdim(self) -> int:
         """Topological dimension of the cells."""
-        return self.cells.shape[1] - 1
+        return _TDIM[self.cell_type]
 
     @property
     def num_nodes(self) -> int:
@@ -95,8 +125,9 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
 
     Raises:
         InputError: If the file is missing, the model has no physical groups of cells,
-            the cells are not first-order simplices, a cell is in two bodies, or the data is
-            not finite.
+            the cells are not triangles, quadrilaterals, tetrahedra or hexahedra of one type
+            and of order 1 or 2 (complete: 6, 9, 10 or 27 nodes), a cell is in two bodies, or
+            the data is not finite.
     """
     data = None
     with collective(comm, "mesh"):
@@ -241,6 +272,38 @@ def _group_name(gmsh, dim: int, tag: int) -> str:
     return gmsh.model.getPhysicalName(dim, tag) or str(tag)
 
 
+def _cell_type(gmsh_type: int, body: str) -> tuple[str, int]:
+    """(cell type, order) of a gmsh element type, or an error that says what is supported."""
+    if gmsh_type in _GMSH_CELLS:
+        return _GMSH_CELLS[gmsh_type][:2]
+    kind = _UNSUPPORTED.get(gmsh_type, f"gmsh element type {gmsh_type}")
+    raise InputError(f"body {body!r} has {kind} cells: only triangles and quadrilaterals (2D), "
+                     "tetrahedra and hexahedra (3D) of order 1 or 2 (complete second-order "
+                     "elements: gmsh's Mesh.SecondOrderIncomplete = 0) are supported")
+
+
+def _high_order_layout(gmsh, gmsh_type: int, cell_type: str) -> list[tuple[int, int, tuple]]:
+    """Where a second-order gmsh element's extra nodes sit: (node, dim, DOLFINx vertices).
+
+    Found from gmsh's reference coordinates (the node is the mean of its entity's vertices),
+    so no table of gmsh's node order is needed.
+    """
+    from .dofpoints import degree2_entities
+
+    props = gmsh.model.mesh.getElementProperties(gmsh_type)
+    tdim, nodes = int(props[1]), int(props[3])
+    ref = np.asarray(props[4]).reshape(nodes, tdim)
+    corners = ref[np.array(_GMSH_TO_DOLFINX[cell_type])]  # reference coords, DOLFINx order
+    out = []
+    for j in range(_NUM_VERTICES[cell_type], nodes):
+        hits = [(dim, ent) for dim, ents in degree2_entities(cell_type) for ent in ents
+                if np.allclose(corners[list(ent)].mean(axis=0), ref[j], atol=1e-9)]
+        if len(hits) != 1:
+            raise InputError(f"gmsh element type {gmsh_type}: cannot place its node {j}")
+        out.append((j, hits[0][0], hits[0][1]))
+    return out
+
+
 def _extract_current(gmsh, gdim: int | None) -> MeshData:
     groups = gmsh.model.getPhysicalGroups()
     if not groups:
@@ -257,7 +320,8 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
     tag_to_row[node_tags] = np.arange(node_tags.size)
 
     body_names, group_tags, cell_blocks, body_blocks = [], {}, [], []
-    cell_type = None
+    cell_type = order = None
+    high: dict[int, list] = {}  # dim → [(entity vertex rows, node rows)] of curved cells
     for dim, tag in sorted(g for g in groups if g[0] == tdim):
         name = _group_name(gmsh, dim, tag)
         group_tags[name] = tag
@@ -266,13 +330,19 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
         for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
             for t, nd in zip(types, nodes, strict=True):
-                if t not in _GMSH_CELLS:
-                    kind = _UNSUPPORTED.get(int(t), f"gmsh element type {t}")
-                    raise InputError(f"body {name!r} has {kind} cells: only first-order "
-                                     "triangles (2D) and tetrahedra (3D) are supported")
-                ct, _, nv = _GMSH_CELLS[int(t)]
-                cell_type = ct
-                block = tag_to_row[nd.astype(np.int64).reshape(-1, nv)]
+                ct, o = _cell_type(int(t), name)
+                if cell_type is not None and (ct, o) != (cell_type, order):
+                    raise InputError(f"the mesh mixes {cell_type} cells of order {order} and "
+                                     f"{ct} cells of order {o} (body {name!r}): one cell type "
+                                     "and one order per mesh are supported")
+                cell_type, order = ct, o
+                rows = tag_to_row[nd.astype(np.int64).reshape(-1, _GMSH_CELLS[int(t)][2])]
+                nv = _NUM_VERTICES[ct]
+                block = rows[:, :nv][:, _GMSH_TO_DOLFINX[ct]]
+                if o == 2:
+                    for j, edim, ent_vertices in _high_order_layout(gmsh, int(t), ct):
+                        high.setdefault(edim, []).append((block[:, list(ent_vertices)],
+                                                          rows[:, j]))
                 cell_blocks.append(block)
                 body_blocks.append(np.full(block.shape[0], body, dtype=np.int32))
     if not cell_blocks:
@@ -301,9 +371,19 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
                          f"dimension {gdim}")
     if not np.all(np.isfinite(x)):
         raise InputError("the mesh has non-finite node coordinates (NaN or Inf)")
+    high_order = None
+    if order == 2:
+        high_order = {}
+        for edim, parts in high.items():
+            ent = new_index[np.concatenate([p[0] for p in parts])]
+            pos = coords[np.concatenate([p[1] for p in parts]), :gdim]
+            _, first = np.unique(np.sort(ent, axis=1), axis=0, return_index=True)
+            high_order[edim] = (ent[first], pos[first])
 
     facet_groups = {}
-    ftype = _GMSH_FACETS[tdim]
+    ftypes, fperm = _GMSH_FACETS[cell_type]
+    nvf = len(fperm)
+    ftype = ftypes[order - 1]
     for dim, tag in sorted(g for g in groups if g[0] == tdim - 1):
         name = _group_name(gmsh, dim, tag)
         if name in group_tags:
@@ -314,8 +394,9 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
             types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
             for t, nd in zip(types, nodes, strict=True):
                 if t == ftype:
-                    blocks.append(nd.astype(np.int64).reshape(-1, tdim))
-        f = np.concatenate(blocks) if blocks else np.empty((0, tdim), dtype=np.int64)
+                    per = gmsh.model.mesh.getElementProperties(int(t))[3]
+                    blocks.append(nd.astype(np.int64).reshape(-1, per)[:, :nvf][:, fperm])
+        f = np.concatenate(blocks) if blocks else np.empty((0, nvf), dtype=np.int64)
         f = new_index[tag_to_row[f]]
         if np.any(f < 0):
             raise InputError(f"boundary group {name!r} has facets whose nodes belong to no cell "
@@ -324,4 +405,5 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
 
     return MeshData(x=x, cells=cells, cell_type=cell_type, cell_body=cell_body,
                     body_names=tuple(body_names), facet_groups=facet_groups,
-                    node_tags=node_tags[used].astype(np.int64), group_tags=group_tags)
+                    node_tags=node_tags[used].astype(np.int64), group_tags=group_tags,
+                    high_order=high_order)

@@ -1,14 +1,61 @@
-"""Vectorized mesh topology and geometry on global arrays: facets, neighbours, normals, areas."""
+"""Vectorized mesh topology and geometry on global arrays: facets, neighbours, normals, areas.
+
+Cells are first-order triangles, tetrahedra, quadrilaterals or hexahedra with their vertices in
+DOLFINx's (basix's) reference order: counter-clockwise for simplices as given, tensor-product
+order for quadrilaterals ``(0,0), (1,0), (0,1), (1,1)`` and hexahedra (x fastest). The
+functions take the cell type; without it a cell of 3 vertices is a triangle and one of 4 a
+tetrahedron (the simplex meshes of older callers).
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-# Local facets of a simplex: facet j is the one opposite vertex j.
-_LOCAL_FACETS = {
-    2: np.array([[1, 2], [0, 2], [0, 1]]),
-    3: np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]),
+
+@dataclass(frozen=True)
+class ReferenceCell:
+    """The local entities of a reference cell, as lists of its local vertices (basix order)."""
+
+    tdim: int
+    num_vertices: int
+    edges: tuple[tuple[int, ...], ...]
+    facets: tuple[tuple[int, ...], ...]
+
+    @property
+    def simplex(self) -> bool:
+        """Whether the cell is a simplex."""
+        return self.num_vertices == self.tdim + 1
+
+
+#: The reference cells (checked against ``basix.topology`` in the tests).
+REFERENCE = {
+    "triangle": ReferenceCell(2, 3, ((1, 2), (0, 2), (0, 1)), ((1, 2), (0, 2), (0, 1))),
+    "quadrilateral": ReferenceCell(2, 4, ((0, 1), (0, 2), (1, 3), (2, 3)),
+                                   ((0, 1), (0, 2), (1, 3), (2, 3))),
+    "tetrahedron": ReferenceCell(3, 4, ((2, 3), (1, 3), (1, 2), (0, 3), (0, 2), (0, 1)),
+                                 ((1, 2, 3), (0, 2, 3), (0, 1, 3), (0, 1, 2))),
+    "hexahedron": ReferenceCell(
+        3, 8, ((0, 1), (0, 2), (0, 4), (1, 3), (1, 5), (2, 3), (2, 6), (3, 7), (4, 5), (4, 6),
+               (5, 7), (6, 7)),
+        ((0, 1, 2, 3), (0, 1, 4, 5), (0, 2, 4, 6), (1, 3, 5, 7), (2, 3, 6, 7), (4, 5, 6, 7))),
 }
+
+#: The facets' own reference cell: a facet with these vertices is a line, triangle or quad.
+FACET_TYPE = {"triangle": "interval", "quadrilateral": "interval", "tetrahedron": "triangle",
+              "hexahedron": "quadrilateral"}
+
+
+def reference(cells: np.ndarray, cell_type: str | None = None) -> ReferenceCell:
+    """The reference cell of ``cells`` (simplices when ``cell_type`` is None)."""
+    if cell_type is None:
+        cell_type = {3: "triangle", 4: "tetrahedron"}[cells.shape[1]]
+    ref = REFERENCE[cell_type]
+    if cells.ndim != 2 or cells.shape[1] != ref.num_vertices:
+        raise ValueError(f"{cell_type} cells need {ref.num_vertices} vertices, got an array of "
+                         f"shape {cells.shape}")
+    return ref
 
 
 def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
@@ -21,7 +68,7 @@ def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
     width = a.shape[1]
     if bound is not None and width * np.log2(max(bound, 2)) < 62:
         key = np.zeros(a.shape[0], dtype=np.int64)
-        for j in range(width):  # over the 2 or 3 vertices of a facet
+        for j in range(width):  # over the 2 to 8 vertices of an entity
             key = key * bound + a[:, j]
         return key
     return a.view(np.dtype((np.void, a.dtype.itemsize * width))).ravel()
@@ -30,105 +77,175 @@ def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
 _FACET_INDEX: list = []  # (cells, sorted keys, order): one mesh's facet index, kept for reuse
 
 
-def _facet_index(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Sorted keys of all cell facets and their positions (cached for the last cells array)."""
+def _facet_index(cells: np.ndarray, cell_type: str | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Sorted keys of all cell facets and their positions (cached for the last cells array).
+
+    Position p is facet ``p % nf`` of cell ``p // nf`` (nf facets per cell).
+    """
     if _FACET_INDEX and _FACET_INDEX[0][0] is cells:
         return _FACET_INDEX[0][1:]
-    tdim = cells.shape[1] - 1
+    f = cell_facets(cells, cell_type)
     bound = int(cells.max()) + 1 if cells.size else 1
-    keys = _row_keys(cell_facets(cells).reshape(-1, tdim), bound)
+    keys = _row_keys(f.reshape(-1, f.shape[2]), bound)
     order = np.argsort(keys, kind="stable")
     _FACET_INDEX[:] = [(cells, keys[order], order, bound)]
     return keys[order], order, bound
 
 
-def cell_facets(cells: np.ndarray) -> np.ndarray:
-    """All facets of all cells, shape (C, tdim + 1, tdim); facet j is opposite vertex j."""
-    tdim = cells.shape[1] - 1
-    return cells[:, _LOCAL_FACETS[tdim]]
+def cell_facets(cells: np.ndarray, cell_type: str | None = None) -> np.ndarray:
+    """All facets of all cells, shape (C, nf, nvf), in the reference order.
+
+    For simplices facet j is the one opposite vertex j.
+    """
+    return cells[:, np.array(reference(cells, cell_type).facets)]
 
 
-def facet_neighbours(cells: np.ndarray) -> np.ndarray:
+def facets_per_cell(cells: np.ndarray, cell_type: str | None = None) -> int:
+    """Number of facets of each cell."""
+    return len(reference(cells, cell_type).facets)
+
+
+def facet_neighbours(cells: np.ndarray, cell_type: str | None = None) -> np.ndarray:
     """Pairs of cells that share a facet, shape (P, 2)."""
-    tdim = cells.shape[1] - 1
-    sorted_keys, order, _ = _facet_index(cells)
+    nf = facets_per_cell(cells, cell_type)
+    sorted_keys, order, _ = _facet_index(cells, cell_type)
     same = sorted_keys[1:] == sorted_keys[:-1]
-    owner = order // (tdim + 1)
+    owner = order // nf
     return np.stack([owner[:-1][same], owner[1:][same]], axis=1)
 
 
-def locate_facets(cells: np.ndarray, facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """For each given facet, one cell containing it and the local index of the facet in that cell.
 
     Returns ``(cell, local)``; both are -1 for a facet that is no facet of any cell.
     """
-    tdim = cells.shape[1] - 1
-    sorted_keys, order, bound = _facet_index(cells)
+    nf = facets_per_cell(cells, cell_type)
+    sorted_keys, order, bound = _facet_index(cells, cell_type)
     facets = np.asarray(facets)
     if facets.size and facets.max() >= bound:
         return np.full(facets.shape[0], -1), np.full(facets.shape[0], -1)
     keys = _row_keys(facets, bound)
     pos = np.searchsorted(sorted_keys, keys)
     pos = np.minimum(pos, order.size - 1)
-    hit = sorted_keys[pos] == keys
-    flat = np.where(hit, order[pos], -1)
-    return np.where(hit, flat // (tdim + 1), -1), np.where(hit, flat % (tdim + 1), -1)
+    hit = sorted_keys[pos] == keys if order.size else np.zeros(keys.size, dtype=bool)
+    flat = np.where(hit, order[pos], -1) if order.size else np.full(keys.size, -1)
+    return np.where(hit, flat // nf, -1), np.where(hit, flat % nf, -1)
 
 
-def facet_normals(x: np.ndarray, cells: np.ndarray,
-                  facets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def facet_normals(x: np.ndarray, cells: np.ndarray, facets: np.ndarray,
+                  cell_type: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Outward unit normals and measures (length/area) of boundary facets.
 
-    The outward side is the side away from the cell that holds the facet; with a facet of two
+    The normal of a quadrilateral facet (of a hexahedron) is that of its diagonals' plane and
+    its area half their cross product (exact for a planar quadrilateral). The outward side is
+    the side away from the centroid of the cell that holds the facet; with a facet of two
     cells (an interior facet) the first one found is used.
     """
-    cell, local = locate_facets(cells, facets)
+    cell, local = locate_facets(cells, facets, cell_type)
     if np.any(cell < 0):
         raise ValueError("facets that belong to no cell")
+    if facets.shape[1] == 4:  # put the quadrilateral's vertices in the cell's (tensor) order
+        facets = cells[cell[:, None], np.array(reference(cells, cell_type).facets)[local]]
     p = x[facets]
     if x.shape[1] == 2:
         t = p[:, 1] - p[:, 0]
         n = np.stack([t[:, 1], -t[:, 0]], axis=1)
+    elif facets.shape[1] == 4:  # tensor order: the diagonals are 0-3 and 1-2
+        n = np.cross(p[:, 3] - p[:, 0], p[:, 2] - p[:, 1])
     else:
         n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     size = np.linalg.norm(n, axis=1)
     if x.shape[1] == 3:
         size = size / 2.0
-    opposite = x[cells[cell, local]]
-    sign = np.sign(np.einsum("ij,ij->i", n, p[:, 0] - opposite))
+    inside = x[cells[cell]].mean(axis=1)
+    sign = np.sign(np.einsum("ij,ij->i", n, p.mean(axis=1) - inside))
     n = n * (sign / np.linalg.norm(n, axis=1))[:, None]
     return n, size
 
 
-def nodal_normals_and_areas(x: np.ndarray, cells: np.ndarray, facets: np.ndarray
+def nodal_normals_and_areas(x: np.ndarray, cells: np.ndarray, facets: np.ndarray,
+                            cell_type: str | None = None
                             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Node-wise outward normals and lumped areas of a boundary surface.
+    """Node-wise outward normals and lumped areas of a boundary surface (vertices of P1/Q1).
 
     Returns ``(nodes, normals, areas)``: the surface's nodes (sorted), the unit normal at each
     (the area-weighted mean of its facets' normals) and its lumped area (the integral of its
-    hat function over the surface).
+    hat function over the surface, exact on parallelograms).
 
     Raises:
         ValueError: If the facet normals cancel at a node (a surface folded onto itself).
     """
-    n, size = facet_normals(x, cells, facets)
-    nodes, inv = np.unique(facets, return_inverse=True)
-    inv = inv.reshape(facets.shape)
     nv = facets.shape[1]
-    acc = np.zeros((nodes.size, x.shape[1]))
-    area = np.zeros(nodes.size)
-    for j in range(nv):  # loop over the 2 or 3 vertices of a facet, not over nodes
+    return surface_points(x, cells, facets, facets, np.full(nv, 1.0 / nv), cell_type)
+
+
+def surface_points(x: np.ndarray, cells: np.ndarray, facets: np.ndarray,
+                   facet_points: np.ndarray, weights: np.ndarray, cell_type: str | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Normals and lumped areas at the points of a surface that carry dofs.
+
+    Args:
+        x: Vertex coordinates.
+        cells: Cells (vertices).
+        facets: The surface's facets (vertices), (F, nvf).
+        facet_points: The points on each facet (dof points), (F, k).
+        weights: The integral of each point's basis function over a facet divided by the
+            facet's measure, (k,).
+        cell_type: The cells' type.
+
+    Returns:
+        ``(points, normals, areas)``: the sorted points, the area-weighted mean of the normals
+        of the facets around each, and the lumped areas Σ weight × facet measure.
+
+    Raises:
+        ValueError: If the facet normals cancel at a point (a surface folded onto itself).
+    """
+    n, size = facet_normals(x, cells, facets, cell_type)
+    points, inv = np.unique(facet_points, return_inverse=True)
+    inv = inv.reshape(facet_points.shape)
+    acc = np.zeros((points.size, x.shape[1]))
+    area = np.zeros(points.size)
+    for j in range(facet_points.shape[1]):  # over the 2 to 9 points of a facet, not over nodes
         np.add.at(acc, inv[:, j], n * size[:, None])
-        np.add.at(area, inv[:, j], size / nv)
+        np.add.at(area, inv[:, j], size * weights[j])
     norm = np.linalg.norm(acc, axis=1)
-    if np.any(norm <= 1e-8 * area):
+    scale = np.zeros(points.size)
+    np.add.at(scale, inv.ravel(), np.repeat(size, facet_points.shape[1]))
+    if np.any(norm <= 1e-8 * scale):
         raise ValueError("facet normals cancel at some nodes")
-    return nodes, acc / norm[:, None], area
+    return points, acc / norm[:, None], area
 
 
-def cell_volumes(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """Signed cell volumes (areas in 2D)."""
-    tdim = cells.shape[1] - 1
+def corner_jacobians(x: np.ndarray, cells: np.ndarray, cell_type: str) -> np.ndarray:
+    """The Jacobian determinant of a quadrilateral/hexahedron at each corner, shape (C, nv).
+
+    At corner i (tensor bits a, b[, c]) it is the determinant of the edges to the corner's
+    neighbours along each axis, signed so that all corners of a valid cell have the sign of
+    its orientation; a corner of the other sign (or zero) means a folded (or flat) cell.
+    """
+    ref = REFERENCE[cell_type]
+    d = ref.tdim
+    out = np.empty((cells.shape[0], ref.num_vertices))
+    for i in range(ref.num_vertices):  # 4 or 8 corners
+        e = np.stack([x[cells[:, i ^ (1 << k)]] - x[cells[:, i]] for k in range(d)], axis=1)
+        sign = (-1.0) ** bin(i).count("1")
+        out[:, i] = sign * np.linalg.det(e[:, :, :d]) if x.shape[1] == d else \
+            sign * np.linalg.norm(np.cross(e[:, 0], e[:, 1]), axis=1)
+    return out
+
+
+def cell_volumes(x: np.ndarray, cells: np.ndarray, cell_type: str | None = None) -> np.ndarray:
+    """Signed cell volumes (areas in 2D).
+
+    For quadrilaterals and hexahedra the mean corner Jacobian (exact for parallelograms and
+    parallelepipeds).
+    """
+    ref = reference(cells, cell_type)
+    if not ref.simplex:
+        return corner_jacobians(x, cells, cell_type).mean(axis=1)
+    tdim = ref.tdim
     e = x[cells[:, 1:]] - x[cells[:, :1]]
     if tdim == 2 and x.shape[1] == 2:
         return 0.5 * (e[:, 0, 0] * e[:, 1, 1] - e[:, 0, 1] * e[:, 1, 0])
