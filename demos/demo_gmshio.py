@@ -22,12 +22,15 @@ import argparse
 import sys
 from pathlib import Path
 
+# mpi4py before dolfinx: DOLFINx 0.11's PyPI wheel finds its MPI library once mpi4py has loaded it
+from mpi4py import MPI
+
+# isort: split
 import dolfinx.fem
 import dolfinx.io
 import gmsh
 import numpy as np
 import ufl
-from mpi4py import MPI
 
 import dolfinx_feti as df
 
@@ -41,6 +44,7 @@ parser.add_argument("--h", type=float, default=0.02, help="element size at the c
 parser.add_argument("--parts", type=int, default=4, help="subdomains")
 parser.add_argument("--rtol", type=float, default=1e-8, help="relative tolerance")
 parser.add_argument("--out", type=Path, default=Path("output/gmshio"), help="output folder")
+parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
 args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 R, P, E, nu = 1.0, 0.5, 100.0, 0.3
@@ -102,12 +106,12 @@ names = comm.bcast(names, root=0)
 out = gmshio.model_to_mesh(gmsh.model, comm, 0, gdim=2)
 if comm.rank == 0:
     gmsh.finalize()
-if isinstance(out, tuple):
-    msh, cell_tags, facet_tags = out
-    mesh = df.from_dolfinx(msh, cell_tags, facet_tags, names=names)
-else:
+if hasattr(out, "facet_tags"):  # DOLFINx 0.10 and later: one object, names included
     msh, facet_tags = out.mesh, out.facet_tags
     mesh = df.from_dolfinx(out)
+else:
+    msh, cell_tags, facet_tags = out
+    mesh = df.from_dolfinx(msh, cell_tags, facet_tags, names=names)
 # -
 
 # ## The problem and the solve
@@ -178,4 +182,6 @@ if comm.rank == 0:
           f"largest error for x < 0.9 a: {100 * np.abs(p - hertz)[inner].max() / p0:.2f} % of p0")
     print(f"total contact force {solution.total_contact_force[1]:.6f} (P/2 = {P / 2})")
     print(f"output: {args.out / 'cylinder.xdmf'}")
+if args.json:
+    solution.report.save_json(args.json)
 # -

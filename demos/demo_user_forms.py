@@ -26,6 +26,7 @@
 # +
 import argparse
 import sys
+from pathlib import Path
 
 import gmsh
 import numpy as np
@@ -40,6 +41,9 @@ parser.add_argument("--h", type=float, default=0.1, help="element size")
 parser.add_argument("--degree", type=int, default=2, help="Lagrange degree (1 or 2)")
 parser.add_argument("--parts", type=int, default=4, help="subdomains")
 parser.add_argument("--rtol", type=float, default=1e-10, help="relative tolerance")
+parser.add_argument("--out", type=Path, default=Path("output/user_forms"),
+                    help="output folder")
+parser.add_argument("--json", type=Path, default=None, help="write the solve report here")
 args, _ = parser.parse_known_args()  # -feti_* options: read by df.solve(options=sys.argv)
 comm = MPI.COMM_WORLD
 E, nu, theta = 100.0, 0.3, 1e-3  # theta = alpha * Delta T
@@ -124,4 +128,8 @@ if comm.rank == 0:
           f" .. {solution.contact.pressure.max():.6f} (relative error {p_err:.1e})")
     print(f"displacement: relative error {u_err:.1e} at {x.shape[0]} dof points")
 assert solution.report.converged and u_err < 1e-8 and p_err < 1e-8
+args.out.mkdir(parents=True, exist_ok=True) if comm.rank == 0 else None
+solution.write_xdmf(args.out / "thermal_wall.xdmf")  # displacement and contact pressure
+if args.json:
+    solution.report.save_json(args.json)
 # -
