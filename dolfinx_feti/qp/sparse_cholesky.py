@@ -5,10 +5,10 @@ An orthonormalizing transform ``T`` with ``T A Tᵀ = I`` needs the factor itsel
 back ends are offered:
 
 - :class:`CholmodFactor`: CHOLMOD (SuiteSparse) called directly — supernodal, BLAS-3, the
-  library PETSc's ``cholmod`` solver type links to. Loaded with ``ctypes``; only the public
-  structs ``cholmod_sparse``/``cholmod_dense`` and the leading fields of ``cholmod_common``
-  (unchanged since CHOLMOD 1) are laid out here, and every factor is checked numerically
-  (``T A Tᵀ x = x`` on a random ``x``) before use.
+  library PETSc's ``cholmod`` solver type links to (used only where this PETSc has it).
+  Loaded with ``ctypes``; only the public structs ``cholmod_sparse``/``cholmod_dense`` and the
+  leading fields of ``cholmod_common`` (unchanged since CHOLMOD 1) are laid out here, and
+  every factor is checked numerically (``T A Tᵀ x = x`` on a random ``x``) before use.
 - :class:`PetscFactor`: PETSc's own sparse Cholesky (nested-dissection ordering), whose
   ``MatForwardSolve``/``MatBackwardSolve`` are the half solves; slower to factor (no
   supernodes) but always present.
@@ -25,6 +25,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from petsc4py import PETSc
+
+from ..factor import available_factors
 
 _CHOLMOD_INT, _CHOLMOD_REAL, _CHOLMOD_DOUBLE = 0, 1, 0
 _SYS_A, _SYS_L, _SYS_LT, _SYS_P, _SYS_PT = 0, 4, 5, 7, 8
@@ -68,10 +70,18 @@ _LIB: ctypes.CDLL | None | bool = None
 
 
 def _cholmod() -> ctypes.CDLL | None:
-    """The CHOLMOD library with its prototypes, or None when it cannot be loaded."""
+    """The CHOLMOD library with its prototypes, or None when it cannot be loaded.
+
+    Only where this PETSc has CHOLMOD: then the library found is the one PETSc links, with the
+    BLAS of this process. Beside a PETSc without it (DOLFINx 0.11's wheel) a system CHOLMOD
+    would reach its BLAS through ``libopenblas.so.0``, a soname the wheel has already loaded
+    with its own OpenBLAS, and crash inside it (measured: dtrsm, a segmentation fault).
+    """
     global _LIB
     if _LIB is None:
         _LIB = False
+        if "cholmod" not in available_factors():
+            return None
         name = ctypes.util.find_library("cholmod")
         try:
             lib = ctypes.CDLL(name or "libcholmod.so")
