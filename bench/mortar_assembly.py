@@ -14,7 +14,8 @@ upper block's bottom is the slave surface, with the default search distance. Tim
   compiled beforehand).
 
 Run: ``python bench/mortar_assembly.py`` (2D and 3D, the sizes of docs/benchmarks.md);
-``--dim 3 --h 0.02 0.01`` for other sizes.
+``--dim 3 --h 0.02 0.01`` for other sizes; ``--recombine`` for structured quadrilaterals and
+hexahedra (the bilinear facets' dual basis and clipping, :mod:`.constraints.mortar_quad`).
 """
 
 from __future__ import annotations
@@ -52,15 +53,15 @@ def whole_mesh_subdomain(mesh: df.MeshData) -> Subdomain:
     return Subdomain([0], mesh, [cells], [nodes], [{}])
 
 
-def run(dim: int, h: float, layers: int, repeat: int) -> dict:
+def run(dim: int, h: float, layers: int, repeat: int, recombine: bool = False) -> dict:
     """Mesh the two blocks at size h and time the three phases."""
     t0 = time.perf_counter()
     mesh = df.build_mesh(meshes_occ.stacked_blocks, dim, h_lower=1.7 * h, h_upper=h,
-                         height=layers * h, comm=MPI.COMM_SELF)
+                         height=layers * h, recombine=recombine, comm=MPI.COMM_SELF)
     t_gmsh = time.perf_counter() - t0
     slave, master = mesh.facets("upper_bottom"), mesh.facets("lower_top")
-    t_coupling, coupling = best(lambda: mortar_coupling(mesh.x, mesh.cells, slave, master),
-                                repeat)
+    t_coupling, coupling = best(lambda: mortar_coupling(mesh.x, mesh.cells, slave, master,
+                                                        cell_type=mesh.cell_type), repeat)
     dec = decompose(mesh, df.Parts(1), 1)
     node_ptr, node_subs = dec.node_subdomains()
     spec = df.Mortar(slave="upper_bottom", master="lower_top")
@@ -70,7 +71,8 @@ def run(dim: int, h: float, layers: int, repeat: int) -> dict:
     forms.check(mesh)
     t_mesh, sub = best(lambda: whole_mesh_subdomain(mesh), repeat)
     t_K, (K, _) = best(lambda: sub.assemble(forms, dim), repeat)
-    return {"dim": dim, "h": h, "cells": mesh.cells.shape[0], "dofs": K.shape[0],
+    return {"dim": dim, "h": h, "cell_type": mesh.cell_type, "cells": mesh.cells.shape[0],
+            "dofs": K.shape[0],
             "slave": slave.shape[0], "master": master.shape[0], "pairs": coupling.pairs,
             "rows": rows.size, "coupling": t_coupling, "rows_time": t_rows, "mesh": t_mesh,
             "K": t_K, "gmsh": t_gmsh}
@@ -84,17 +86,20 @@ def main() -> None:
                         help="element sizes of the slave block (default: the table's)")
     parser.add_argument("--layers", type=int, default=5, help="elements across a block")
     parser.add_argument("--repeat", type=int, default=3, help="runs per timing (the best)")
+    parser.add_argument("--recombine", action="store_true",
+                        help="structured quadrilaterals/hexahedra instead of simplices")
     args = parser.parse_args()
     for dim in (2, 3):  # compile the forms before any timing
-        run(dim, 0.2, 2, 1)
+        run(dim, 0.2, 2, 1, args.recombine)
     print("| dim | h (slave) | cells | dofs | slave facets | master facets | facet pairs | rows "
           "| search + integration [s] | rows, all [s] | DOLFINx mesh [s] | K assembly [s] "
           "| rows / (mesh + K) | gmsh [s] |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for dim in args.dim:
         for h in args.h or SIZES[dim]:
-            r = run(dim, h, args.layers, args.repeat if h > 0.005 else 1)
-            print(f"| {dim}D | {h:g} | {r['cells']:,} | {r['dofs']:,} | {r['slave']:,} | "
+            r = run(dim, h, args.layers, args.repeat if h > 0.005 else 1, args.recombine)
+            print(f"| {dim}D | {h:g} | {r['cells']:,} {r['cell_type']} | {r['dofs']:,} | "
+                  f"{r['slave']:,} | "
                   f"{r['master']:,} | {r['pairs']:,} | {r['rows']:,} | {r['coupling']:.3f} | "
                   f"{r['rows_time']:.3f} | {r['mesh']:.3f} | {r['K']:.3f} | "
                   f"{r['rows_time'] / (r['mesh'] + r['K']):.2f} | {r['gmsh']:.1f} |",

@@ -76,13 +76,31 @@ def _graded_sizes(bodies: list[tuple[int, float]], dim: int, h_far: float, refin
     gmsh.option.setNumber("Mesh.MeshSizeMax", h_far)
 
 
+def _transfinite(dim: int, body: int, h: float) -> None:
+    """A structured grid of quadrilaterals/hexahedra of about size h in a box-shaped body."""
+    faces = gmsh.model.getBoundary([(dim, body)], combined=False, oriented=False)
+    surfaces = [t for _, t in faces] if dim == 3 else [body]
+    curves = {abs(t) for _, t in gmsh.model.getBoundary(
+        [(2, s) for s in surfaces], combined=False, oriented=False)}
+    for c in sorted(curves):
+        length = gmsh.model.occ.getMass(1, c)
+        gmsh.model.mesh.setTransfiniteCurve(c, max(int(round(length / h)), 1) + 1)
+    for s_ in surfaces:
+        gmsh.model.mesh.setTransfiniteSurface(s_)
+        gmsh.model.mesh.setRecombine(2, s_)
+    if dim == 3:
+        gmsh.model.mesh.setTransfiniteVolume(body)
+
+
 def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
-                   width: float = 1.0, height: float = 1.0, gap: float = 0.0) -> dict:
+                   width: float = 1.0, height: float = 1.0, gap: float = 0.0,
+                   recombine: bool = False) -> dict:
     """Two boxes, one on top of the other, meshed independently (non-matching interface).
 
     "lower" = [0, width]^(dim−1) × [0, height], "upper" the same box shifted up by
     height + gap (the last coordinate is vertical). Unstructured simplices of size h_lower and
-    h_upper.
+    h_upper, or with ``recombine`` structured (transfinite) quadrilaterals or hexahedra of
+    about those sizes.
 
     Physical groups: bodies "lower" (tag 1) and "upper" (2); boundary groups "bottom" (11, the
     lower box's base), "lower_top" (12), "upper_bottom" (13), "top" (14, the upper box's top),
@@ -95,6 +113,7 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
         width: Horizontal size of the boxes.
         height: Vertical size of the boxes.
         gap: Initial gap between the boxes.
+        recombine: Quadrilaterals (2D) or hexahedra (3D) instead of simplices.
     """
     if dim not in (2, 3) or min(h_lower, h_upper, width, height) <= 0 or gap < 0:
         raise ValueError(f"stacked_blocks: bad sizes dim={dim}, h={h_lower}/{h_upper}, "
@@ -116,6 +135,9 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
     gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
     _size_in([(dim, lower)], h_lower)
     _size_in([(dim, upper)], h_upper)
+    if recombine:
+        for body, h in ((lower, h_lower), (upper, h_upper)):
+            _transfinite(dim, body, h)
     top = z1 + height
     w = [width] * (dim - 1)
     z = [0.0] * (dim - 1)

@@ -18,7 +18,7 @@ import numpy as np
 
 from .constraints.mortar import mean_facet_size, penetration
 from .constraints.mortar_rows import MortarInfo
-from .mesh.topology import nodal_normals_and_areas
+from .mesh.topology import facets_in_cell_order, nodal_normals_and_areas
 
 #: A penetration deeper than this times the mean facet size of the two surfaces gets a warning.
 PENETRATION_RTOL = 1e-2
@@ -60,15 +60,16 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
         if u.shape[1] != mesh.gdim:
             continue  # a scalar problem has no deformed geometry to check
         xd = mesh.x + u
-        S, M = mesh.facets(info.slave), mesh.facets(info.master)
+        S = facets_in_cell_order(mesh.cells, mesh.facets(info.slave), mesh.cell_type)
+        M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
         h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
         tol = PENETRATION_RTOL * h
         worst = 0.0
         count = 0
         for a, b in ((S, M), (M, S)):
-            nodes, normals, _ = nodal_normals_and_areas(xd, mesh.cells, a)
+            nodes, normals, _ = nodal_normals_and_areas(xd, mesh.cells, a, mesh.cell_type)
             depth = penetration(xd[nodes], normals, xd, mesh.cells, b,
-                                info.coupling.search_distance)
+                                info.coupling.search_distance, mesh.cell_type)
             count += int((depth > tol).sum())
             worst = max(worst, float(depth.max(initial=0.0)))
         summary["max_penetration"] = worst

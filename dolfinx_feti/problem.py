@@ -148,7 +148,8 @@ class Mortar:
     surface through the integrals of the slave's dual basis against the master's shape
     functions over the overlap of each slave facet with the master facets projected onto it
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
-    its facets' normals; the initial gap comes from the geometry (weighted).
+    its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
+    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -396,13 +397,14 @@ class ContactProblem:
                           ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
         _check_mesh(self.mesh, contact_groups, self.forms)
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and (self.degree != 1 or self.mesh.cell_type not in ("triangle",
-                                                                        "tetrahedron")):
+        if mortar and self.degree != 1:
             raise InputError(
                 f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                "implemented for degree 1 on triangles and tetrahedra, not for degree "
-                f"{self.degree} on {self.mesh.cell_type} cells: use NodeToNode (matching "
-                "meshes) or RigidObstacle there")
+                f"implemented for degree 1 (any cell type), not for degree {self.degree} on "
+                f"{self.mesh.cell_type} cells: the dual multiplier basis of quadratic facets "
+                "needs a basis transformation to keep positive weights (Popp, Wohlmuth, Gee "
+                "and Wall 2012); use NodeToNode (matching meshes) or RigidObstacle there, "
+                "or degree 1")
         if contact_groups and np.any(self.dof_points.facet_weights <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "

@@ -1,15 +1,17 @@
 """Mortar coupling of two non-matching surfaces: contact search, segment-to-segment integrals.
 
 For a slave surface Γs and a master surface Γm (first-order facets: segments in 2D, triangles
-in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers on the slave side
-(Wohlmuth 2000; Popp, Gee and Wall 2009; Puso and Laursen 2004)::
+or quadrilaterals in 3D) this module computes, with dual (biorthogonal) Lagrange multipliers
+on the slave side (Wohlmuth 2000; Popp, Gee and Wall 2009; Puso and Laursen 2004)::
 
     D_j  = ∫_Γs N_j                     (diagonal: ∫ ψ_j N_k = δ_jk ∫ N_k)
     M_jk = ∫_{Γs ∩ π(Γm)} ψ_j N_k^m∘π   (π: projection onto the slave facet's plane)
 
-with ψ_j = 3N_j − 1 on a segment and ψ_j = 4N_j − 1 on a triangle. Each overlap of a slave
-facet with a master facet projected onto the slave facet's plane along its normal is computed
-exactly (an interval in 2D; Sutherland–Hodgman clipping of two triangles in 3D), cut into
+with ψ_j = 3N_j − 1 on a segment and ψ_j = 4N_j − 1 on a triangle (bilinear quadrilaterals,
+the facets of hexahedra, get a dual basis of their own per facet: :mod:`.mortar_quad`). Each
+overlap of a slave facet with a master facet projected onto the slave facet's plane along its
+normal is computed exactly (an interval in 2D; Sutherland–Hodgman clipping of two triangles
+in 3D, :mod:`.clipping`), cut into
 triangles and integrated with a rule exact for the product of two linear functions. All
 pairs are processed at once: the loops run over the vertices of a facet, never over facets.
 
@@ -38,7 +40,9 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..mesh.topology import facet_normals, nodal_normals_and_areas
+from ..mesh.topology import facet_normals, facets_in_cell_order, nodal_normals_and_areas
+from . import mortar_quad
+from .clipping import clip_polygons
 
 #: A slave node gets a row when Σ_k M_jk >= COVERAGE_MIN · D_j.
 COVERAGE_MIN = 0.5
@@ -97,7 +101,9 @@ class MortarCoupling:
 
 
 def mean_facet_size(x: np.ndarray, facets: np.ndarray) -> float:
-    """Mean edge length of a set of facets."""
+    """Mean edge length of a set of facets (quadrilaterals in tensor order)."""
+    if facets.shape[1] == 4:
+        facets = facets[:, mortar_quad.CYCLIC]
     e = x[np.roll(facets, -1, axis=1)] - x[facets]
     return float(np.mean(np.linalg.norm(e, axis=2)))
 
@@ -116,18 +122,21 @@ def default_search_distance(x: np.ndarray, slave: np.ndarray, master: np.ndarray
 
 
 def surface_rim(facets: np.ndarray) -> np.ndarray:
-    """Nodes on the boundary of a surface (of edges in one facet only; ends of a 2D curve)."""
+    """Nodes on the boundary of a surface (of edges in one facet only; ends of a 2D curve).
+
+    Quadrilateral facets are taken in tensor order (:func:`.topology.facets_in_cell_order`).
+    """
     if facets.shape[1] == 2:
         nodes, count = np.unique(facets, return_counts=True)
         return nodes[count == 1]
-    edges = np.sort(np.concatenate([facets[:, [0, 1]], facets[:, [1, 2]], facets[:, [2, 0]]]),
-                    axis=1)
+    cyc = facets[:, mortar_quad.CYCLIC] if facets.shape[1] == 4 else facets
+    edges = np.sort(np.stack([cyc.ravel(), np.roll(cyc, -1, axis=1).ravel()], axis=1), axis=1)
     uniq, count = np.unique(edges, axis=0, return_counts=True)
     return np.unique(uniq[count == 1])
 
 
-def open_rim(x: np.ndarray, cells: np.ndarray, group: np.ndarray, boundary: np.ndarray
-             ) -> np.ndarray:
+def open_rim(x: np.ndarray, cells: np.ndarray, group: np.ndarray, boundary: np.ndarray,
+             cell_type: str | None = None) -> np.ndarray:
     """The rim nodes of a surface where the body's boundary goes on smoothly beyond it.
 
     A surface that ends at an edge of its body (a corner in 2D) ends where the body does; one
@@ -139,15 +148,16 @@ def open_rim(x: np.ndarray, cells: np.ndarray, group: np.ndarray, boundary: np.n
         cells: Cells (to orient normals).
         group: The surface's facets.
         boundary: All boundary facets of the mesh.
+        cell_type: The cells' type (simplices when None).
     """
-    rim = surface_rim(group)
+    rim = surface_rim(facets_in_cell_order(cells, group, cell_type))
     if rim.size == 0:
         return rim
-    nodes, normals, _ = nodal_normals_and_areas(x, cells, group)
+    nodes, normals, _ = nodal_normals_and_areas(x, cells, group, cell_type)
     n_rim = normals[np.searchsorted(nodes, rim)]
     key = np.sort(group, axis=1)
     others = boundary[~_rows_in(np.sort(boundary, axis=1), key)]
-    nb, _ = facet_normals(x, cells, others)
+    nb, _ = facet_normals(x, cells, others, cell_type)
     # Pairs (rim node, other boundary facet that contains it).
     hit = np.isin(others, rim)
     f_idx, v_idx = np.nonzero(hit)
@@ -264,53 +274,6 @@ def _segment_integrals(x, slave, master, i, j):
     return rows, cols, vals.ravel(), i.size
 
 
-def _clip(subject: np.ndarray, count: np.ndarray, clip: np.ndarray) -> tuple[np.ndarray,
-                                                                             np.ndarray]:
-    """Sutherland–Hodgman clipping of many polygon pairs at once.
-
-    Convex polygons ``subject`` (P, V, 2) with ``count`` vertices each are clipped by
-    counter-clockwise triangles ``clip`` (P, 3, 2); returns the polygons and their counts.
-    A polygon clipped away by one edge stays empty: only the others are carried on.
-    """
-    P = subject.shape[0]
-    alive = np.flatnonzero(count > 0)
-    subject, count, clip = subject[alive], count[alive], clip[alive]
-    for e in range(3):
-        p0, p1 = clip[:, e], clip[:, (e + 1) % 3]
-        edge = p1 - p0
-
-        def side(v, p0=p0, edge=edge):  # > 0 inside (left of a counter-clockwise edge)
-            return edge[..., 0] * (v[..., 1] - p0[..., 1]) - edge[..., 1] * (v[..., 0] - p0[..., 0])
-
-        n, V = subject.shape[:2]
-        rng = np.arange(n)
-        out = np.zeros((n, 2 * V, 2))
-        n_out = np.zeros(n, dtype=np.int64)
-        for k in range(V):
-            valid = k < count
-            cur = subject[:, k]
-            nxt = subject[rng, (k + 1) % np.maximum(count, 1)]
-            sc, sn = side(cur), side(nxt)
-            inc, inn = sc >= 0.0, sn >= 0.0
-            denom = np.where(sc - sn == 0.0, 1.0, sc - sn)
-            cross = cur + (sc / denom)[:, None] * (nxt - cur)
-            put = valid & (inc != inn)  # the edge crosses the clip line: its crossing point
-            out[rng[put], n_out[put]] = cross[put]
-            n_out += put
-            put = valid & inn  # the end point is inside
-            out[rng[put], n_out[put]] = nxt[put]
-            n_out += put
-        # At most V + 3 vertices survive the three edges: keep only the columns in use.
-        subject, count = out[:, :max(int(n_out.max(initial=0)), 1)], n_out
-        live = count > 0
-        alive, subject, count, clip = alive[live], subject[live], count[live], clip[live]
-    poly = np.zeros((P, subject.shape[1], 2))
-    poly[alive] = subject
-    counts = np.zeros(P, dtype=np.int64)
-    counts[alive] = count
-    return poly, counts
-
-
 def _triangle_integrals(x, slave, ns, master, i, j):
     """3D: (slave node, master node, M entry) of each pair's overlap polygon."""
     a = x[slave[i, 0]]
@@ -328,7 +291,7 @@ def _triangle_integrals(x, slave, ns, master, i, j):
         (S[:, 1, 1] - S[:, 0, 1]) * (S[:, 2, 0] - S[:, 0, 0])
     S = np.where((ccw < 0)[:, None, None], S[:, ::-1], S)  # guard: clip by a ccw triangle
     s_perm = np.where(ccw < 0, 1, 0)
-    poly, count = _clip(Mp, np.full(i.size, 3), S)
+    poly, count = clip_polygons(Mp, np.full(i.size, 3), S)
     # Affine maps plane → barycentric coordinates of the slave and the master triangle.
     def bary_map(T):
         E = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], axis=2)  # columns
@@ -379,28 +342,37 @@ def _triangle_integrals(x, slave, ns, master, i, j):
 
 
 def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
-                    search_distance: float | None = None) -> MortarCoupling:
+                    search_distance: float | None = None, cell_type: str | None = None
+                    ) -> MortarCoupling:
     """Search and integrate the mortar coupling of two surfaces of a mesh.
 
     Args:
         x: Node coordinates (N, gdim).
         cells: Cells (to orient the facets' outward normals).
-        slave: Slave facets (F_s, gdim) as node numbers.
-        master: Master facets (F_m, gdim).
+        slave: Slave facets as node numbers: segments (2D), triangles or quadrilaterals (3D).
+        master: Master facets, of the same kind.
         search_distance: How far apart (along the slave normal, either side) two facets may be
             and still be coupled; :func:`default_search_distance` when None.
+        cell_type: The cells' type (simplices when None).
 
     Returns:
         The coupling (see :class:`MortarCoupling`).
     """
-    ns, _ = facet_normals(x, cells, slave)
-    nm, _ = facet_normals(x, cells, master)
-    nodes, normals, D = nodal_normals_and_areas(x, cells, slave)
+    slave = facets_in_cell_order(cells, slave, cell_type)
+    master = facets_in_cell_order(cells, master, cell_type)
+    ns, _ = facet_normals(x, cells, slave, cell_type)
+    nm, _ = facet_normals(x, cells, master, cell_type)
+    nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if search_distance is None:
         search_distance = default_search_distance(x, slave, master)
     i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
     if x.shape[1] == 2:
         r, c, v, npairs = _segment_integrals(x, slave, master, i, j)
+    elif slave.shape[1] == 4:
+        A, De = mortar_quad.dual_basis(x[slave])
+        D = np.zeros(nodes.size)  # ∫ N_j exactly (the lumped area is exact on parallelograms)
+        np.add.at(D, np.searchsorted(nodes, slave), De)
+        r, c, v, npairs = mortar_quad.pair_integrals(x, slave, ns, A, master, i, j)
     else:
         r, c, v, npairs = _triangle_integrals(x, slave, ns, master, i, j)
     row = np.searchsorted(nodes, r)
@@ -413,7 +385,7 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
 
 
 def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.ndarray,
-                facets: np.ndarray, depth: float) -> np.ndarray:
+                facets: np.ndarray, depth: float, cell_type: str | None = None) -> np.ndarray:
     """How deep each point lies behind a surface (0 where it does not).
 
     A point counts as behind a facet when its foot along the facet's normal falls inside the
@@ -427,10 +399,15 @@ def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.nda
         cells: Cells of that mesh (to orient its facets).
         facets: The other surface's facets.
         depth: The largest depth that counts.
+        cell_type: The cells' type (simplices when None).
     """
     if p.shape[0] == 0:
         return np.zeros(0)
-    nf, _ = facet_normals(x, cells, facets)
+    nf, _ = facet_normals(x, cells, facets, cell_type)
+    if facets.shape[1] == 4:  # a quadrilateral as two triangles (a check, not an integral)
+        cyc = facets_in_cell_order(cells, facets, cell_type)[:, mortar_quad.CYCLIC]
+        facets = np.concatenate([cyc[:, [0, 1, 2]], cyc[:, [0, 2, 3]]])
+        nf = np.concatenate([nf, nf])
     centre = x[facets].mean(axis=1)
     k = min(16, facets.shape[0])
     _, cand = cKDTree(centre).query(p, k=k)

@@ -64,7 +64,7 @@ def _coupling(mesh: MeshData, slave: str, master: str, search_distance) -> Morta
     surface(mesh, slave)  # a surface that is no boundary of a body is refused by name here
     surface(mesh, master)
     return mortar_coupling(mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master),
-                           search_distance)
+                           search_distance, mesh.cell_type)
 
 
 def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
@@ -74,8 +74,8 @@ def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling)
     is coupled to a node of that rim.
     """
     boundary, _ = boundary_facets(mesh)
-    s_rim = open_rim(mesh.x, mesh.cells, mesh.facets(slave), boundary)
-    m_rim = open_rim(mesh.x, mesh.cells, mesh.facets(master), boundary)
+    s_rim = open_rim(mesh.x, mesh.cells, mesh.facets(slave), boundary, mesh.cell_type)
+    m_rim = open_rim(mesh.x, mesh.cells, mesh.facets(master), boundary, mesh.cell_type)
     keep = coupling.coupled
     nodes = coupling.slave_nodes
     partial = coupling.coverage < 1.0 - COVERAGE_FULL_TOL

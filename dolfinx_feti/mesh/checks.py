@@ -189,7 +189,7 @@ def overlapping_cells(mesh: MeshData, neighbours: int = 12) -> tuple[np.ndarray,
     x, cells, tdim = mesh.x, mesh.cells, mesh.tdim
     if len(mesh.body_names) < 2 or mesh.gdim != tdim or cells.shape[0] < 2:
         return none
-    pts = x[cells]  # (C, tdim + 1, gdim)
+    pts = x[cells]  # (C, vertices, gdim)
     centre = pts.mean(axis=1)
     inner = np.unique(boundary_facets(mesh)[1])
     k = min(neighbours, cells.shape[0])
@@ -199,11 +199,23 @@ def overlapping_cells(mesh: MeshData, neighbours: int = 12) -> tuple[np.ndarray,
     outer, inner = outer[other], inner[other]
     if outer.size == 0:
         return none
-    T = np.swapaxes(pts[outer, 1:] - pts[outer, :1], 1, 2)  # (P, gdim, tdim) edge vectors
-    lam = np.linalg.solve(T, (centre[inner] - pts[outer, 0])[:, :, None])[:, :, 0]
-    bary = np.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
-    inside = bary.min(axis=1) > 1e-9
+    # A quadrilateral/hexahedron is tested as its Kuhn simplices (2 or 6, about the diagonal
+    # from vertex 0 to the last one in tensor order), a simplex as itself.
+    split = _KUHN.get(mesh.cell_type, [list(range(tdim + 1))])
+    inside = np.zeros(outer.size, dtype=bool)
+    for simplex in split:  # over the 1 to 6 simplices of a cell, not over cells
+        q = pts[outer][:, simplex]
+        T = np.swapaxes(q[:, 1:] - q[:, :1], 1, 2)  # (P, gdim, tdim) edge vectors
+        lam = np.linalg.solve(T, (centre[inner] - q[:, 0])[:, :, None])[:, :, 0]
+        bary = np.concatenate([1.0 - lam.sum(axis=1, keepdims=True), lam], axis=1)
+        inside |= bary.min(axis=1) > 1e-9
     return inner[inside], outer[inside]
+
+
+#: Kuhn simplices of a quadrilateral and a hexahedron (tensor-order vertices).
+_KUHN = {"quadrilateral": [[0, 1, 3], [0, 2, 3]],
+         "hexahedron": [[0, 1 << a, (1 << a) | (1 << b), 7]
+                        for a in range(3) for b in range(3) if a != b]}
 
 
 def _check_bodies_apart(mesh: MeshData) -> None:

@@ -134,6 +134,24 @@ def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None =
     return np.where(hit, flat // nf, -1), np.where(hit, flat % nf, -1)
 
 
+def facets_in_cell_order(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None
+                         ) -> np.ndarray:
+    """The facets' vertices in the order of the reference facet of a cell that holds them.
+
+    For quadrilateral facets (of hexahedra) that is the tensor order ``(0, 0), (1, 0),
+    (0, 1), (1, 1)`` of their bilinear map; segments and triangles are returned as given.
+
+    Raises:
+        ValueError: If a facet belongs to no cell.
+    """
+    if facets.shape[1] != 4:
+        return facets
+    cell, local = locate_facets(cells, facets, cell_type)
+    if np.any(cell < 0):
+        raise ValueError("facets that belong to no cell")
+    return cells[cell[:, None], np.array(reference(cells, cell_type).facets)[local]]
+
+
 def facet_normals(x: np.ndarray, cells: np.ndarray, facets: np.ndarray,
                   cell_type: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Outward unit normals and measures (length/area) of boundary facets.
