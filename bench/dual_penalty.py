@@ -47,7 +47,7 @@ SEED_N = (16, 256, 1024)
 def measures(sol: df.Solution, lam_ref: np.ndarray | None) -> dict:
     """The penalty measures of one solution (collective)."""
     comm = MPI.COMM_WORLD
-    feti = sol.feti
+    feti = sol.dual
     ocon = qp.orthonormalize(qp.RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
     lam_hat = feti.d.duplicate()
     qp.homogenize(ocon, lam_hat)
@@ -59,10 +59,8 @@ def measures(sol: df.Solution, lam_ref: np.ndarray | None) -> dict:
     mu = sol.lam.copy()
     mu.axpy(-1.0, lam_hat)
     G_mu = ocon.base.mult(mu)  # G with the orthonormal R_i = 1/sqrt(n_i)
-    sizes = np.zeros(len(feti.e))
-    for s, R in feti.R.items():
-        sizes[s] = R.shape[0]  # scalar problem: one kernel vector per subdomain
-    sizes = comm.allreduce(sizes, op=MPI.SUM)
+    # scalar problem: one kernel vector per subdomain, nonzero on its n_i dofs
+    sizes = comm.allreduce(np.diff(feti.R.tocsc().indptr).astype(float), op=MPI.SUM)
     Pd = Pb.norm()
     out = {"Gt": float(np.linalg.norm(ocon.mult(mu))) / Pd,
            "G1": float(np.linalg.norm(np.sqrt(sizes) * G_mu)) / Pd,

@@ -72,7 +72,7 @@ def split(name: str, problem: df.ContactProblem, repeat: int) -> str:
     zr = np.empty_like(zl)
 
     t_pfp = timed(lambda: qp.A.mult(x, y), repeat)
-    t_solve = timed(feti.Kplus._chol.solve_in_place, repeat)
+    t_solve = timed(feti.primal.Kplus._chol.solve_in_place, repeat)
     t_b = timed(lambda: (feti.B.multTranspose(x, w), feti.B.mult(v, y)), repeat)
     t_comm = timed(lambda: (sc.scatter(src, dst), sc.scatter(src, dst)), repeat)
     t_local = timed(lambda: (base._D_local @ x.array_r, base.Dt_local @ z), repeat)
@@ -82,7 +82,7 @@ def split(name: str, problem: df.ContactProblem, repeat: int) -> str:
              "proj. local": 2 * t_local, "proj. Allreduce": 2 * t_allred,
              "coarse solves": 2 * t_coarse}
     parts["rest"] = t_pfp - sum(parts.values())
-    sizes = (f"{feti.primal_size[1]} / {feti.dual_size[1]} / {feti.coarse_size[1]} "
+    sizes = (f"{feti.primal_size[1]} / {feti.dual_size[1]} / {feti.coarse_size} "
              f"({ocon.method})")
     cells = " | ".join(f"{1e3 * t:.2f}" for t in parts.values())
     return f"| {name} | {COMM.size} | {sizes} | {1e3 * t_pfp:.2f} | {cells} |"

@@ -40,10 +40,12 @@ def grid(H: float) -> df.ByFunction:
     return df.ByFunction(label)
 
 
-def run(H: Fraction, hh: int, g: float, rtol: float, comm) -> dict:
+def run(H: Fraction, hh: int, g: float, rtol: float, comm, method: str = "tfeti",
+        preconditioner: str | None = None, expansion: str | None = None) -> dict:
     n = int(hh / H)  # elements per unit length
     mesh = df.build_mesh(meshes.tresca2d, n=n, comm=comm)
-    row = {"H": str(H), "H/h": hh, "n": n}
+    row = {"H": str(H), "H/h": hh, "n": n, "method": method,
+           "preconditioner": preconditioner or "default", "expansion": expansion or "default"}
     for name, friction in (("frictionless", None), ("tresca", df.Tresca(g))):
         problem = df.ContactProblem(
             mesh, df.Elasticity(E, NU),
@@ -51,11 +53,15 @@ def run(H: Fraction, hh: int, g: float, rtol: float, comm) -> dict:
             contact=[df.NodeToNode("block_bottom", "foundation_top", friction=friction)],
             decomposition=grid(float(H)))
         t0 = time.perf_counter()
-        sol = df.solve(problem, comm=comm, rtol=rtol, max_it=20000, max_outer=1000)
+        sol = df.solve(problem, comm=comm, rtol=rtol, max_it=20000, max_outer=1000,
+                       method=method, preconditioner=preconditioner,
+                       mprgp_expansion=expansion)
         t = time.perf_counter() - t0
         r = sol.report
         row.update({"subdomains": r.sizes["subdomains"], "primal": r.sizes["primal"],
-                    "dual": r.sizes["dual"], "contact_nodes": r.sizes["inequality"]})
+                    "dual": r.sizes.get("dual_method", r.sizes["dual"]),
+                    "contact_nodes": r.sizes["inequality"],
+                    "corners": r.sizes.get("corner_nodes", "")})
         row[name] = {"converged": r.converged, "outer": r.outer_iterations,
                      "iterations": r.iterations, "hessian_mults": r.hessian_mults,
                      "time": round(t, 3)}
@@ -73,25 +79,38 @@ def main() -> None:
                         help="subdomain sizes (comma-separated fractions)")
     parser.add_argument("--g", type=float, default=0.1, help="Tresca slip bound")
     parser.add_argument("--rtol", type=float, default=1e-6)
+    parser.add_argument("--methods", type=str, default="tfeti",
+                        help="FETI methods, comma-separated (tfeti, feti1, fetidp)")
+    parser.add_argument("--preconditioners", type=str, default="default",
+                        help="preconditioners, comma-separated ('default': the library's)")
+    parser.add_argument("--expansion", type=str, default=None,
+                        help="MPRGP's expansion step (fixed, optimal, projcg; default: the "
+                             "library's)")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/friction_scaling.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     rows = []
-    for H in (Fraction(s) for s in args.H.split(",")):
-        rows.append(run(H, args.hh, args.g, args.rtol, comm))
-        if comm.rank == 0:
-            print(json.dumps(rows[-1]), flush=True)
+    for method in args.methods.split(","):
+        for pre in args.preconditioners.split(","):
+            for H in (Fraction(s) for s in args.H.split(",")):
+                rows.append(run(H, args.hh, args.g, args.rtol, comm, method,
+                                None if pre == "default" else pre, args.expansion))
+                if comm.rank == 0:
+                    print(json.dumps(rows[-1]), flush=True)
     lines = [
-        f"B4, H/h = {args.hh}, Tresca g = {args.g}, rtol = {args.rtol:g}, {comm.size} rank(s)",
+        f"B4, H/h = {args.hh}, Tresca g = {args.g}, rtol = {args.rtol:g}, {comm.size} rank(s), "
+        f"MPRGP expansion {args.expansion or 'default'}",
         "",
-        "| H | subdomains | primal dofs | dual dofs | contact nodes | frictionless: outer / "
-        "F-mults / s | Tresca: outer / F-mults / s | slipping |",
-        "|---|---|---|---|---|---|---|---|",
+        "| method | preconditioner | H | subdomains | primal dofs | dual dofs | corners | "
+        "contact nodes | frictionless: outer / F-mults / s | Tresca: outer / F-mults / s | "
+        "slipping |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         f, t = r["frictionless"], r["tresca"]
         lines.append(
-            f"| {r['H']} | {r['subdomains']} | {r['primal']} | {r['dual']} | "
+            f"| {r['method']} | {r['preconditioner']} | {r['H']} | {r['subdomains']} | "
+            f"{r['primal']} | {r['dual']} | {r['corners']} | "
             f"{r['contact_nodes']} | {f['outer']} / {f['hessian_mults']} / {f['time']:.2f} | "
             f"{t['outer']} / {t['hessian_mults']} / {t['time']:.2f} | "
             f"{100 * t['slip_share']:.0f} % |"

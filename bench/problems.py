@@ -8,6 +8,7 @@ Problems:
 
 - :func:`b1` — Dostál's two membranes (BENCHMARKS.md B1) on an n×n grid per membrane, with a
   regular H×H decomposition (or one subdomain per membrane).
+- :func:`b1_held` — B1 with the right membrane held on x = 2 too (coercive: every body held).
 - :func:`hertz2d` — the 2D Hertz half model of ``demos/demo_hertz2d.py`` (disk R = 8 on a
   20×20 block, E = 200, ν = 0.3, line load 10), cut into ``Parts(parts)``.
 - :func:`blocks3d` — two stacked 3D blocks (E = 1000, ν = 0.3, top traction (0, 0, −1)),
@@ -56,6 +57,21 @@ def gmsh_mesh(build: Callable[[], object], comm: MPI.Comm = MPI.COMM_WORLD) -> d
 def membranes_mesh(n: int) -> df.MeshData:
     """B1's two unit squares, n×n grid each (cached)."""
     return gmsh_mesh(lambda: meshes.membranes(n))
+
+
+def _membranes_held_model(n: int) -> None:
+    """B1's membranes with one more group: "right_end" (1, 14) = {2}×[0,1]."""
+    meshes.membranes(n)
+    curves = gmsh.model.getEntitiesInBoundingBox(2.0 - 1e-9, -1e-9, -1.0, 2.0 + 1e-9,
+                                                 1.0 + 1e-9, 1.0, dim=1)
+    gmsh.model.addPhysicalGroup(1, [c[1] for c in curves], 14)
+    gmsh.model.setPhysicalName(1, 14, "right_end")
+
+
+@functools.lru_cache(maxsize=4)
+def membranes_held_mesh(n: int) -> df.MeshData:
+    """B1's two unit squares with the group "right_end" on x = 2 (cached)."""
+    return gmsh_mesh(lambda: _membranes_held_model(n))
 
 
 @functools.lru_cache(maxsize=4)
@@ -152,6 +168,18 @@ def b1(n: int, H: float | None) -> df.ContactProblem:
         decomposition=df.ByTags() if H is None else grid(H))
 
 
+def b1_held(n: int, H: float | None) -> df.ContactProblem:
+    """The coercive variant of B1: the right membrane held too, u_2 = 0 on {2}×[0,1].
+
+    Every body is held, so FETI-DP's K̃ is positive definite (no coarse space on the dual).
+    """
+    return df.ContactProblem(
+        membranes_held_mesh(n), df.Poisson(source=b1_source),
+        dirichlet=[df.Dirichlet("dirichlet"), df.Dirichlet("right_end")],
+        contact=[df.NodeToNode("contact_left", "contact_right")],
+        decomposition=df.ByTags() if H is None else grid(H))
+
+
 def b1_linear(n: int, H: float | None) -> df.ContactProblem:
     """B1's linear floor: the same mesh, load and decomposition, the contact surfaces clamped.
 
@@ -177,7 +205,8 @@ def hertz2d(parts: int = 4, h_contact: float = 0.05, h_far: float = 1.0,
         decomposition=decomposition or df.Parts(parts))
 
 
-def blocks3d(n: int = 4, parts: int = 2, sides: bool = True) -> df.ContactProblem:
+def blocks3d(n: int = 4, parts: int = 2, sides: bool = True,
+             decomposition=None) -> df.ContactProblem:
     """Two stacked 3D blocks, lower clamped at the bottom, top traction (0, 0, −1).
 
     sides: rollers (u_x = u_y = 0) on the upper block's sides; without them the upper block's
@@ -189,7 +218,7 @@ def blocks3d(n: int = 4, parts: int = 2, sides: bool = True) -> df.ContactProble
     return df.ContactProblem(
         blocks3d_mesh(n), df.Elasticity(1000.0, 0.3, tractions={"top": (0.0, 0.0, -1.0)}),
         dirichlet=dirichlet, contact=[df.NodeToNode("contact_upper", "contact_lower")],
-        decomposition=df.Parts(parts))
+        decomposition=decomposition or df.Parts(parts))
 
 
 def squares2d_body_force(x):

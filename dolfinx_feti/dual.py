@@ -1,13 +1,26 @@
-"""The dual QP of Total FETI, as a plain QP that any bound-constrained solver can take.
+"""The dual QP of a FETI method, as a plain QP that any bound-constrained solver can take.
 
-After dualization, homogenization (λ = λ̂ + x with G λ̂ = e) and projection the problem is
+The chain of transforms (:mod:`dolfinx_feti.feti`) for each method:
+
+- ``"tfeti"`` (Total FETI): dualize → homogenize → project; every subdomain floats, Dirichlet
+  conditions are rows of B;
+- ``"feti1"``: eliminate Dirichlet conditions → dualize → homogenize → project; only floating
+  subdomains have a kernel;
+- ``"fetidp"``: eliminate Dirichlet conditions → eliminate corners → dualize, and homogenize →
+  project only when a body floats (else there is no equality constraint on the dual).
+
+``"auto"`` picks one of them by :func:`choose_method` once the rows are known.
+
+After it the problem is
 
     min 1/2 xᵀ A x − bᵀ x   s.t.   x ≥ lb on the inequality rows,   G̃ x = 0,
 
 with ``A = P F P`` (a PETSc shell Mat), ``b = P (d − F λ̂)``, ``lb = −λ̂`` on the inequality
-rows (``−inf`` elsewhere) and ``G̃`` the orthonormalized natural coarse space. :func:`solve`
-runs our solvers on it; :func:`dual_qp` hands the same objects to anyone else (e.g. PETSc TAO
-in ``bench/peers``), so that solvers are compared on one problem.
+rows (``−inf`` elsewhere) and ``G̃`` the orthonormalized natural coarse space (no rows when
+nothing floats). :func:`solve` runs our solvers on it; :func:`dual_qp` hands the same objects
+to anyone else (e.g. PETSc TAO in ``bench/peers``), so that solvers are compared on one
+problem; :meth:`DualQP.map_back` turns a dual solution into the primal one of the original
+problem.
 """
 
 from __future__ import annotations
@@ -18,9 +31,15 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .constraints import build_rows
+from .constraints import Kind, build_rows
+from .constraints.dirichlet import dirichlet_mask
 from .errors import InputError, collective
-from .feti import TotalFETI
+from .fem.assembly import assemble_subdomains
+from .fem.corners import choose_corners, floating_motions, primal_components
+from .feti.corners import EliminateCorners
+from .feti.dualize import Dualization
+from .feti.system import INEQUALITY, BlockSystem
+from .feti.transforms import EliminateDirichlet
 from .mesh.decompose import decompose
 from .problem import ContactProblem
 from .qp import (
@@ -37,15 +56,32 @@ from .timing import Timer
 #: (:func:`_unbalanced`), means the load cannot be balanced (e ∉ Im G).
 BALANCE_TOL = 1e-8
 
+#: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
+CORNERS_ON_CONTACT = True
+#: FETI-DP in 3D: the edges (interface nodes outside the two-subdomain faces) primal, whole.
+#: Vertices alone leave F badly conditioned in 3D: on the rigid sphere S2 (bench/
+#: hertz3d_fetidp.py) 328 / 115 F-mults with Parts(4) / Parts(16) against 52 / 47 with edges.
+CORNER_EDGES = True
+
+#: The FETI methods.
+METHODS = ("tfeti", "feti1", "fetidp")
+
 
 @dataclass
 class DualQP:
     """The homogenized, projected dual QP of one problem and the FETI objects behind it.
 
     Attributes:
-        feti: The Total FETI operators (``F``, ``B``, ``d``, ``e``, kernels, primal recovery).
+        feti: The dual operators (``F``, ``B``, ``d``, ``e``, kernels, primal recovery) of the
+            last primal problem of the chain.
+        system: The Total FETI system of the problem (all rows; what the solution is checked
+            against).
+        steps: The primal transforms (eliminate Dirichlet, eliminate corners), in order.
+        method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"``.
         dec: The decomposition.
-        rows: The constraint rows.
+        rows: The constraint rows (all of them).
+        row_index: Local indices, into the rows of ``system`` owned by this rank, of the rows
+            of this QP.
         constraint: ``G̃`` with orthonormal rows (:class:`.qp.RowBlockConstraint`).
         projector: ``P = I − G̃ᵀG̃``.
         A: ``P F P``.
@@ -56,13 +92,20 @@ class DualQP:
         norm_A: Lanczos estimate of ``||P F P||``.
         b_noise: Round-off level of ``b`` (a floor for absolute tolerances).
         warnings: Notes for the report (e.g. an unloaded rigid motion nothing fixes).
+        info: Sizes of the method (e.g. FETI-DP's corners).
         mortar: What the contact search found for each mortar condition
             (:class:`.constraints.mortar_rows.MortarInfo`).
+        copy_weight: Per local entry of ``system``'s primal vector, 1 / the number of subdomain
+            copies of its node (None: all ones).
     """
 
-    feti: TotalFETI
+    feti: Dualization
+    system: BlockSystem
+    steps: list
+    method: str
     dec: object
     rows: object
+    row_index: np.ndarray
     constraint: object
     projector: Projector
     A: PETSc.Mat
@@ -73,7 +116,9 @@ class DualQP:
     norm_A: float
     b_noise: float
     warnings: list[str]
+    info: dict = field(default_factory=dict)
     mortar: list = field(default_factory=list)
+    copy_weight: np.ndarray | None = None
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -98,10 +143,38 @@ class DualQP:
         lam.axpy(1.0, self.lam_hat)
         return lam
 
+    @property
+    def primal(self):
+        """The primal problem that was dualized (the last of the chain)."""
+        return self.feti.primal
+
+    def free_motions(self, N: np.ndarray) -> np.ndarray:
+        """The motions R n_k (columns of ``N``: coarse vectors) in the layout of ``system``."""
+        Z = self.feti.R @ N
+        for step in reversed(self.steps):
+            Z = step.map_primal(Z)
+        return Z
+
+    def map_back(self, lam: PETSc.Vec, alpha: np.ndarray) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """(u, λ) of the original problem from the multipliers λ of this QP and α (collective).
+
+        ``u`` is the primal solution subdomain by subdomain (Dirichlet values included), ``λ``
+        the multipliers of all rows of ``system`` (those a transform removed recovered from
+        equilibrium).
+        """
+        u = self.feti.primal_solution(lam, alpha)
+        lam = lam.copy()
+        for step in reversed(self.steps):
+            u_new, lam_new = step.map_back(u, lam)
+            u.destroy()
+            lam.destroy()
+            u, lam = u_new, lam_new
+        return u, lam
+
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             factor: str | None = None, norm_rtol: float = 1e-4,
-            timer: Timer | None = None) -> DualQP:
+            timer: Timer | None = None, method: str = "tfeti") -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
 
     Args:
@@ -109,8 +182,9 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         comm: The ranks to spread the subdomains over.
         factor: Sparse Cholesky package for K⁺ (see :class:`.SolverOptions`).
         norm_rtol: Relative tolerance of the Lanczos estimate of ``||P F P||``.
-        timer: Records the phases ``decomposition``, ``assembly``, ``factorization`` and
-            ``coarse problem``; a new one if None.
+        timer: Records the phases ``decomposition``, ``assembly``, ``constraints``,
+            ``factorization``, ``dual operators`` and ``coarse problem``; a new one if None.
+        method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"`` (see the module docstring).
 
     Returns:
         The dual QP (collective objects on ``comm``).
@@ -118,16 +192,104 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     Raises:
         InputError: When the load on a floating body cannot be balanced (``e ∉ Im G``).
     """
+    if method not in (*METHODS, "auto"):
+        raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
     timer = Timer() if timer is None else timer
     with timer.phase("decomposition"):
         with collective(comm, "decomposition"):
-            dec = decompose(problem.mesh, problem.decomposition, comm,
-                                problem.dof_points)
+            dec = decompose(problem.mesh, problem.decomposition, comm, problem.dof_points)
         mortar = []
         with collective(comm, "constraints"):
             rows = build_rows(problem, dec, mortar)
-    feti = TotalFETI(problem, dec, rows, comm, timer, factor)
-    ineq = rows.inequality[feti.rows_local]
+            if method == "auto":
+                method = choose_method(problem, dec, rows)
+    data = assemble_subdomains(problem, dec, comm, timer)
+    info: dict = {}
+    with timer.phase("constraints"):
+        total = BlockSystem.from_rows(data, rows, dec)
+        steps: list = []
+        if method in ("feti1", "fetidp"):
+            steps.append(EliminateDirichlet(total, rows.kind[total.rows_local] == Kind.DIRICHLET))
+        if method == "fetidp":
+            mesh, bs = problem.mesh, problem.value_size
+            fixed, _ = dirichlet_mask(problem, mesh)
+            with collective(comm, "constraints"):  # local work on global arrays
+                avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
+                    rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
+                x = problem.dof_points.x
+                corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
+                                         edges=CORNER_EDGES and mesh.gdim == 3)
+                modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
+                                                 data.dof_comp, data.dof_sub, x,
+                                                 primal_components(mesh, dec))
+            steps.append(EliminateCorners(steps[-1].child,
+                                          corners.local(data.dof_node, data.dof_comp),
+                                          corners.count, modes, bodies))
+            info = {"corner_nodes": int(corners.nodes.size), "vertices": corners.vertices,
+                    "corner_dofs": corners.count}
+    qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
+                  timer=timer, dec=dec, rows=rows, info=info)
+    qp.mortar = mortar
+    count = np.diff(dec.node_subdomains()[0])
+    qp.copy_weight = 1.0 / count[data.dof_node]
+    return qp
+
+
+def choose_method(problem: ContactProblem, dec, rows) -> str:
+    """The method ``method="auto"`` picks (the rule of docs/solvers.md).
+
+    Derived from ``bench/method_choice.py`` (F-multiplications of every method on problems with
+    and without floating bodies, 2D and 3D, few and many subdomains):
+
+    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
+      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
+    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
+      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
+      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
+      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
+      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
+    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
+      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
+
+    Only global arrays are read (the same on every rank).
+    """
+    if not np.any(rows.kind == Kind.GLUE):
+        return "feti1"
+    fixed, _ = dirichlet_mask(problem, problem.mesh)
+    none = np.zeros(0, dtype=np.int64)
+    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size, none, none,
+                               none, problem.dof_points.x, primal_components(problem.mesh, dec))
+    return "tfeti" if free else "fetidp"
+
+
+def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
+             factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
+             dec=None, rows=None, info: dict | None = None) -> DualQP:
+    """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
+
+    Args:
+        total: The first system of the chain (Total FETI form: every row).
+        steps: The primal transforms applied to it, in order (each ``steps[i].parent`` is the
+            previous one's ``child``); may be empty.
+        method: The name of the method (for the report).
+        factor: Sparse Cholesky package.
+        norm_rtol: Relative tolerance of the Lanczos estimate of ``||P F P||``.
+        timer: Phase timers (a new one if None).
+        dec: The decomposition behind ``total``, if any.
+        rows: The constraint rows behind ``total``, if any.
+        info: Sizes of the method for the report.
+    """
+    timer = Timer() if timer is None else timer
+    comm = total.comm
+    system = steps[-1].child if steps else total
+    row_index = np.arange(total.dual_size[0])
+    for step in steps:
+        row_index = row_index[step.kept]
+    with timer.phase("factorization"):
+        system.factorize(factor, site="factorization")  # guarded inside (collective phases)
+    with timer.phase("dual operators"):
+        feti = Dualization(system)
+    ineq = system.types == INEQUALITY
     with timer.phase("coarse problem"):
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
         warnings = _check_balance(ocon, feti)
@@ -145,20 +307,20 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         norm = estimate_norm(A, b, rtol=norm_rtol)
         lb = b.duplicate()
         lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
-    return DualQP(feti=feti, dec=dec, rows=rows, constraint=ocon, projector=projector, A=A,
-                  b=b, lb=lb, lam_hat=lam_hat, ineq=ineq, norm_A=float(norm.value),
-                  b_noise=float(b_noise), warnings=warnings, mortar=mortar)
+    return DualQP(feti=feti, system=total, steps=steps, method=method, dec=dec, rows=rows,
+                  row_index=row_index, constraint=ocon, projector=projector, A=A, b=b, lb=lb,
+                  lam_hat=lam_hat, ineq=ineq, norm_A=float(norm.value),
+                  b_noise=float(b_noise), warnings=warnings, info=info or {})
 
 
-def _check_balance(ocon, feti: TotalFETI) -> list[str]:
+def _check_balance(ocon, feti: Dualization) -> list[str]:
     """Refuse a load that the constraints cannot balance; note undetermined motions."""
     N = ocon.null_space
     if N.shape[1] == 0:
         return []
-    mesh, dec, k = feti.problem.mesh, feti.dec, feti.k
-    weight = np.sqrt(np.add.reduceat(N**2, np.arange(0, N.shape[0], k), axis=0)).max(axis=1)
-    subs = np.flatnonzero(weight > 1e-6 * weight.max())
-    bodies = sorted({mesh.body_names[b] for b in dec.sub_body[subs]})
+    weight = np.abs(N).max(axis=1)
+    cols = np.flatnonzero(weight > 1e-6 * weight.max())
+    bodies = sorted({feti.kernel_bodies[i] for i in cols})
     ratio = _unbalanced(N, feti)
     if ratio > BALANCE_TOL:
         raise InputError(
@@ -173,21 +335,17 @@ def _check_balance(ocon, feti: TotalFETI) -> list[str]:
             "product): the same for every decomposition and number of ranks"]
 
 
-def _unbalanced(N: np.ndarray, feti: TotalFETI) -> float:
+def _unbalanced(N: np.ndarray, feti: Dualization) -> float:
     """The largest load component along a free rigid motion, relative to the load's size.
 
     ``|n_kᵀ e|`` against ``|n_k|ᵀ ẽ + ||e||`` with ``ẽ = |R|ᵀ |f|`` (the size of the terms
     summed in e = Rᵀf; ``||e||`` for the round-off of n_k itself): a self-equilibrated load
     has ``n_kᵀ e`` at round-off of ẽ, not of ``||e||``, which is itself round-off then.
     """
-    e_abs = np.zeros(feti.coarse_size[1])
-    f = np.abs(feti.f.array_r)
-    for s, seg in feti._segments():
-        e_abs[feti.k * s:feti.k * (s + 1)] = np.abs(feti.R[s]).T @ f[seg]
-    e_abs = feti.comm.allreduce(e_abs, op=MPI.SUM)
+    e_abs = feti.comm.allreduce(abs(feti.R).T @ np.abs(feti.f.array_r), op=MPI.SUM)
     scale = np.abs(N).T @ e_abs + np.linalg.norm(feti.e)
     along = np.abs(N.T @ feti.e)
     return float(np.max(along / np.maximum(scale, 1e-300), initial=0.0))
 
 
-__all__ = ["DualQP", "dual_qp"]
+__all__ = ["METHODS", "DualQP", "chain_qp", "dual_qp"]

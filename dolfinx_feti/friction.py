@@ -58,6 +58,15 @@ class FrictionSolve:
         self.info: dict = {}
         self._ub: PETSc.Vec | None = None
 
+    def relabel(self, index: np.ndarray) -> None:
+        """Renumber the local rows: local row ``i`` becomes ``index[i]``.
+
+        A transform that removes rows (FETI-1, FETI-DP) solves the QP on fewer rows than the
+        problem has; the friction rows are never among the removed ones.
+        """
+        self.t = index[self.t]
+        self.n = index[self.n]
+
     # --- the QP ----------------------------------------------------------------------------
     def bounds(self, lb: PETSc.Vec, lam_hat: PETSc.Vec):
         """Set the tangential entries of ``lb``; return ``(ub, discs, multiplier)``."""

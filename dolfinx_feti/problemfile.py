@@ -90,7 +90,8 @@ FRICTION_KEYS = {"tresca": ("type", "bound"),
 OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
                  "cylinder": ("point", "axis", "radius")}
 #: ``[decomposition]`` keys by decomposition type.
-DECOMPOSITION_KEYS = {"tags": ("type", "gluing"), "parts": ("type", "n", "method", "gluing"),
+DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
+                      "parts": ("type", "n", "method", "balance", "gluing"),
                       "grid": ("type", "size", "origin", "gluing")}
 #: ``[output]`` keys.
 OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
@@ -588,8 +589,9 @@ class _Reader:
         title = data.get("title", self.path.stem)
         if "title" in data:
             title = c.string(title, "title") or self.path.stem
-        if "method" in data:
-            c.string(data["method"], "method", ("tfeti",))
+        method = None
+        if "method" in data:  # the FETI method: the solver option ``method``, at the top
+            method = c.string(data["method"], "method", ("tfeti", "feti1", "fetidp", "auto"))
         mesh_source = self._mesh()
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \
@@ -599,6 +601,11 @@ class _Reader:
         ties = self._ties()
         decomposition, gluing = self._decomposition()
         solver = self._solver()
+        if method is not None:
+            if solver.get("method", method) != method:
+                c.fault("method", f"{method!r} here, but solver.method is "
+                        f"{solver['method']!r}: give it once")
+            solver["method"] = method
         output = self._output(contact)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
@@ -1074,7 +1081,9 @@ class _Reader:
                 n = c.number(n, _key(key, "n"), "an integer >= 1 (or a table body = integer)",
                              lambda v: v >= 1, integer=True)
             method = c.string(d.get("method", "rcb"), _key(key, "method"), ("rcb", "ptscotch"))
-            if n is None or method is None:
+            balance = c.string(d.get("balance", "cells"), _key(key, "balance"),
+                               ("cells", "volume"))
+            if n is None or method is None or balance is None:
                 return None, gluing
             if mesh is not None:
                 counts = np.bincount(mesh.cell_body, minlength=len(mesh.body_names))
@@ -1083,7 +1092,10 @@ class _Reader:
                     if nb > counts[b]:
                         c.fault(_key(key, "n"), f"{nb} parts for body {name!r}, which has only "
                                 f"{counts[b]} cells")
-            return Parts(n, method), gluing
+            if balance == "volume" and method != "rcb":
+                c.fault(_key(key, "balance"), "'volume' needs method = 'rcb'")
+                return None, gluing
+            return Parts(n, method, balance), gluing
         if "size" not in d:
             c.fault(_key(key, "size"), "missing: the edge length of the grid's boxes (a number "
                     "> 0, or an array of one per coordinate)")

@@ -15,7 +15,7 @@ class Report:
     """Summary of one solve (identical on every rank).
 
     Attributes:
-        method: Decomposition method ("TFETI").
+        method: Decomposition method ("TFETI", "FETI-1" or "FETI-DP").
         solver: QP solver used: "cg" (no inequality), "mprgp" (no equality), "smalbe".
         converged: Whether the solver met its stopping test.
         reason: Why it stopped (the label of ``converged_reason``).

@@ -13,7 +13,7 @@ from petsc4py import PETSc
 from .constraints.contact import surface
 from .constraints.friction import FRICTIONLESS, SLIP, STICK
 from .constraints.rows import Kind, Rows
-from .feti import TotalFETI
+from .feti.system import BlockSystem
 from .mesh.decompose import Decomposition
 from .problem import ContactProblem, RigidObstacle
 from .report import Report
@@ -79,15 +79,23 @@ class Solution:
         contact: :class:`ContactData` for all contact nodes.
         lam: The multipliers λ (a distributed PETSc Vec, rows in the order of ``rows``).
         u_vec: The primal solution, subdomain by subdomain (a distributed PETSc Vec).
+        feti: The Total FETI system of the problem (all rows, whatever the method).
+        dual: The dual operators the method solved with (``F``, ``d``, ``Gt_local``, ``e``),
+            when the solution comes from :func:`dolfinx_feti.solve`.
         alpha: Rigid-body amplitudes (the same on every rank).
     """
 
-    def __init__(self, problem: ContactProblem, feti: TotalFETI, dec: Decomposition, rows: Rows,
-                 u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
+    def __init__(self, problem: ContactProblem, feti: BlockSystem, dec: Decomposition,
+                 rows: Rows, u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
                  comm: MPI.Comm, friction=None) -> None:
-        """Collect results (collective); ``friction`` is the solve's FrictionSolve or None."""
+        """Collect results (collective).
+
+        ``feti`` is the Total FETI system of the problem (all rows, whatever the method),
+        ``friction`` the solve's FrictionSolve or None.
+        """
         self.problem, self.feti, self.dec, self.rows = problem, feti, dec, rows
         self.friction = friction
+        self.dual = None
         self.u_vec, self.lam, self.alpha, self.report, self.comm = u, lam, alpha, report, comm
         self._Bu = feti.B.createVecLeft()
         feti.B.mult(u, self._Bu)
@@ -176,8 +184,9 @@ class Solution:
             acc = np.zeros((dec.num_nodes, bs))
             cnt = np.zeros(dec.num_nodes)
             ua = self.u_vec.array_r
-            for s, seg in feti._segments():
-                nodes = dec.nodes(s)
+            subs = dec.local_subdomains(self.comm.rank)
+            for i, seg in feti.segments():
+                nodes = dec.nodes(subs[i])
                 acc[nodes] += ua[seg].reshape(-1, bs)
                 cnt[nodes] += 1
             acc = self.comm.allreduce(acc, op=MPI.SUM)
@@ -208,7 +217,8 @@ class Solution:
         """A Function from this rank's subdomain values (in the pairs' order), exchanged."""
         from .output import distributed_function
         dec = self.dec
-        subs = self.feti.local_subs  # consecutive: their pairs are one slice, in dof order
+        # consecutive: their pairs are one slice, in dof order
+        subs = dec.local_subdomains(self.comm.rank)
         pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
             else slice(0, 0)
         msh = None if self._function is None else self._function.function_space.mesh

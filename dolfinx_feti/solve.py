@@ -1,9 +1,13 @@
-"""The solve: decompose, dualize, homogenize, project, run the QP solver a problem needs, recover.
+"""The solve: build the chain of transforms, run the QP solver the problem needs, map back.
+
+The chain (:func:`.dual.dual_qp`): decompose, assemble, [eliminate Dirichlet conditions,
+eliminate corners], dualize, homogenize, project; the solution of the QP goes back through it.
 
 Solver choice (the least machinery the problem needs):
 - no inequality rows: projected CG on P F P;
-- inequalities and a coarse space (always in Total FETI): SMALBE-M with inner MPRGP on P F P;
-- inequalities and no coarse space: MPRGP alone on F.
+- inequalities and a coarse space (always in Total FETI; in FETI-1 and FETI-DP when a body or
+  a subdomain floats): SMALBE-M with inner MPRGP on P F P;
+- inequalities and no coarse space (FETI-DP or FETI-1 with every body held): MPRGP alone on F.
 With friction (:mod:`.friction`) the tangential multipliers get box bounds (2D: MPRGP with upper
 bounds) or disc bounds (3D: MPGP, also as SMALBE's inner solver); Coulomb friction repeats the
 solve in a fixed point on the slip bounds.
@@ -12,12 +16,14 @@ solve in a fixed point on the slip bounds.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from .constraints.friction import friction_data
-from .dual import DualQP, dual_qp
+from .dual import DualQP, choose_method, dual_qp
 from .errors import NotConverged, collective
 from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
@@ -29,6 +35,7 @@ from .problem import ContactProblem
 from .qp import (
     ConvergedReason,
     ProjectedPreconditioner,
+    QPResult,
     cg,
     mpgp,
     mprgp,
@@ -47,7 +54,7 @@ KKT_WARN = 1e3
 
 def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
           options: SolverOptions | Sequence[str] | None = None, **kwargs) -> Solution:
-    """Solve a contact problem by Total FETI.
+    """Solve a contact problem by FETI (Total FETI, FETI-1 or FETI-DP: option ``method``).
 
     Args:
         problem: The problem.
@@ -77,16 +84,122 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     progress = Progress(comm, opts.verbose)
     timer = Timer(progress.phase)
     report = Report()
-    qp = dual_qp(problem, comm, factor=opts.factor, norm_rtol=opts.norm_rtol, timer=timer)
+    qp = dual_qp(problem, comm, factor=opts.factor, norm_rtol=opts.norm_rtol, timer=timer,
+                 method=opts.method)
     report.warnings.extend(qp.warnings)
-    feti, dec, rows, ocon, ineq = qp.feti, qp.dec, qp.rows, qp.constraint, qp.ineq
+    feti, dec, rows, system = qp.feti, qp.dec, qp.rows, qp.system
     n_ineq = int(rows.inequality.sum())
     with collective(comm, "friction"):
         fdata = friction_data(problem, rows)
-    friction = None if fdata is None else FrictionSolve(fdata, rows, feti.rows_local, comm)
+    friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
+    out = solve_qp(qp, opts, report=report, progress=progress, timer=timer, friction=friction)
+    res, u, lam_all, alpha = out.result, out.u, out.lam, out.alpha
+
+    report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
+    report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"
+    report.converged_reason = int(ConvergedReason.of(report.reason))
+    report.outer_iterations = res.outer_iterations
+    report.iterations = res.iterations
+    report.counts = dict(res.counts)
+    report.gP_rel = float(res.gP_norm / res.b_norm) if res.b_norm > 0 else float(res.gP_norm)
+    e_norm = float(np.linalg.norm(feti.e))
+    report.G_lambda = float(np.linalg.norm(out.G_lambda - feti.e) /
+                            (e_norm if e_norm > 0 else 1.0))
+    report.norm_F = qp.norm_A
+    report.hessian_mults_total = feti.hessian_mults
+    n_tang = 0 if fdata is None else int(fdata.rows.size)
+    report.sizes = {"primal": system.primal_size[1], "dual": rows.size, "inequality": n_ineq,
+                    "equality": rows.size - n_ineq - n_tang, "subdomains": dec.num_subdomains,
+                    "coarse": int(feti.coarse_size), "coarse_rank": int(qp.constraint.m),
+                    "ranks": comm.size}
+    report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP"}[qp.method]
+    if qp.method != "tfeti":
+        report.sizes["dual_method"] = int(feti.dual_size[1])
+    report.sizes.update(qp.info)
+    if not report.converged:
+        report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
+                               f"{opts.max_it} iterations / {opts.max_outer} outer iterations")
+        if n_ineq and report.G_lambda > 1e3 * opts.rtol:
+            report.warnings.append(
+                f"the contact forces do not balance the load (||G lambda - e|| / ||e|| = "
+                f"{report.G_lambda:.1e}): a body may be pulled away from its only support; "
+                "contact can push but not pull")
+    progress.info(f"{report.solver}: {'converged' if report.converged else 'NOT converged'} "
+                  f"({report.reason}), {report.outer_iterations} outer / {report.iterations} "
+                  f"inner iterations, {report.hessian_mults} F-multiplications")
+    if friction is not None:
+        report.sizes["tangential"] = n_tang
+        report.extra["friction"] = friction.info
+        friction.destroy()
+    sol = Solution(problem, system, dec, rows, u, lam_all, alpha, report, comm,
+                   friction=friction)
+    sol.dual = feti
+    sol.check_kkt(rows.inequality[system.rows_local])
+    if qp.mortar:
+        c = sol.contact
+        warn, report.extra["mortar"] = mortar_warnings(problem.mesh, qp.mortar,
+                                                       sol.nodal_values(), c.spec, c.node,
+                                                       c.force)
+        report.warnings.extend(warn)
+    _warn_loose_stop(report, opts.rtol)
+    report.timings = timer.reduced(comm)
+    report.timings["total"] = float(sum(report.timings.values()))
+    report.extra["options"] = opts.to_dict()
+    report.extra["history"] = res.history[-50:] if comm.rank == 0 else []
+    for v in (qp.b, qp.lb, qp.lam_hat):
+        v.destroy()
+    if opts.error_if_not_converged and not report.converged:
+        raise NotConverged(f"the solver did not converge: {report.reason} (converged reason "
+                           f"{report.converged_reason}); see error.solution.report", sol)
+    return sol
+
+
+@dataclass
+class QPSolve:
+    """What :func:`solve_qp` returns.
+
+    Attributes:
+        result: The QP solver's result (its ``x`` is the homogenized iterate).
+        u: The primal solution of the original problem (Dirichlet values included).
+        lam: The multipliers of all rows of the original problem.
+        alpha: The rigid-body amplitudes of the dualized problem's kernel.
+        G_lambda: G λ of the QP's multipliers (to compare with ``e``).
+    """
+
+    result: QPResult
+    u: PETSc.Vec
+    lam: PETSc.Vec
+    alpha: np.ndarray
+    G_lambda: np.ndarray
+
+
+def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
+             progress: Progress | None = None, timer: Timer | None = None,
+             friction: FrictionSolve | None = None) -> QPSolve:
+    """Run the QP solver the dual QP needs and map its solution back (collective).
+
+    Args:
+        qp: The dual QP (:func:`.dual.dual_qp`, or built from a hand-made primal system).
+        opts: The solver options.
+        report: Gets the solver's name, warnings and the F-multiplications; a new one if None.
+        progress: Progress output (none if None).
+        timer: Phase timers (a new one if None).
+        friction: The friction rows and their state, in the layout of ``qp.system``'s rows.
+    """
+    feti, ocon, ineq = qp.feti, qp.constraint, qp.ineq
+    comm = feti.comm
+    report = Report() if report is None else report
+    progress = Progress(comm, 0) if progress is None else progress
+    timer = Timer() if timer is None else timer
+    n_ineq = comm.allreduce(int(ineq.sum()))
+    # the QP's rows are a subset of the problem's (FETI-1 and FETI-DP remove some)
+    qp_row = np.full(qp.system.dual_size[0], -1, dtype=np.int64)
+    qp_row[qp.row_index] = np.arange(qp.row_index.size)
+    if friction is not None:
+        friction.relabel(qp_row)
 
     with timer.phase("preconditioner"):
-        precond = make_preconditioner(opts.preconditioner, feti, opts.factor,
+        precond = make_preconditioner(opts.preconditioner, qp.primal, opts.factor,
                                       opts.preconditioner_scaling)
         report.warnings.extend(getattr(precond, "notes", []))
     x = qp.b.duplicate()
@@ -115,60 +228,17 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         if res.multiplier is not None:  # SMALBE: α = −T̃ᵀ(μ − G̃ g) from the dual KKT conditions
             hint = -ocon.transform_transpose(res.multiplier - ocon.mult(g))
         alpha = feti.rigid_amplitudes(g, active, hint)
-        u = feti.primal(lam, alpha)
-        remove_free_motions(feti, ocon.null_space, u)  # the same u for every decomposition
-
-    report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
-    report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"
-    report.converged_reason = int(ConvergedReason.of(report.reason))
-    report.outer_iterations = res.outer_iterations
-    report.iterations = res.iterations
-    report.counts = dict(res.counts)
-    report.gP_rel = float(res.gP_norm / res.b_norm) if res.b_norm > 0 else float(res.gP_norm)
-    Glam = ocon.base.mult(lam)
-    e_norm = float(np.linalg.norm(feti.e))
-    report.G_lambda = float(np.linalg.norm(Glam - feti.e) / (e_norm if e_norm > 0 else 1.0))
-    report.norm_F = qp.norm_A
-    report.hessian_mults_total = feti.hessian_mults
-    n_tang = 0 if fdata is None else int(fdata.rows.size)
-    report.sizes = {"primal": feti.primal_size[1], "dual": rows.size, "inequality": n_ineq,
-                    "equality": rows.size - n_ineq - n_tang, "subdomains": dec.num_subdomains,
-                    "coarse": int(feti.coarse_size[1]), "coarse_rank": int(ocon.m),
-                    "ranks": comm.size}
-    if not report.converged:
-        report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
-                               f"{opts.max_it} iterations / {opts.max_outer} outer iterations")
-        if n_ineq and report.G_lambda > 1e3 * opts.rtol:
-            report.warnings.append(
-                f"the contact forces do not balance the load (||G lambda - e|| / ||e|| = "
-                f"{report.G_lambda:.1e}): a body may be pulled away from its only support; "
-                "contact can push but not pull")
-    progress.info(f"{report.solver}: {'converged' if report.converged else 'NOT converged'} "
-                  f"({report.reason}), {report.outer_iterations} outer / {report.iterations} "
-                  f"inner iterations, {report.hessian_mults} F-multiplications")
-    if friction is not None:
-        report.sizes["tangential"] = n_tang
-        report.extra["friction"] = friction.info
-        friction.destroy()
-    sol = Solution(problem, feti, dec, rows, u, lam, alpha, report, comm, friction=friction)
-    sol.check_kkt(ineq)
-    if qp.mortar:
-        c = sol.contact
-        warn, report.extra["mortar"] = mortar_warnings(problem.mesh, qp.mortar,
-                                                       sol.nodal_values(), c.spec, c.node,
-                                                       c.force)
-        report.warnings.extend(warn)
-    _warn_loose_stop(report, opts.rtol)
-    report.timings = timer.reduced(comm)
-    report.timings["total"] = float(sum(report.timings.values()))
-    report.extra["options"] = opts.to_dict()
-    report.extra["history"] = res.history[-50:] if comm.rank == 0 else []
-    for v in (qp.b, qp.lb, g, x, qp.lam_hat):
+        Glam = ocon.base.mult(lam)
+        u, lam_all = qp.map_back(lam, alpha)
+        # of the solutions u + z (z a free motion), the same for every method and decomposition
+        remove_free_motions(qp.free_motions(ocon.null_space), qp.copy_weight, u, comm)
+        if friction is not None:
+            friction.relabel(qp.row_index)
+    if precond is not None and hasattr(precond, "destroy"):
+        precond.destroy()
+    for v in (g, lam):
         v.destroy()
-    if opts.error_if_not_converged and not report.converged:
-        raise NotConverged(f"the solver did not converge: {report.reason} (converged reason "
-                           f"{report.converged_reason}); see error.solution.report", sol)
-    return sol
+    return QPSolve(result=res, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
 
 
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None):
@@ -241,4 +311,4 @@ def _warn_loose_stop(report: Report, rtol: float) -> None:
             "solution")
 
 
-__all__ = ["solve"]
+__all__ = ["QPSolve", "choose_method", "solve", "solve_qp"]

@@ -132,6 +132,40 @@ def test_parts_balanced_per_body():
     np.testing.assert_array_equal(dec.cell_sub, dec2.cell_sub)
 
 
+@pytest.mark.parametrize("n", [2, 3, 4, 7])
+def test_rcb_weighted(n):
+    """Weighted RCB: parts of nearly equal weight (within the largest weights), none empty."""
+    rng = np.random.default_rng(n)
+    pts = rng.random((400, 2))
+    w = np.exp(-8 * pts[:, 0])  # heavy on the left: equal counts would not balance it
+    labels = rcb(pts, n, w)
+    total = np.bincount(labels, weights=w, minlength=n)
+    assert np.all(np.bincount(labels, minlength=n) > 0)
+    assert np.abs(total - w.sum() / n).max() <= 3 * w.max()
+    assert np.abs(np.bincount(rcb(pts, n), weights=w) - w.sum() / n).max() > 3 * w.max()
+
+
+def test_parts_balance_volume():
+    """balance="volume" on a graded mesh: no subdomain larger than a quarter of the area (up to
+    the cells cut at the bisections), where equal cell counts give one of three quarters;
+    refused with PT-Scotch."""
+    x, cells = _grid(12, 12)
+    x = x**3  # cells graded toward the corner (0, 0)
+    mesh = _mesh_of([("plate", x, cells)])
+    area = np.abs(topology.cell_volumes(mesh.x, mesh.cells, mesh.cell_type))
+    largest = {}
+    for balance in ("volume", "cells"):
+        dec = decompose(mesh, Parts(4, balance=balance), 1)
+        largest[balance] = np.bincount(dec.cell_sub, weights=area).max()
+        _check_consistent(mesh, dec)
+    assert largest["volume"] <= area.sum() / 4 + 3 * area.max()
+    assert largest["cells"] >= 0.7 * area.sum()
+    with pytest.raises(df.InputError, match="balance='volume' needs method='rcb'"):
+        decompose(mesh, Parts(2, method="ptscotch", balance="volume"), 1)
+    with pytest.raises(df.InputError, match="Parts.balance must be one of"):
+        decompose(mesh, Parts(2, balance="mass"), 1)
+
+
 def test_parts_invalid():
     mesh = _square(2)
     with pytest.raises(df.InputError, match="Parts.n must be an integer >= 1"):

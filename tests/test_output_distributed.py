@@ -65,7 +65,8 @@ def check_against_gathered(solution, degree=None):
             solution.problem.mesh, 1))
         assert compat.space_degree(p1.function_space) == 1
         assert np.array_equal(p1.x.array, full[vertex])
-        dec, subs = solution.dec, solution.feti.local_subs
+        dec = solution.dec
+        subs = dec.local_subdomains(solution.comm.rank)
         pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
             else slice(0, 0)
         u1 = distributed_function(solution.problem.mesh, dec.pair_node[pairs],

@@ -1,6 +1,14 @@
-"""FETI: generalized inverses, dual operators, coarse space data and primal recovery."""
+"""The FETI layer as algebra: primal systems, their transforms, dualization, preconditioners.
 
+Nothing here builds meshes or assembles: the FEM side (:mod:`dolfinx_feti.fem`) hands over the
+subdomain matrices, loads, kernels and dof maps, and :mod:`dolfinx_feti.dual` chains the steps.
+"""
+
+from .corners import CornerSystem, EliminateCorners
+from .dualize import Dualization
 from .kplus import FixingNodesInverse
-from .tfeti import TotalFETI
+from .system import BlockSystem
+from .transforms import EliminateDirichlet
 
-__all__ = ["FixingNodesInverse", "TotalFETI"]
+__all__ = ["BlockSystem", "CornerSystem", "Dualization", "EliminateCorners", "EliminateDirichlet",
+           "FixingNodesInverse"]

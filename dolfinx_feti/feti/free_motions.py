@@ -16,28 +16,24 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 
-def remove_free_motions(feti, null_space: np.ndarray, u: PETSc.Vec) -> None:
+def remove_free_motions(Z: np.ndarray, weight: np.ndarray | None, u: PETSc.Vec,
+                        comm: MPI.Comm) -> None:
     """Make ``u`` orthogonal to the free rigid motions (in place; collective).
 
     Args:
-        feti: The :class:`~dolfinx_feti.feti.tfeti.TotalFETI` operators (kernels, layout).
-        null_space: Orthonormal coarse vectors n_k with Gᵀ n_k = B R n_k = 0 (columns).
+        Z: The free motions at the local entries of ``u`` (columns; Z = R n_k mapped back to
+            the layout of ``u``, n_k with Gᵀ n_k = B R n_k = 0).
+        weight: Per local entry, 1 / the number of subdomain copies of its node (each mesh
+            node counted once); None for all ones.
         u: The primal solution, subdomain copies of each node included.
+        comm: The communicator of ``u``.
     """
-    K = null_space.shape[1]
-    if K == 0:
+    if Z.shape[1] == 0:
         return
-    dec, k, bs = feti.dec, feti.k, feti.bs
-    count = np.diff(dec.node_subdomains()[0])  # subdomains holding each node
-    n_loc = u.getLocalSize()
-    Z = np.zeros((n_loc, K))
-    w = np.zeros(n_loc)
-    for s, seg in feti._segments():
-        Z[seg] = feti.R[s] @ null_space[k * s:k * (s + 1)]
-        w[seg] = np.repeat(1.0 / count[dec.nodes(s)], bs)
+    w = np.ones(Z.shape[0]) if weight is None else weight
     ua = u.array
-    gram = feti.comm.allreduce(Z.T @ (w[:, None] * Z), op=MPI.SUM)
-    coef = feti.comm.allreduce(Z.T @ (w * ua), op=MPI.SUM)
+    gram = comm.allreduce(Z.T @ (w[:, None] * Z), op=MPI.SUM)
+    coef = comm.allreduce(Z.T @ (w * ua), op=MPI.SUM)
     ua -= Z @ np.linalg.solve(gram, coef)
 
 

@@ -1,4 +1,4 @@
-"""A generalized inverse K⁺ of the block-diagonal, singular K = diag(K_i) by fixing nodes.
+"""A generalized inverse K⁺ of the block-diagonal K = diag(K_i) by fixing nodes.
 
 All subdomains of a rank are factored together as one block-diagonal matrix, so applying K⁺
 costs one gather, one sparse Cholesky solve and one scatter per rank, whatever the number of
@@ -25,6 +25,8 @@ def choose_fixing_dofs(R: np.ndarray) -> np.ndarray:
     the directions already taken: for rigid modes that is nodes far apart, as the theory of the
     fixing-nodes inverse asks.
     """
+    if R.shape[1] == 0:  # a nonsingular block (held by Dirichlet conditions or corners)
+        return np.zeros(0, dtype=np.int64)
     _, _, piv = scipy.linalg.qr(R.T, pivoting=True, mode="economic")
     return np.sort(piv[: R.shape[1]])
 
@@ -43,8 +45,12 @@ class SparseCholesky:
         self._A = PETSc.Mat().createAIJ(size=A.shape, csr=(A.indptr.astype(PETSc.IntType),
                                                          A.indices.astype(PETSc.IntType), A.data),
                                         comm=PETSc.COMM_SELF)
-        self._A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        self._A.setOption(PETSc.Mat.Option.SPD, True)
+        if factor != "petsc":
+            # PETSc 3.25's own Cholesky (nested-dissection ordering) mis-solves a matrix marked
+            # symmetric that has decoupled identity rows (a FETI-1 subdomain with its Dirichlet
+            # dofs eliminated: error O(1) or inf), and solves it to round-off unmarked.
+            self._A.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+            self._A.setOption(PETSc.Mat.Option.SPD, True)
         self.b, self.x = self._A.createVecs()
         self._ksp = None
         if A.shape[0] == 0:  # a rank without subdomains: CHOLMOD refuses an empty matrix
@@ -59,6 +65,22 @@ class SparseCholesky:
         """x = A⁻¹ b on the held vectors ``b`` and ``x`` (no copies)."""
         if self._ksp is not None:
             self._ksp.solve(self.b, self.x)
+
+    def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
+        """A⁻¹ rhs for the columns of a dense (n × k) array: one batched solve (MatMatSolve)."""
+        n, k = rhs.shape
+        if self._ksp is None or k == 0:
+            return np.zeros((n, k))
+        B = PETSc.Mat().createDense((n, k), array=np.asfortranarray(rhs, dtype=float),
+                                    comm=PETSc.COMM_SELF)
+        X = PETSc.Mat().createDense((n, k), comm=PETSc.COMM_SELF)
+        X.setUp()
+        X.assemble()
+        self._ksp.getPC().getFactorMatrix().matSolve(B, X)
+        out = X.getDenseArray().copy()
+        B.destroy()
+        X.destroy()
+        return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """A⁻¹ rhs as a new array."""
@@ -86,7 +108,8 @@ class FixingNodesInverse:
 
     Args:
         K: The block-diagonal matrix diag(K_i) of a rank's subdomains.
-        kernels: R_i per block, in order (the block sizes are their row counts).
+        kernels: R_i per block, in order (the block sizes are their row counts); a block with
+            an empty kernel (no columns) is factored as it is, K_i⁺ = K_i⁻¹.
         factor: PETSc Cholesky package: "cholmod", "mumps" or "petsc" (None: the default of
             :mod:`dolfinx_feti.factor`).
         labels: Names of the blocks for error messages.
@@ -182,6 +205,12 @@ class FixingNodesInverse:
             self._chol.solve_in_place()
         finally:
             x.resetArray()
+
+    def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
+        """K⁺ applied to the columns of a dense (n × k) array (one batched solve)."""
+        b = np.array(rhs, dtype=float)
+        b[self.fixed] = 0.0
+        return self._chol.solve_matrix(b)
 
     def destroy(self) -> None:
         """Free the factorization."""

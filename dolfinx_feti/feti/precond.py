@@ -19,7 +19,11 @@ a few rows): no factorization of a global dual matrix, the same blocks on any nu
 (see :class:`_DualScaling`).
 
 Both are applied as ``mult(x, y)`` objects on dual vectors; the QP solvers project and mask
-them as the constraints require.
+them as the constraints require. They are built from the operands a primal system gives
+(``preconditioner_operands()``, a :class:`~dolfinx_feti.feti.system.PreconditionerOperands`):
+its block-diagonal K, the rows B of the dual, the dofs to leave out (FETI-DP's corners, which
+are primal unknowns: the Dirichlet preconditioner then takes the Schur complement with them
+held, B_r S_rr B_rᵀ) and the node-and-kind block label of each row (for the stiffness scaling).
 """
 
 from __future__ import annotations
@@ -30,9 +34,9 @@ from mpi4py import MPI
 from petsc4py import PETSc
 from scipy.sparse.csgraph import connected_components
 
-from ..constraints.rows import Kind
 from ..errors import SolveError
 from .kplus import SparseCholesky
+from .system import PreconditionerOperands
 
 SCALINGS = ("multiplicity", "stiffness")
 
@@ -55,18 +59,21 @@ class _DualScaling:
     matrix with the pattern of B Δ Bᵀ.
     """
 
-    def __init__(self, feti) -> None:
-        comm = feti.comm
-        diag = feti.K_local.diagonal()
+    def __init__(self, K: sp.csr_matrix, B: PETSc.Mat, row_blocks: np.ndarray | None) -> None:
+        """Z for the rows of ``B``, grouped by ``row_blocks`` (a label per local row)."""
+        comm = B.getComm().tompi4py()
+        if comm.allreduce(row_blocks is None, op=MPI.LOR):
+            raise SolveError("stiffness scaling: the primal system gives no row blocks")
+        diag = K.diagonal()
         if not comm.allreduce(bool(np.all(diag > 0)), op=MPI.LAND):
             raise SolveError("stiffness scaling: a subdomain matrix has a non-positive "
                              "diagonal entry")
         self.delta = 1.0 / diag
-        Bd = feti.B.duplicate(copy=True)
-        dvec = feti.B.createVecRight()
+        Bd = B.duplicate(copy=True)
+        dvec = B.createVecRight()
         dvec.array[:] = self.delta
         Bd.diagonalScale(R=dvec)  # B Δ
-        C = Bd.matTransposeMult(feti.B)  # B Δ Bᵀ: local rows, neighbours' dofs included
+        C = Bd.matTransposeMult(B)  # B Δ Bᵀ: local rows, neighbours' dofs included
         Bd.destroy()
         dvec.destroy()
         lo, hi = C.getOwnershipRange()
@@ -74,10 +81,7 @@ class _DualScaling:
         indptr, cols, vals = C.getValuesCSR()
         C.destroy()
         n = hi - lo
-        rows = feti.rows
-        kind = rows.kind[lo:hi]
-        key = rows.node[lo:hi].astype(np.int64) * 3 + np.select(
-            [kind == Kind.GLUE, kind == Kind.DIRICHLET], [0, 1], 2)
+        key = np.asarray(row_blocks, dtype=np.int64)
         # A node block is labelled by its smallest (global) row: rank-independent.
         _, inv = np.unique(key, return_inverse=True)
         first = np.full(inv.max() + 1 if n else 0, np.iinfo(np.int64).max)
@@ -123,7 +127,7 @@ class _DualScaling:
         Zl.sort_indices()
         self.Z = PETSc.Mat().createAIJ(
             size=sizes, csr=(Zl.indptr.astype(PETSc.IntType), Zl.indices.astype(PETSc.IntType),
-                             Zl.data), comm=feti.B.getComm())
+                             Zl.data), comm=B.getComm())
         self.Z.assemble()
 
     def apply(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
@@ -230,22 +234,22 @@ class LumpedPreconditioner:
 
     name = "lumped"
 
-    def __init__(self, feti, scaling: str = "multiplicity", factor: str | None = None) -> None:
-        """Use the subdomain matrices of a :class:`~dolfinx_feti.feti.TotalFETI`."""
+    def __init__(self, operands, scaling: str = "multiplicity", factor: str | None = None) -> None:
+        """Use ``operands = (K, B, left_out[, row_blocks])`` of a primal system (module doc)."""
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
                              f"{scaling!r}")
-        self.feti = feti
+        self.K, self.B, self.left_out, self.row_blocks = PreconditionerOperands(*operands)
         self.count = 0
-        self._w = feti.B.createVecRight()
-        self._v = feti.B.createVecRight()
+        self._w = self.B.createVecRight()
+        self._v = self.B.createVecRight()
         #: Notes for the report (a scaling that could not be applied).
         self.notes: list[str] = []
         self._scale = self._t = None
         if scaling == "stiffness":
             try:
-                self._scale = _DualScaling(feti)
-                self._t = feti.B.createVecLeft()  # a dual work vector for Z
+                self._scale = _DualScaling(self.K, self.B, self.row_blocks)
+                self._t = self.B.createVecLeft()  # a dual work vector for Z
             except SolveError as e:
                 # Redundant rows of B (gluing="redundant", two obstacles on one surface) make
                 # B Δ Bᵀ singular: keep the preconditioner, unscaled, and say so.
@@ -255,21 +259,21 @@ class LumpedPreconditioner:
         self.scaling = scaling
 
     def _local(self, w: np.ndarray) -> np.ndarray:
-        return self.feti.K_local @ w
+        return self.K @ w
 
     def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = B K Bᵀ x (or B S Bᵀ x for the Dirichlet preconditioner), scaled if asked."""
         self.count += 1
         z = self._scale
         if z is None:
-            self.feti.B.multTranspose(x, self._w)
+            self.B.multTranspose(x, self._w)
             self._v.array[:] = self._local(self._w.array_r)
-            self.feti.B.mult(self._v, y)
+            self.B.mult(self._v, y)
             return
         z.apply(x, self._t)
-        self.feti.B.multTranspose(self._t, self._w)
+        self.B.multTranspose(self._t, self._w)
         self._v.array[:] = z.delta * self._local(z.delta * self._w.array_r)
-        self.feti.B.mult(self._v, self._t)
+        self.B.mult(self._v, self._t)
         z.apply(self._t, y)
 
     def destroy(self) -> None:
@@ -284,26 +288,30 @@ class LumpedPreconditioner:
 class DirichletPreconditioner(LumpedPreconditioner):
     """M⁻¹ = B S Bᵀ with S_i = K_bb − K_bi K_ii⁻¹ K_ib on the dofs b that B touches.
 
-    The interior blocks of all local subdomains are factored together (block diagonal).
+    The interior blocks of all local subdomains are factored together (block diagonal). Dofs
+    left out (``operands[2]``) that B does not touch are held: neither b nor interior.
     """
 
     name = "dirichlet"
 
-    def __init__(self, feti, factor: str | None = None, scaling: str = "multiplicity") -> None:
+    def __init__(self, operands, factor: str | None = None, scaling: str = "multiplicity") -> None:
         """Factor the interior blocks of the local subdomains."""
-        super().__init__(feti, scaling, factor)
-        rows, dec, bs = feti.rows, feti.dec, feti.bs
-        mine = np.isin(rows.e_sub, np.fromiter(feti.R, dtype=np.int64))
-        start = np.zeros(dec.num_subdomains, dtype=np.int64)  # local offset of each subdomain
-        for s, seg in feti._segments():
-            start[s] = seg.start
-        sub = rows.e_sub[mine]
-        local = start[sub] + bs * (dec.pair_index(sub, rows.e_node[mine]) - dec.sub_ptr[sub]) \
-            + rows.e_comp[mine]
-        n = feti.K_local.shape[0]
-        self._b = np.unique(local)
-        interior = np.setdiff1d(np.arange(n), self._b)
-        K = feti.K_local
+        super().__init__(operands, scaling, factor)
+        K, B = self.K, self.B
+        n = K.shape[0]
+        # the dofs touched by some row (on any rank): Bᵀ w ≠ 0 for positive random weights w
+        w = B.createVecLeft()
+        w.array[:] = 1.0 + np.random.default_rng(B.getComm().getRank()).random(w.getLocalSize())
+        t = B.createVecRight()
+        B.multTranspose(w, t)
+        self._b = np.flatnonzero(t.array_r != 0.0)
+        w.destroy()
+        t.destroy()
+        inner = np.ones(n, dtype=bool)
+        inner[self._b] = False
+        if self.left_out is not None:
+            inner &= ~self.left_out
+        interior = np.flatnonzero(inner)
         self._Kbb = K[self._b][:, self._b].tocsr()
         self._Kib = K[interior][:, self._b].tocsr()
         try:
@@ -329,13 +337,18 @@ class DirichletPreconditioner(LumpedPreconditioner):
             self._chol.destroy()
 
 
-def make_preconditioner(kind: str, feti, factor: str | None = None,
+def make_preconditioner(kind: str, primal, factor: str | None = None,
                         scaling: str = "multiplicity"):
-    """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module)."""
+    """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module).
+
+    ``primal`` is a primal system (its ``preconditioner_operands()``) or the operands.
+    """
     if kind == "none":
         return None
+    operands = primal.preconditioner_operands() if hasattr(primal, "preconditioner_operands") \
+        else primal
     if kind == "lumped":
-        return LumpedPreconditioner(feti, scaling, factor)
+        return LumpedPreconditioner(operands, scaling, factor)
     if kind == "dirichlet":
-        return DirichletPreconditioner(feti, factor, scaling)
+        return DirichletPreconditioner(operands, factor, scaling)
     raise ValueError(f"unknown preconditioner {kind!r}: use 'none', 'lumped' or 'dirichlet'")

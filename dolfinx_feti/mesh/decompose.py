@@ -19,7 +19,7 @@ from ..errors import InputError, collective
 from ..validation import Choice, Function, Integer, checked, per_body
 from .dofpoints import DofPoints
 from .gmsh_input import MeshData
-from .topology import facet_neighbours
+from .topology import cell_volumes, facet_neighbours
 
 #: The largest number of parts of one body that Parts accepts (it is also at most its cells).
 MAX_PARTS = 2**31 - 1
@@ -31,7 +31,8 @@ class ByTags:
 
 
 @dataclass(frozen=True)
-@checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"))
+@checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"),
+         balance=Choice("cells", "volume"))
 class Parts:
     """Split every body into parts of (nearly) equal size.
 
@@ -42,10 +43,16 @@ class Parts:
             on the cells' facet adjacency (fewer interface nodes on unstructured meshes),
             computed on rank 0. PT-Scotch's result can differ with the number of ranks, so
             with "ptscotch" only the solution, not the decomposition, is rank-independent.
+        balance: What ``"rcb"`` makes equal: ``"cells"`` (the cell counts; the default) or
+            ``"volume"`` (the parts' volumes). On a mesh graded toward a contact, equal cell
+            counts give many small subdomains (and pieces that fall apart) where the contact
+            is; equal volumes give compact subdomains with the fine cells inside them, and far
+            fewer F-multiplications (docs/benchmarks.md § 10).
     """
 
     n: int | Mapping[str, int]
     method: str = "rcb"
+    balance: str = "cells"
 
 
 @dataclass(frozen=True)
@@ -142,8 +149,12 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
             if n > cells.size:
                 raise InputError(f"Parts: {n} parts for body {name!r}, which has only "
                                  f"{cells.size} cells")
+            if how.balance == "volume" and how.method != "rcb":
+                raise InputError("Parts: balance='volume' needs method='rcb'")
             if how.method == "rcb":
-                part = rcb(midpoints[cells], int(n))
+                weights = None if how.balance == "cells" else \
+                    np.abs(cell_volumes(mesh.x, mesh.cells[cells], mesh.cell_type))
+                part = rcb(midpoints[cells], int(n), weights)
             elif how.method == "ptscotch" and isinstance(comm, int):
                 part = graph_partition(mesh.cells[cells], int(n), mesh.cell_type)
             elif how.method == "ptscotch":  # on rank 0: PT-Scotch may differ between processes
@@ -272,8 +283,11 @@ def graph_partition(cells: np.ndarray, n: int, cell_type: str | None = None) -> 
     return labels
 
 
-def rcb(points: np.ndarray, n: int) -> np.ndarray:
-    """Recursive coordinate bisection of points into ``n`` parts of (nearly) equal size."""
+def rcb(points: np.ndarray, n: int, weights: np.ndarray | None = None) -> np.ndarray:
+    """Recursive coordinate bisection of points into ``n`` parts of (nearly) equal size.
+
+    With ``weights``, of (nearly) equal total weight; every part keeps at least one point.
+    """
     labels = np.zeros(points.shape[0], dtype=np.int64)
     work = [(np.arange(points.shape[0]), n, 0)]
     while work:
@@ -285,7 +299,12 @@ def rcb(points: np.ndarray, n: int) -> np.ndarray:
         axis = int(np.argmax(p.max(axis=0) - p.min(axis=0)))
         order = idx[np.argsort(p[:, axis], kind="stable")]
         k1 = k // 2
-        cut = int(round(idx.size * k1 / k))
+        if weights is None:
+            cut = int(round(idx.size * k1 / k))
+        else:
+            cw = np.cumsum(weights[order])
+            cut = int(np.searchsorted(cw, cw[-1] * k1 / k)) + 1
+            cut = min(max(cut, k1), idx.size - (k - k1))
         work.append((order[:cut], k1, first))
         work.append((order[cut:], k - k1, first + k1))
     return labels

@@ -5,6 +5,7 @@ operators PETSc Mats (AIJ or python shells), equality constraints small and repl
 """
 
 from .cg import cg
+from .discs import Discs, SeparableSet
 from .equality import (
     EqualityConstraint,
     OrthonormalConstraint,
@@ -15,7 +16,7 @@ from .equality import (
     penalized_operator,
     projected_operator,
 )
-from .mpgp import Discs, SeparableSet, mpgp
+from .mpgp import mpgp
 from .mprgp import mprgp
 from .norm import NormEstimate, estimate_norm
 from .precond import Preconditioner, ProjectedPreconditioner

@@ -31,7 +31,7 @@ def check_finite(comm: MPI.Comm, what: str, *arrays: np.ndarray) -> None:
 
 
 class Box:
-    """Local view of ``l <= x <= u`` with the operations MPRGP needs.
+    """Local view of ``l <= x <= u`` with the operations MPRGP needs (a flat constraint set).
 
     Args:
         lb: Lower bound: a Vec laid out like ``x``, a scalar, or None (``-inf``).
@@ -62,6 +62,9 @@ class Box:
         bounded = np.flatnonzero(np.isfinite(self.l) | np.isfinite(self.u))
         self._sel = slice(None) if bounded.size == self.l.size else bounded
         self._l, self._u = self.l[self._sel], self.u[self._sel]
+
+    #: A box has no curved boundary (see :class:`.discs.SeparableSet`).
+    curved = False
 
     def project(self, xa: np.ndarray) -> np.ndarray:
         """Return the projection of a local array onto the box."""

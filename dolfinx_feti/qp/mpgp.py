@@ -1,28 +1,29 @@
-"""MPGP: modified proportioning with gradient projections for separable convex constraints.
+"""MPGP: one loop for MPRGP (bounds) and MPGP (bounds and discs), over a constraint set.
 
 Minimizes ``f(x) = 1/2 x^T A x - b^T x`` over a product of simple convex sets: every entry of
 ``x`` lies in an interval ``l_i <= x_i <= u_i`` (infinite bounds allowed), except the entries
-grouped in pairs by :class:`Discs`, each pair in a disc ``||(x_i, x_j) - c|| <= r``. This is
-the dual of 3D contact with Tresca friction (a disc per contact node on the two tangential
-multipliers). Source: Dostál, Kozubek et al., MPGP for separable convex constraints (Dostál,
-Kozubek, Sadowská, Vondrák, *Scalable Algorithms for Contact Problems*, 2016, chapter on
-MPGP); the algorithm is MPRGP (:mod:`.mprgp`) with the box replaced by the set:
+grouped in pairs by :class:`.discs.Discs`, each pair in a disc ``||(x_i, x_j) - c|| <= r`` (the
+dual of 3D contact with Tresca friction). The set is an object (:class:`.box.Box` for bounds
+alone, :class:`.discs.SeparableSet` with discs) with the operations the loop needs, as in
+PERMON's QPC constraint sets. Sources: Dostál, *Optimal Quadratic Programming Algorithms*
+(2009), chapter 5 (MPRGP); Dostál, Kozubek, Sadowská, Vondrák, *Scalable Algorithms for
+Contact Problems* (2016), MPGP for separable convex constraints.
 
 - a block (an entry, or a disc pair) is *active* when it lies on the boundary of its set, with
   outward unit normal n (for an entry at its lower bound n = -1, at its upper bound n = +1,
   for a disc pair n = (x - c)/||x - c||);
 - free gradient φ = g on the blocks that are not active, 0 on the active ones;
-- chopped gradient β = g - min(nᵀg, 0) n on the active blocks (the part of g that is not in
-  the normal cone -N(x): g + N(x) ∋ 0 is the KKT condition), 0 on the others; the projected
+- chopped gradient β = g - min(nᵀg, 0) n on the active blocks, 0 on the others; the projected
   gradient is gᴾ = φ + β and vanishes exactly at the solution;
 - reduced free gradient φ̃ = (x - P(x - ᾱ φ))/ᾱ;
 - proportional iterate (‖β‖² <= Γ² φ̃ᵀφ): a CG step in the face if it stays feasible, else an
-  expansion: the largest feasible step along the CG direction, then ``x <- P(x - ᾱ φ(x))``;
-- otherwise a proportioning step, the gradient projection ``x <- P(x - ᾱ g(x))`` (a line
-  search along β, as MPRGP does, leaves a curved boundary at once).
+  expansion: the largest feasible step along the CG direction, then a projected step;
+- otherwise a proportioning step: the gradient projection ``x <- P(x - ᾱ g(x))`` (MPGP's; a
+  line search along β leaves a curved boundary at once), or on a flat set (bounds only) the
+  exact line search along β cut at the opposite bound of a box (MPRGP's, :func:`.mprgp.mprgp`).
 
-For interval constraints only it solves the same problems as :func:`.mprgp.mprgp` (with a
-different proportioning step).
+On a flat set the expansion has variants (``expansion``, ``alpha``: see :func:`mpgp`); on a
+curved set only the fixed-length one.
 
 Curved faces (``face='tangent'``, the default; ``face='interior'`` is the algorithm above as
 published). A disc pair on its circle whose gradient pushes it outwards (nᵀg <= 0) is at a
@@ -51,251 +52,200 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .box import Box, check_finite
+from .discs import Discs, SeparableSet
 from .precond import Preconditioner
 from .result import QPResult
 from .start import Counter, feasible_start, step_length
 
-# A disc pair is on its circle when ||x - c|| >= (1 - _ON_CIRCLE) r: projections and snapped
-# steps put it there up to a few ulps. The projection leaves alone a pair outside by less than
-# _OUTSIDE r (a rounding error of an earlier projection), so that it is idempotent.
-_ON_CIRCLE = 1e-12
-_OUTSIDE = 1e-14
+EXPANSIONS = ("fixed", "optimal", "projcg")
+ALPHAS = ("fixed", "bb")
+FACES = ("tangent", "interior")
+# z^T phi below this fraction of ||z|| ||phi|| means that the preconditioned free gradient is
+# no descent direction (M^{-1} singular or not positive there): the step falls back to phi.
 _DESCENT_RTOL = 1e-12
+# p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
+# curvature of a PSD operator along a null direction tiny but positive, not zero.
+_CURVATURE_RTOL = 1e-14
 # A step along the circles is rejected when it raises the energy by more than this times
 # Σ|x||g| (the round-off level of the energy differences).
 _ENERGY_NOISE = 64 * np.finfo(float).eps
-_CURVATURE_RTOL = 1e-14
-
-
-class Discs:
-    """Disc constraints ``||(x[i], x[j]) - c|| <= r`` on pairs of *local* entries.
-
-    Args:
-        index: (k, 2) local indices (into the rank's part of ``x``) of the pairs; an entry may
-            belong to one pair at most.
-        centre: (k, 2) centres.
-        radius: (k,) radii, >= 0 (``inf``: no constraint; 0: the entry pair is fixed at c).
-    """
-
-    def __init__(self, index, centre, radius) -> None:
-        self.index = np.asarray(index, dtype=np.int64).reshape(-1, 2)
-        self.centre = np.asarray(centre, dtype=np.float64).reshape(-1, 2)
-        self.radius = np.asarray(radius, dtype=np.float64).ravel()
-        if not (self.centre.shape == self.index.shape and self.radius.size == self.index.shape[0]):
-            raise ValueError("Discs: index (k, 2), centre (k, 2) and radius (k,) must agree")
-
-    @property
-    def size(self) -> int:
-        """Number of discs on this rank."""
-        return self.index.shape[0]
-
-
-class SeparableSet:
-    """Local view of the set ``{l <= x <= u} ∩ discs`` with the operations MPGP needs.
-
-    Args:
-        lb, ub: Bounds as for :class:`.box.Box`; they must be infinite on disc entries.
-        discs: :class:`Discs` or None.
-        x: A Vec with the layout of the unknowns.
-
-    Raises:
-        ValueError: (on every rank) for invalid bounds or discs.
-    """
-
-    def __init__(self, lb, ub, discs: Discs | None, x: PETSc.Vec) -> None:
-        self.box = Box(lb, ub, x)
-        self.comm = self.box.comm
-        d = discs if discs is not None else Discs(np.zeros((0, 2)), np.zeros((0, 2)), [])
-        n = x.getLocalSize()
-        problems = []
-        flat = d.index.ravel()
-        if flat.size and (flat.min() < 0 or flat.max() >= n):
-            problems.append("a disc index is out of the local range")
-        elif np.unique(flat).size != flat.size:
-            problems.append("an entry belongs to two discs")
-        elif flat.size and (np.isfinite(self.box.l[flat]).any()
-                            or np.isfinite(self.box.u[flat]).any()):
-            problems.append("finite lb/ub on a disc entry")
-        if np.isnan(d.radius).any() or (d.radius < 0).any() or not np.isfinite(d.centre).all():
-            problems.append("a disc radius is negative or NaN, or a centre is not finite")
-        problems = sorted(set(sum(self.comm.allgather(problems), [])))
-        if problems:
-            raise ValueError("invalid disc constraints: " + "; ".join(problems))
-        self.I, self.c, self.r = d.index, d.centre, d.radius
-        self.finite = np.isfinite(self.r)
-
-    # --- the discs alone -------------------------------------------------------------------
-    def _rel(self, xa: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Positions relative to the centres and their norms."""
-        Y = xa[self.I] - self.c
-        return Y, np.linalg.norm(Y, axis=1)
-
-    def _on_circle(self, nrm: np.ndarray) -> np.ndarray:
-        return self.finite & (nrm >= (1.0 - _ON_CIRCLE) * np.where(self.finite, self.r, 0.0))
-
-    def _disc_ratios(self, xa: np.ndarray, pa: np.ndarray) -> np.ndarray:
-        """Largest t >= 0 with the disc pair of x - t p inside its disc (inf if never)."""
-        Y, nrm = self._rel(xa)
-        P = pa[self.I]
-        a = np.einsum("ij,ij->i", P, P)
-        bq = np.einsum("ij,ij->i", Y, P)
-        r = np.where(self.finite, self.r, 0.0)
-        cq = np.minimum(nrm * nrm - r * r, 0.0)  # <= 0 inside (rounding clipped)
-        disc = np.sqrt(np.maximum(bq * bq - a * cq, 0.0))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            # the positive root of a t² − 2 bq t + cq = 0, in its stable form
-            t = np.where(bq >= 0, (bq + disc) / a, -cq / (disc - bq))
-        t = np.where((a > 0) & self.finite, t, np.inf)
-        return np.where(np.isnan(t), 0.0, np.maximum(t, 0.0))
-
-    # --- what MPGP calls -------------------------------------------------------------------
-    def project(self, xa: np.ndarray) -> np.ndarray:
-        """Return the projection of a local array onto the set."""
-        out = self.box.project(xa)
-        if self.I.size:
-            Y, nrm = self._rel(out)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = np.where(nrm > self.r * (1.0 + _OUTSIDE), self.r / nrm, 1.0)
-            out[self.I] = self.c + Y * s[:, None]
-        return out
-
-    def split(self, xa: np.ndarray, ga: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Return ``(phi, beta, active)``: free and chopped gradient, and the active mask."""
-        phi, beta, active = self.box.split(xa, ga)
-        if self.I.size:
-            Y, nrm = self._rel(xa)
-            on = self._on_circle(nrm)
-            G = ga[self.I]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                nvec = np.where(nrm[:, None] > 0, Y / nrm[:, None], 0.0)
-            ng = np.einsum("ij,ij->i", nvec, G)
-            chopped = G - np.minimum(ng, 0.0)[:, None] * nvec
-            chopped[on & (nrm <= 0)] = 0.0  # radius 0: the normal cone is the whole plane
-            Ion = self.I[on]
-            phi[Ion] = 0.0
-            beta[Ion] = chopped[on]
-            active[Ion] = True
-        return phi, beta, active
-
-    def rotating(self, xa: np.ndarray, ga: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Rotating entries and their curvature terms.
-
-        The rotating entries are those of the disc pairs on their circle pushed outwards
-        (nᵀg <= 0, r > 0); the curvature term of each is ξ/r (ξ = −nᵀg >= 0 the normal force;
-        zero elsewhere). On such a pair the minimization goes on along the circle, where the
-        Hessian of the Lagrangian restricted to the tangent is ``A + (ξ/r) I``.
-        """
-        rot = np.zeros(xa.size, dtype=bool)
-        curv = np.zeros(xa.size)
-        if self.I.size:
-            Y, nrm = self._rel(xa)
-            on = self._on_circle(nrm) & (nrm > 0)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                nvec = np.where(nrm[:, None] > 0, Y / nrm[:, None], 0.0)
-            ng = np.einsum("ij,ij->i", nvec, ga[self.I])
-            sel = on & (ng <= 0.0)
-            rot[self.I[sel]] = True
-            curv[self.I[sel]] = np.repeat(-ng[sel] / self.r[sel], 2).reshape(-1, 2)
-        return rot, curv
-
-    def tangential(self, xa: np.ndarray, va: np.ndarray, rot: np.ndarray) -> np.ndarray:
-        """``v`` with its normal component removed on the disc pairs marked in ``rot``."""
-        out = va.copy()
-        if self.I.size:
-            sel = rot[self.I[:, 0]]
-            Y, nrm = self._rel(xa)
-            nvec = Y[sel] / nrm[sel, None]
-            V = va[self.I[sel]]
-            out[self.I[sel]] = V - np.einsum("ij,ij->i", V, nvec)[:, None] * nvec
-        return out
-
-    def reduced_free(self, xa: np.ndarray, phi: np.ndarray, alpha: float) -> np.ndarray:
-        """Reduced free gradient: ``x - alpha * phi~ = P(x - alpha * phi)``."""
-        out = self.box.reduced_free(xa, phi, alpha)
-        if self.I.size:
-            trial = xa.copy()
-            trial[self.I] -= alpha * phi[self.I]
-            proj = self.project(trial)
-            out[self.I] = (xa[self.I] - proj[self.I]) / alpha
-        return out
-
-    def max_step(self, xa: np.ndarray, pa: np.ndarray) -> float:
-        """Largest ``t >= 0`` with ``x - t p`` feasible, over all ranks (inf if unbounded)."""
-        local = float(self.box._ratios(xa, pa).min(initial=np.inf))
-        if self.I.size:
-            local = min(local, float(self._disc_ratios(xa, pa).min(initial=np.inf)))
-        return max(self.comm.allreduce(local, op=MPI.MIN), 0.0)
-
-    def step(self, xa: np.ndarray, pa: np.ndarray, t: float) -> np.ndarray:
-        """Return ``x - t p`` with the blocks that reach their boundary put exactly on it."""
-        new = self.box.step(xa, pa, t)
-        if self.I.size:
-            hit = self._disc_ratios(xa, pa) <= t
-            Y = xa[self.I] - t * pa[self.I] - self.c
-            nrm = np.linalg.norm(Y, axis=1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                s = np.where(hit & (nrm > 0), self.r / nrm, 1.0)
-            new[self.I] = self.c + Y * s[:, None]
-        return self.project(new)
 
 
 def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
          discs: Discs | None = None, rtol: float = 1e-6, atol: float = 0.0, gamma: float = 1.0,
-         alpha_bar: float | None = None, norm_A: float | None = None, max_it: int = 10000,
-         stop: Callable[[float, PETSc.Vec, PETSc.Vec], bool | None] | None = None,
-         monitor: Callable[[int, float, str], None] | None = None,
+         alpha_bar: float | None = None, norm_A: float | None = None, expansion: str = "fixed",
+         max_it: int = 10000, stop: Callable[[float, PETSc.Vec, PETSc.Vec], bool | None] | None
+         = None, monitor: Callable[[int, float, str], None] | None = None,
          b_norm: float | None = None, g: PETSc.Vec | None = None, g_valid: bool = False,
-         preconditioner=None, expansion: str = "fixed", alpha: str = "fixed",
-         face: str = "tangent") -> QPResult:
-    """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` and the discs, by MPGP.
+         preconditioner=None, alpha: str = "fixed", face: str = "tangent",
+         proportioning: str = "projection", name: str = "mpgp") -> QPResult:
+    """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` and the discs (collective).
 
-    Collective. The arguments and the result are those of :func:`.mprgp.mprgp` (so SMALBE can
-    use either as its inner solver), plus ``discs`` and ``face`` (``'tangent'`` or
-    ``'interior'``, see the module docstring); ``expansion`` and ``alpha`` exist for that
-    compatibility and only ``'fixed'`` is implemented. ``result.active`` marks the entries of
-    the blocks on their boundary (both entries of a disc pair on its circle).
+    Each iteration splits the gradient ``g = A x - b`` into the free gradient ``phi`` and the
+    chopped gradient ``beta`` (``g^P = phi + beta``) and, with the reduced free gradient
+    ``phi~`` (the part of ``phi`` that keeps ``x - alpha_bar phi~`` feasible):
+
+    - if ``||beta||^2 <= gamma^2 phi~^T phi`` (proportional): a CG step along ``p`` if the full
+      step is feasible; otherwise an *expansion*: the largest feasible step along ``p``, then a
+      projected gradient step from that point, and ``p`` restarts from ``phi``;
+    - otherwise a *proportioning* step along ``beta`` with the exact line search (cut at the
+      opposite bound of a box), and ``p`` restarts.
+
+    Expansion variants (``expansion``):
+
+    - ``'fixed'``: ``x <- P(x_h - alpha_bar phi(x_h))`` and a fresh ``g = A x - b``.
+    - ``'optimal'``: exact line search along ``d = phi~(x_h)`` over its whole feasible segment
+      ``[0, t_max]`` (``t_max >= alpha_bar``; ``x_h - alpha_bar d`` is the fixed step), so the
+      energy decreases at least as much as with ``'fixed'``; ``g`` is updated with ``A d``.
+    - ``'projcg'``: the projected full CG step ``P(x - t_cg p)`` with a fresh gradient, kept if
+      its energy is not above that of the half-step ``x_h``; otherwise (counted in
+      ``counts['rejected']``) the ``'fixed'`` expansion is done from ``x_h``.
+
+    Adaptive expansion length (``alpha``, with ``expansion='fixed'``):
+
+    - ``'fixed'`` (default): the step ``alpha_bar`` of the theory, ``(0, 2/||A||]``.
+    - ``'bb'``: the long Barzilai-Borwein step ``alpha_BB = p^T p / p^T A p`` of the secant pair
+      of the feasible half-step (``x_h - x = -t_f p``, ``g_h - g = -t_f A p``), i.e. the
+      reciprocal curvature of ``A`` along the direction that just hit the boundary, known
+      without a multiplication. If ``alpha_BB > alpha_bar`` the expansion tries
+      ``x <- P(x_h - alpha_BB phi(x_h))`` and keeps it if ``f`` did not increase (``f`` from
+      the fresh gradient, two dot products); otherwise it restores ``x_h`` and makes the
+      ``'fixed'`` step (``counts['rejected']``, one extra multiplication). If
+      ``alpha_BB <= alpha_bar`` it is the ``'fixed'`` step. The proportioning test and the
+      reduced free gradient keep ``alpha_bar``. Sources: Barzilai & Borwein, IMA J. Numer.
+      Anal. 8 (1988) 141-148; the ``'bb'`` expansion step length of PERMON's MPGP
+      (``-qps_mpgp_expansion_length_type bb``, permon/permon PR #56, Kruzik et al., *Active
+      set expansion strategies in MPRGP algorithm*, Adv. Eng. Softw. 2020). Departure from
+      the theory: an accepted ``alpha_BB`` exceeds ``2/||A||`` (``alpha_BB >= 1/||A||``
+      always), so Dostal's R-linear rate bound, proved for ``alpha_bar`` in ``(0, 2/||A||]``,
+      no longer covers those steps; the safeguard keeps ``f`` non-increasing over all steps.
+      (The seed credits an adaptive ``alpha_bar`` to M. Lesoinne; no description of that
+      strategy was found, so this is not claimed to be it.)
+
+    Preconditioning in face (``preconditioner`` ``M^{-1}``, an approximate inverse of ``A``,
+    symmetric positive (semi)definite): every iteration that passes the proportioning test
+    computes ``z = D_F M^{-1} D_F phi`` (``D_F`` the 0/1 mask of the free entries; ``phi`` is
+    already zero off ``F``) and uses ``z`` in place of ``phi`` in the CG direction:
+    ``p = z`` after an expansion or proportioning step (restart), else
+    ``p = z - (z^T A p / p^T A p) p``. The step length along ``p`` is the exact
+    ``g^T p / p^T A p`` and the largest feasible step is computed along ``p`` as before, so
+    this is PCG on the face with the preconditioner ``(M^{-1})_FF`` (the "approximate"
+    preconditioning in face of Kruzik & Horak, arXiv:2507.00617: ``M^{-1}`` is built once,
+    only masked). The proportioning test, the expansion and proportioning steps and the
+    stopping test use the *un*preconditioned ``g``, ``phi``, ``beta``. Iterates stay
+    feasible: ``p`` is only ever used through the feasible step length / the projection.
+    ``p`` is a descent direction because ``g^T z = phi^T M^{-1} phi > 0``; where
+    ``z^T phi <= 1e-12 ||z|| ||phi||`` (``M^{-1}`` singular there) that step uses ``phi``.
+    One application per such iteration (``counts['precond']``); no Hessian product is added.
+
+    Hessian multiplications: 1 for the initial gradient (0 when ``g_valid``), 1 per CG step,
+    2 per expansion (``A p`` for the trial CG step, then the projected step; ``'optimal'``
+    skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` or ``'bb'`` step costs a
+    third), 1 per proportioning, plus the norm estimate when neither ``alpha_bar`` nor
+    ``norm_A`` is given.
+
+    With discs (a curved set) and ``face='tangent'`` the faces follow the circles (see the
+    module docstring); ``face='interior'`` is the algorithm as published.
 
     Hessian multiplications: 1 for the initial gradient (0 when ``g_valid``), 1 per CG step (2
-    when it turns pairs along their circles), 2 per expansion (3 when its first half turns
-    pairs), 1 per proportioning step, 3 per rejected turning step (``counts['rejected']``) and
-    its proportioning step, plus the norm estimate when neither ``alpha_bar`` nor ``norm_A`` is
-    given.
+    when it turns disc pairs along their circles), 2 per expansion (3 when its first half turns
+    pairs; ``'optimal'`` skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` or
+    ``'bb'`` step costs a third), 1 per proportioning step, 3 per rejected turning step
+    (``counts['rejected']``) and its proportioning step, plus the norm estimate when neither
+    ``alpha_bar`` nor ``norm_A`` is given.
+
+    Args:
+        A: Symmetric positive semidefinite operator (PETSc Mat).
+        b: Linear term.
+        x: Start; projected onto the set, then overwritten with the iterates (a monitor may
+            read it).
+        lb: Lower bound (Vec laid out like ``x``, scalar, or None for ``-inf``).
+        ub: Upper bound (Vec, scalar, or None for ``+inf``); both infinite on disc entries.
+        discs: :class:`.discs.Discs` on pairs of local entries, or None.
+        rtol: Default stopping test ``||g^P|| <= max(rtol * b_norm, atol)``.
+        atol: See ``rtol``.
+        gamma: Proportioning parameter ``Gamma > 0``.
+        alpha_bar: Projected step length in ``(0, 2/||A||)``; default ``1.95 / norm_A``.
+        norm_A: ``||A||``; default :func:`.norm.estimate_norm` (Lanczos, rtol 1e-4).
+        expansion: ``'fixed'``, ``'optimal'`` or ``'projcg'`` (the last two: bounds only).
+        max_it: Maximum number of iterations (steps of any kind).
+        stop: Extra test ``stop(gP_norm, x, g)``, collective; a true value ends the solve as
+            converged (reason ``'stop'``). Used by SMALBE.
+        monitor: Called as ``monitor(it, gP_norm, kind)`` at every iterate, ``kind`` being the
+            step that produced it (``'init'``, ``'cg'``, ``'expansion'``, ``'proportioning'``).
+        b_norm: Reference norm of the relative test; default ``||b||``.
+        g: Optional Vec for the gradient: the final gradient ``A x - b`` is left in it.
+        g_valid: ``g`` already holds ``A x - b`` for the given ``x``; saves the initial
+            multiplication unless the projection of ``x`` onto the set moves it.
+        preconditioner: Optional ``M^{-1}`` for the CG steps: a PETSc Mat or PC, an object with
+            ``mult(x, y)`` or a callable ``f(x, y)`` (see :mod:`.precond`).
+        alpha: Expansion step length rule, ``'fixed'`` or ``'bb'`` (needs
+            ``expansion='fixed'``; bounds only).
+        face: ``'tangent'`` or ``'interior'`` (with discs; see the module docstring).
+        proportioning: ``'projection'`` (the gradient projection step, MPGP's; always on a
+            curved set) or ``'line'`` (the exact line search along β, MPRGP's; bounds only).
+        name: The solver's name in error messages.
+
+    Returns:
+        The result; ``counts`` has ``'rejected'`` for ``'projcg'`` and ``'bb'`` (and after a
+        rejected turning step) and ``'precond'`` with a preconditioner. ``result.active`` marks
+        the entries of the blocks on their boundary (both entries of a disc pair on its
+        circle). Never raises for non-convergence: ``reason`` ``'max_it'`` (with the last
+        iterate), ``'unbounded'`` (non-positive curvature along a descent direction that no
+        bound stops) or ``'breakdown'`` (non-finite values appeared).
 
     Raises:
-        ValueError: For invalid bounds or discs, non-finite data, or invalid parameters.
+        ValueError: For infeasible/invalid bounds or discs, non-finite data, or invalid
+            parameters.
     """
     comm = x.getComm().tompi4py()
-    if expansion != "fixed" or alpha != "fixed":
-        raise ValueError(f"mpgp: only the fixed expansion is implemented, got "
-                         f"expansion={expansion!r}, alpha={alpha!r}")
+    if expansion not in EXPANSIONS:
+        raise ValueError(f"{name}: expansion must be one of {EXPANSIONS}, got {expansion!r}")
     if not gamma > 0 or rtol < 0 or atol < 0 or max_it < 0:
-        raise ValueError("mpgp: need gamma > 0 and non-negative rtol, atol, max_it")
-    if face not in ("tangent", "interior"):
-        raise ValueError(f"mpgp: face must be 'tangent' or 'interior', got {face!r}")
-    tangent = face == "tangent"
+        raise ValueError(f"{name}: need gamma > 0 and non-negative rtol, atol, max_it")
+    if alpha not in ALPHAS:
+        raise ValueError(f"{name}: alpha must be one of {ALPHAS}, got {alpha!r}")
+    if alpha != "fixed" and expansion != "fixed":
+        raise ValueError(f"{name}: alpha={alpha!r} adapts the fixed-length expansion; it needs "
+                         f"expansion='fixed', got {expansion!r}")
+    if face not in FACES:
+        raise ValueError(f"{name}: face must be 'tangent' or 'interior', got {face!r}")
+    S = Box(lb, ub, x) if discs is None else SeparableSet(lb, ub, discs, x)
+    curved = S.curved
+    if curved and (expansion != "fixed" or alpha != "fixed"):
+        raise ValueError(f"{name}: with discs only the fixed expansion is implemented, got "
+                         f"expansion={expansion!r}, alpha={alpha!r}")
+    if proportioning not in ("projection", "line"):
+        raise ValueError(f"{name}: proportioning must be 'projection' or 'line', got "
+                         f"{proportioning!r}")
+    line_search = proportioning == "line" and not curved
+    tangent = curved and face == "tangent"
     prec = None if preconditioner is None else Preconditioner(preconditioner)
-    S = SeparableSet(lb, ub, discs, x)
-    check_finite(comm, "mpgp: b", b.array_r)
-    check_finite(comm, "mpgp: the start x", x.array_r)
+    check_finite(comm, f"{name}: b", b.array_r)
+    check_finite(comm, f"{name}: the start x", x.array_r)
     mult = Counter(A)
     counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
+    if expansion == "projcg" or alpha != "fixed":
+        counts["rejected"] = 0
     if prec is not None:
         counts["precond"] = 0
-    alpha_bar, scale_A = step_length("mpgp", mult, x, counts, alpha_bar, norm_A)
+    alpha_bar, scale_A = step_length(name, mult, x, counts, alpha_bar, norm_A)
     if b_norm is None:
         b_norm = b.norm()
 
-    g = feasible_start("mpgp", S.project, mult, x, b, g, g_valid, comm)
+    g = feasible_start(name, S.project, mult, x, b, g, g_valid, comm)
 
     phi, beta, p, Ap = x.duplicate(), x.duplicate(), x.duplicate(), x.duplicate()
-    Hp = x.duplicate()  # (A + curvature) p
+    Hp = x.duplicate() if tangent else Ap  # (A + curvature) p on the circles
     z = phi if prec is None else x.duplicate()
+    saved_g = g.duplicate() if alpha == "bb" else None  # g at the half-step (long steps)
     history: list[dict] = []
     it, kind, reason = 0, "init", "max_it"
-    cg_pending = False
+    cg_pending = False  # p holds a CG direction to be continued (else restart from phi)
     pHp = 1.0
-    rot = np.zeros(x.getLocalSize(), dtype=bool)
-    curv = np.zeros(x.getLocalSize())
+    n = x.getLocalSize()
+    rot = np.zeros(n, dtype=bool)
+    curv = np.zeros(n)
     while True:
         phi_a, beta_a, active = S.split(x.array_r, g.array_r)
         if tangent:  # pairs on their circle pushed outwards: their tangential part is free
@@ -329,6 +279,7 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
             fixed = active & ~rot  # entries that do not move in this face
             r = phi
             if prec is not None:
+                # Preconditioning in face: z = D_F M^{-1} D_F phi (phi = D_F g already).
                 prec.apply(phi, z)
                 z.array[fixed] = 0.0
                 if tangent:
@@ -336,21 +287,25 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
                 if z.dot(phi) > _DESCENT_RTOL * math.sqrt(phi2 * z.dot(z)):
                     r = z
             if cg_pending:
+                # Continue the conjugate direction: p = r - (r^T H p / p^T H p) p.
                 p.aypx(-r.dot(Hp) / pHp, r)
                 if tangent:  # the face: interior blocks and the tangents of rotating pairs
                     pa = S.tangential(x.array_r, p.array_r, rot)
                     pa[fixed] = 0.0
                     p.array[:] = pa
                 if not g.dot(p) > 0.0:
-                    r.copy(p)
+                    r.copy(p)  # lost descent (face changed under rounding): restart
             else:
                 r.copy(p)
             mult(p, Ap)
-            Hp.array[:] = Ap.array_r + curv * p.array_r
+            if tangent:
+                Hp.array[:] = Ap.array_r + curv * p.array_r
+                moves = comm.allreduce(bool(np.any(p.array_r[rot] != 0.0)), op=MPI.LOR)
+                pf = p.array_r.copy()
+                pf[rot] = 0.0  # rotating pairs follow their circle: no limit on the step
+            else:
+                moves, pf = False, p.array_r
             pHp, gp = p.dot(Hp), g.dot(p)
-            moves = comm.allreduce(bool(np.any(p.array_r[rot] != 0.0)), op=MPI.LOR)
-            pf = p.array_r.copy()
-            pf[rot] = 0.0  # rotating pairs follow their circle: no limit on the step
             t_f = S.max_step(x.array_r, pf)
             positive = pHp > _CURVATURE_RTOL * scale_A * p.dot(p)
             t_cg = gp / pHp if positive else math.inf
@@ -361,56 +316,172 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
                     kind, cg_pending = "cg", True
                     counts["cg"] += 1
                     continue
-                # A step along the circles (the tangent step, projected back): a fresh
-                # gradient, kept unless the energy increased. f(x1) - f(x0) = ½ (x1 - x0)ᵀ(g0 +
-                # g1) for a quadratic, without the cancellation of f(x1) - f(x0); the rounding
-                # of x on the circles, where g is large, moves f by ~ eps Σ|x||g|: tolerated.
-                x0, g0 = x.array_r.copy(), g.copy()
-                x.array[:] = S.step(x.array_r, p.array_r, t_cg)
-                mult(x, g)
-                g.axpy(-1.0, b)
-                xa, ga = x.array_r, g.array_r
-                df, noise = comm.allreduce(np.array([
-                    0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
-                    float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga))]))
-                if df <= _ENERGY_NOISE * noise:
+                if _turn(S, x, g, b, p, mult, t_cg, comm):
                     kind, cg_pending = "cg", True
                     counts["cg"] += 1
                     continue
-                x.array[:] = x0
-                g0.copy(g)
                 counts["rejected"] = counts.get("rejected", 0) + 1
                 proportional = False  # fall back to a gradient projection step
             else:
                 if not math.isfinite(t_f):
                     reason = "unbounded"
                     break
-                # Expansion: to the boundary along p, then a projected free-gradient step.
-                x.array[:] = S.step(x.array_r, p.array_r, t_f)
                 if moves:
+                    # Expansion: to the boundary along p (turning pairs), then a projected
+                    # free-gradient step.
+                    x.array[:] = S.step(x.array_r, p.array_r, t_f)
                     mult(x, g)
                     g.axpy(-1.0, b)
-                else:
-                    g.axpy(-t_f, Ap)
-                phi_h = S.split(x.array_r, g.array_r)[0]
-                x.array[:] = S.project(x.array_r - alpha_bar * phi_h)
-                mult(x, g)
-                g.axpy(-1.0, b)
+                    _expand(S, x, g, b, phi, p, Ap, mult, alpha_bar, "fixed", scale_A)
+                    kind, cg_pending = "expansion", False
+                    counts["expansion"] += 1
+                    continue
+                if expansion == "projcg" and math.isfinite(t_cg):
+                    if _projected_cg_step(S, x, g, b, p, mult, t_cg, t_f, gp, pHp):
+                        kind, cg_pending = "expansion", False
+                        counts["expansion"] += 1
+                        continue
+                    counts["rejected"] += 1
+                # Expansion: go to the boundary along p, then a projected step from there.
+                x.array[:] = S.step(x.array_r, p.array_r, t_f)
+                g.axpy(-t_f, Ap)
+                if alpha == "bb" and positive:
+                    # BB1 step of the secant pair (x - x_h, g - g_h) = t_f (p, A p): no product.
+                    step = p.dot(p) / pHp
+                    if step > alpha_bar:
+                        saved_x = x.array_r.copy()  # the half-step
+                        g.copy(saved_g)
+                        if _long_step(S, x, g, b, mult, step):
+                            kind, cg_pending = "expansion", False
+                            counts["expansion"] += 1
+                            continue
+                        x.array[:] = saved_x  # the energy increased: back to the half-step
+                        saved_g.copy(g)
+                        counts["rejected"] += 1
+                if not _expand(S, x, g, b, phi, p, Ap, mult, alpha_bar, expansion, scale_A):
+                    reason = "unbounded"
+                    break
                 kind, cg_pending = "expansion", False
                 counts["expansion"] += 1
+                continue
         if not proportional:
-            # Proportioning: the gradient projection step with the full gradient.
-            x.array[:] = S.project(x.array_r - alpha_bar * g.array_r)
-            mult(x, g)
-            g.axpy(-1.0, b)
+            if not line_search:
+                # Proportioning: the gradient projection step with the full g.
+                x.array[:] = S.project(x.array_r - alpha_bar * g.array_r)
+                mult(x, g)
+                g.axpy(-1.0, b)
+            else:
+                # Proportioning: the exact line search along beta, cut at the opposite bound.
+                mult(beta, Ap)
+                bAb = beta.dot(Ap)
+                t_f = S.max_step(x.array_r, beta.array_r)
+                positive = bAb > _CURVATURE_RTOL * scale_A * beta2
+                t = min(beta2 / bAb if positive else math.inf, t_f)
+                if not math.isfinite(t):
+                    reason = "unbounded"
+                    break
+                x.array[:] = S.step(x.array_r, beta.array_r, t)
+                g.axpy(-t, Ap)
             kind, cg_pending = "proportioning", False
             counts["proportioning"] += 1
 
     if prec is not None:
         counts["precond"] = prec.count
     active_count = comm.allreduce(int(np.count_nonzero(active)))
-    objective = 0.5 * (x.dot(g) - x.dot(b))
+    objective = 0.5 * (x.dot(g) - x.dot(b))  # f = 1/2 x^T (A x - b) - 1/2 b^T x
     return QPResult(x=x, converged=reason in ("rtol", "atol", "stop"), reason=reason,
                     iterations=it, hessian_mults=mult.n, counts=counts, gP_norm=gP,
                     b_norm=b_norm, active=active, active_count=active_count, history=history,
                     objective=objective)
+
+
+def _turn(S, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, p: PETSc.Vec, mult: Counter,
+          t: float, comm) -> bool:
+    """A CG step that turns disc pairs along their circles: x <- P(x - t p), fresh gradient.
+
+    Kept unless the energy increased: f(x1) - f(x0) = ½ (x1 - x0)ᵀ(g0 + g1) for a quadratic,
+    without the cancellation of f(x1) - f(x0); the rounding of x on the circles, where g is
+    large, moves f by ~ eps Σ|x||g|: tolerated. On rejection x and g are restored.
+    """
+    x0, g0 = x.array_r.copy(), g.copy()
+    x.array[:] = S.step(x.array_r, p.array_r, t)
+    mult(x, g)
+    g.axpy(-1.0, b)
+    xa, ga = x.array_r, g.array_r
+    df, noise = comm.allreduce(np.array([
+        0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
+        float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga))]))
+    if df <= _ENERGY_NOISE * noise:
+        g0.destroy()
+        return True
+    x.array[:] = x0
+    g0.copy(g)
+    g0.destroy()
+    return False
+
+
+def _expand(S, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, phi: PETSc.Vec, d: PETSc.Vec,
+            Ad: PETSc.Vec, mult: Counter, alpha_bar: float, expansion: str,
+            scale_A: float) -> bool:
+    """Projected gradient step from the half-step ``x`` (updates ``x`` and ``g``).
+
+    ``phi``, ``d`` and ``Ad`` are scratch. Returns False if the energy is unbounded below.
+    """
+    xa = x.array_r
+    phi_a = S.split(xa, g.array_r)[0]
+    if expansion != "optimal":  # 'fixed', and the fallback of a rejected 'projcg' step
+        x.array[:] = S.project(xa - alpha_bar * phi_a)
+        mult(x, g)
+        g.axpy(-1.0, b)
+        return True
+    # 'optimal': exact line search on the feasible segment along the reduced free gradient.
+    d.array[:] = S.reduced_free(xa, phi_a, alpha_bar)
+    phi.array[:] = phi_a
+    gd = phi.dot(d)  # = g^T d: d vanishes where phi does
+    if gd <= 0.0:
+        return True  # phi(x_h) = 0: x_h minimizes the face, nothing to expand
+    mult(d, Ad)
+    dAd = d.dot(Ad)
+    t_max = S.max_step(xa, d.array_r)
+    positive = dAd > _CURVATURE_RTOL * scale_A * d.dot(d)
+    t = min(gd / dAd if positive else math.inf, t_max)
+    if not math.isfinite(t):
+        return False
+    x.array[:] = S.step(xa, d.array_r, t)
+    g.axpy(-t, Ad)
+    return True
+
+
+def _projected_cg_step(S, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, p: PETSc.Vec,
+                       mult: Counter, t_cg: float, t_f: float, gp: float, pAp: float) -> bool:
+    """Try the projected full CG step ``x <- P(x - t_cg p)`` with a fresh gradient.
+
+    It is kept if its energy is not above that of the half-step ``x - t_f p`` (known from
+    scalars); otherwise ``x`` and ``g`` are restored and False is returned.
+    """
+    f_half = 0.5 * (x.dot(g) - x.dot(b)) - t_f * gp + 0.5 * t_f * t_f * pAp
+    x_old, g_old = x.array_r.copy(), g.copy()
+    x.array[:] = S.project(x_old - t_cg * p.array_r)
+    mult(x, g)
+    g.axpy(-1.0, b)
+    if 0.5 * (x.dot(g) - x.dot(b)) <= f_half:
+        return True
+    x.array[:] = x_old
+    g_old.copy(g)
+    return False
+
+
+def _long_step(S, x: PETSc.Vec, g: PETSc.Vec, b: PETSc.Vec, mult: Counter,
+               step: float) -> bool:
+    """Try ``x <- P(x_h - step phi(x_h))`` from the half-step ``x_h`` with a fresh gradient.
+
+    Returns whether the energy did not increase; ``x`` and ``g`` hold the trial point either
+    way (the caller restores the half-step on False).
+    """
+    xa = x.array_r
+    f_h = 0.5 * (x.dot(g) - x.dot(b))
+    phi_a = S.split(xa, g.array_r)[0]
+    x.array[:] = S.project(xa - step * phi_a)
+    mult(x, g)
+    g.axpy(-1.0, b)
+    return 0.5 * (x.dot(g) - x.dot(b)) <= f_h

@@ -1,0 +1,150 @@
+"""What the FEM side hands to the FETI layer: the assembled subdomains of a rank and their dof map.
+
+The FETI layer (:mod:`dolfinx_feti.feti`) is algebra on these arrays; this module is the only
+place that builds meshes and assembles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+
+from ..errors import collective
+from ..mesh.decompose import Decomposition
+from ..mesh.topology import locate_facets
+from ..problem import ContactProblem
+from ..timing import Timer
+from .rigid import rigid_modes
+from .subdomain import Subdomain
+
+
+@dataclass
+class SubdomainData:
+    """The assembled subdomains of one rank, in the canonical dof order.
+
+    The global primal vector holds the subdomains one after another; subdomain ``s`` owns the
+    global entries ``sub_offset[s]:sub_offset[s+1]``, node-major (``bs`` components per node).
+
+    Attributes:
+        comm: The communicator.
+        bs: Components per node.
+        gdim: Geometric dimension.
+        local_subs: The subdomains of this rank (contiguous, increasing).
+        sub_offset: Global primal offset of every subdomain (length ``num_subdomains + 1``).
+        K: Block-diagonal stiffness matrix of the local subdomains (CSR).
+        f: Local load vector.
+        kernels: Per local subdomain, an orthonormal basis of ker K_s (rigid body modes).
+        labels: Per local subdomain, a name for messages.
+        bodies: Per local subdomain, the name of its body.
+        dof_x: Coordinates of the node of every local dof (n_local × gdim).
+        dof_comp: Component of every local dof.
+        dof_node: Global node of every local dof.
+        dof_sub: Subdomain of every local dof.
+    """
+
+    comm: MPI.Comm
+    bs: int
+    gdim: int
+    local_subs: np.ndarray
+    sub_offset: np.ndarray
+    K: sp.csr_matrix
+    f: np.ndarray
+    kernels: list[np.ndarray]
+    labels: list[str]
+    bodies: list[str]
+    dof_x: np.ndarray
+    dof_comp: np.ndarray
+    dof_node: np.ndarray
+    dof_sub: np.ndarray
+
+    @property
+    def primal_start(self) -> int:
+        """Global index of the first local primal entry."""
+        return int(self.sub_offset[self.local_subs[0]]) if self.local_subs.size else 0
+
+    @property
+    def primal_size(self) -> tuple[int, int]:
+        """(local, global) primal sizes."""
+        return self.K.shape[0], int(self.sub_offset[-1])
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """Local offsets of the blocks (length ``len(local_subs) + 1``)."""
+        return self.sub_offset[np.r_[self.local_subs, self.local_subs[-1] + 1]] - \
+            self.primal_start if self.local_subs.size else np.zeros(1, dtype=np.int64)
+
+
+def _cells_by_subdomain(cell_sub: np.ndarray, subs: np.ndarray) -> dict[int, np.ndarray]:
+    """The cells of each given subdomain (one sort, not one scan per subdomain)."""
+    order = np.argsort(cell_sub, kind="stable")
+    start = np.searchsorted(cell_sub[order], subs)
+    stop = np.searchsorted(cell_sub[order], subs, side="right")
+    return {int(s): order[a:b] for s, a, b in zip(subs, start, stop, strict=True)}
+
+
+def _runs_of_equal_bodies(mesh, subs, cells_of) -> list[list[int]]:
+    """Consecutive subdomains with the same set of bodies, each run to be assembled as one mesh.
+
+    Grouping by bodies keeps ``sub.body`` meaningful in the user's forms callback.
+    """
+    runs, key = [], None
+    for s in subs:
+        k = tuple(np.unique(mesh.cell_body[cells_of[int(s)]]))
+        if k != key:
+            runs.append([])
+            key = k
+        runs[-1].append(int(s))
+    return runs
+
+
+def _subdomain_facets(mesh, dec) -> dict[int, dict[str, np.ndarray]]:
+    """Boundary groups split by the subdomain of the cell each facet bounds."""
+    out: dict[int, dict[str, np.ndarray]] = {}
+    for name, f in mesh.facet_groups.items():
+        if f.shape[0] == 0:
+            continue
+        cell, _ = locate_facets(mesh.cells, f, mesh.cell_type)
+        sub = np.where(cell >= 0, dec.cell_sub[np.maximum(cell, 0)], -1)
+        for s in np.unique(sub[sub >= 0]):
+            out.setdefault(int(s), {})[name] = f[sub == s]
+    return out
+
+
+def assemble_subdomains(problem: ContactProblem, dec: Decomposition, comm: MPI.Comm,
+                        timer: Timer) -> SubdomainData:
+    """Mesh and assemble the subdomains of this rank (collective on ``comm``).
+
+    A rank's subdomains with the same bodies are meshed together as a disjoint union, so one
+    assembly gives their block-diagonal K (see :class:`~dolfinx_feti.fem.Subdomain`).
+    """
+    mesh, bs = problem.mesh, problem.value_size
+    local_subs = dec.local_subdomains(comm.rank)
+    sub_offset = np.concatenate([[0], np.cumsum(bs * np.diff(dec.sub_ptr))]).astype(np.int64)
+    with timer.phase("assembly"), collective(comm, "assembly"):
+        facets = _subdomain_facets(mesh, dec)
+        cells_of = _cells_by_subdomain(dec.cell_sub, local_subs)
+        K_parts, f_parts = [], []
+        for group in _runs_of_equal_bodies(mesh, local_subs, cells_of):
+            sub = Subdomain(group, mesh, [cells_of[s] for s in group],
+                            [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group],
+                            problem.dof_points)
+            K, f = sub.assemble(problem.forms, bs)
+            K_parts.append(K)
+            f_parts.append(f)
+        K = sp.block_diag(K_parts, format="csr") if K_parts else sp.csr_matrix((0, 0))
+        nodes = [dec.nodes(s) for s in local_subs]
+        # The rigid motions are linear: their nodal interpolation at the dof points is exact.
+        x = problem.dof_points.x
+        kernels = [rigid_modes(x[n], bs) for n in nodes]
+        dof_node = np.repeat(np.concatenate(nodes), bs) if nodes else np.zeros(0, np.int64)
+        dof_sub = np.repeat(local_subs, bs * np.array([n.size for n in nodes], dtype=np.int64))
+    labels = [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in local_subs]
+    return SubdomainData(
+        comm=comm, bs=bs, gdim=mesh.gdim, local_subs=local_subs, sub_offset=sub_offset, K=K,
+        f=np.concatenate(f_parts) if f_parts else np.zeros(0), kernels=kernels, labels=labels,
+        bodies=[mesh.body_names[dec.sub_body[s]] for s in local_subs],
+        dof_x=x[dof_node], dof_comp=np.tile(np.arange(bs), dof_node.size // bs),
+        dof_node=dof_node, dof_sub=dof_sub)

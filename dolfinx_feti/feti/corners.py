@@ -1,0 +1,319 @@
+"""FETI-DP's primal step: the corner dofs become global unknowns, assembled over the subdomains.
+
+Split the primal dofs into corners c (one global unknown per corner dof, shared by all the
+subdomain copies of that dof) and the rest r (still one copy per subdomain). Then
+
+    K̃ = [[K_rr, K_rc], [K_cr, K_cc]]   (K_rr = diag(K_s,rr), K_cc assembled),   B̃ = B E,
+
+E the map that copies each corner unknown to its subdomain copies. Gluing rows between copies
+of one corner dof vanish in B̃ and are removed. K̃⁺ is applied through the corner Schur
+complement S_cc = K_cc − K_cr K_rr⁻¹ K_rc, assembled and factored once on every rank:
+
+    y_c = S_cc⁺ (x_c − K_cr K_rr⁺ x_r),   y_r = K_rr⁺ x_r − Ψ y_c,   Ψ = K_rr⁺ K_rc,
+
+one local solve per application (Ψ is kept, sparse: its columns are nonzero on the subdomains
+of their corner only). When every body is held, K̃ is positive definite, there is no coarse
+space and contact is a bound-constrained QP for MPRGP alone. A floating body leaves S_cc
+singular with its rigid motions as kernel (the semicoercive FETI-DP): they are the kernel R̃ of
+K̃ handed to the dualization, i.e. the natural coarse space on top, and S_cc⁺ fixes a few
+corner dofs per floating body as the subdomain inverses do.
+
+Layout of the new primal vector: every rank keeps its subdomains' dofs in place (a corner copy
+is an unused entry with an identity row in K_rr), and rank 0 holds the corner unknowns after
+its own entries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..errors import InputError, SolveError, collective
+from .kplus import FixingNodesInverse
+from .system import (
+    EQUALITY,
+    BlockSystem,
+    PreconditionerOperands,
+    _Rows,
+    local_csr,
+    petsc_aij,
+)
+from .transforms import _drop_small, recover_multipliers, row_max, select_rows
+
+#: Entries of B̃ = B E below this times the largest entry of their row are cancellations
+#: (the two copies of a corner dof in a gluing row).
+CANCEL_RTOL = 1e-12
+#: Right-hand sides per batched solve when Ψ = K_rr⁺ K_rc is built (memory: n_local × this).
+_BATCH = 32
+
+
+def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(0, dtype)
+
+
+class CornerSystem(_Rows):
+    """The primal problem after the corners are assembled (built by :class:`EliminateCorners`).
+
+    Has what :class:`~dolfinx_feti.feti.dualize.Dualization` needs: ``B``, ``f``, ``c``,
+    ``apply_kplus``, ``kernel_matrix``.
+
+    Attributes:
+        n_coarse: Number of corner unknowns.
+        types: Local row types of the kept rows.
+    """
+
+    def __init__(self, step: EliminateCorners, B: PETSc.Mat, c: np.ndarray, f: PETSc.Vec,
+                 types: np.ndarray) -> None:
+        self._step = step
+        self.comm = step.parent.comm
+        self._set_rows(B, c, types)
+        self.f = f
+        self.n_coarse = step.n_coarse
+
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """Factor K_rr, build Ψ and S_cc, factor S_cc (collective; ``site``: the guard's)."""
+        self._step.factorize(factor, site)
+
+    def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = K̃⁺ x."""
+        self._step.apply_kplus(x.array_r, y.array)
+
+    def kernel_matrix(self):
+        """The rigid motions of the floating bodies in the new layout, and their bodies."""
+        return self._step.kernel_local, list(self._step.kernel_bodies)
+
+    def preconditioner_operands(self) -> PreconditionerOperands:
+        """The parent's K and rows (kept), with the corner dofs left out of the interiors."""
+        step = self._step
+        blocks = step.parent.blocks
+        return PreconditionerOperands(step.parent.K, step.B_parent, step.is_corner,
+                                      None if blocks is None else blocks[step.kept])
+
+    def assembled(self) -> PETSc.Mat:
+        """K̃ = Eᵀ K E as an MPIAIJ matrix (for checks)."""
+        return self._step.assembled()
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self.B, self.c, self.f):
+            obj.destroy()
+
+
+class EliminateCorners:
+    """Keep the corner dofs primal: the FETI-DP transform of a block system.
+
+    Args:
+        parent: The system (FETI-1 form: Dirichlet conditions eliminated).
+        coarse: Per local dof of ``parent``, the index of its corner unknown, or −1.
+        n_coarse: Number of corner unknowns.
+        modes: Candidate kernel of K̃: the rigid motions of each floating body (connected set
+            of subdomains) evaluated at the parent's local dofs, n_local × m with the same
+            m columns on every rank (m = 0 when every body is held). They must vanish on the
+            parent's fixed dofs and be continuous across subdomain copies.
+        mode_bodies: The body of each column of ``modes``, for messages.
+
+    Attributes:
+        child: The :class:`CornerSystem`.
+        kept: Local mask of the parent's rows that the child keeps.
+        is_corner: Local mask of the parent's dofs that are corner copies.
+    """
+
+    def __init__(self, parent: BlockSystem, coarse: np.ndarray, n_coarse: int,
+                 modes: np.ndarray, mode_bodies: list[str]) -> None:
+        self.parent = parent
+        comm = parent.comm
+        self.n_coarse = nc = int(n_coarse)
+        coarse = np.asarray(coarse, dtype=np.int64)
+        n = parent.K.shape[0]
+        self.is_corner = coarse >= 0
+        self.coarse = coarse
+        rank = comm.rank
+        n0 = comm.bcast(n if rank == 0 else None, root=0)
+        self._c0 = n0  # global index of the first corner unknown
+        start = parent.primal_start + (nc if rank > 0 else 0)
+        self._n_local = n
+        n_dp = n + (nc if rank == 0 else 0)
+        N_dp = parent.primal_size[1] + nc
+        col = np.where(self.is_corner, n0 + coarse, start + np.arange(n))
+        E = sp.csr_matrix((np.ones(n), (np.arange(n), col)), shape=(n, N_dp))
+        self.E = petsc_aij(E, parent.primal_size, (n_dp, N_dp), comm)
+
+        # B̃ = B E without the rows that vanished (gluing between copies of one corner dof)
+        Bt = parent.B.matMult(self.E)
+        Bl = _drop_small(local_csr(Bt), CANCEL_RTOL, row_max(local_csr(parent.B)))
+        Bt.destroy()
+        empty = np.diff(Bl.indptr) == 0
+        self.kept = ~(empty & (parent.types == EQUALITY))
+        gone = ~self.kept
+        c = parent.c.array_r
+        bad = np.abs(c[gone]) > 1e-12 * max(np.abs(c).max(initial=0.0), 1e-300)
+        if comm.allreduce(bool(np.any(bad)), op=MPI.LOR):
+            raise InputError("FETI-DP: an equality row between copies of one corner dof has a "
+                             "nonzero right-hand side")
+        nk = int(self.kept.sum())
+        B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)), (n_dp, N_dp),
+                      comm)
+        self.B_parent = select_rows(parent.B, self.kept)
+        f = B.createVecRight()
+        self.E.multTranspose(parent.f, f)
+
+        # the blocks of K̃
+        K = parent.K
+        rr = (~self.is_corner).astype(float)
+        ci = np.flatnonzero(self.is_corner)
+        Pc = sp.csr_matrix((np.ones(ci.size), (ci, coarse[ci])), shape=(n, nc))
+        self.K_rr, self.kernels_rr = parent.held(self.is_corner)
+        self.K_rc = (sp.diags(rr) @ K @ Pc).tocsr()
+        self.K_rc.eliminate_zeros()
+        self._K_cc_local = (Pc.T @ K @ Pc).tocoo()
+        self._block = np.repeat(np.arange(len(parent.kernels)), np.diff(parent.offsets))
+
+        # the kernel of K̃: the given rigid motions, checked, in the new layout
+        modes = np.asarray(modes, dtype=float)
+        m = modes.shape[1]
+        if m:
+            KZ = comm.allreduce(float(np.linalg.norm(K @ modes)) ** 2)
+            kn = comm.allreduce(float(abs(K).sum(axis=1).max()) if n else 0.0, op=MPI.MAX)
+            zn = comm.allreduce(float(np.linalg.norm(modes)) ** 2)
+            if not np.sqrt(KZ) <= 1e-8 * kn * np.sqrt(zn):
+                raise SolveError("FETI-DP: the rigid motions given as the kernel of the "
+                                 "floating bodies are not in the kernel of K")
+        mult = comm.allreduce(np.bincount(coarse[ci], minlength=nc).astype(float))
+        Zc = comm.allreduce(Pc.T @ modes) / np.maximum(mult, 1.0)[:, None] if m else \
+            np.zeros((nc, 0))
+        self.Z_c = Zc
+        Zr = np.where(self.is_corner[:, None], 0.0, modes)
+        self.kernel_local = sp.csr_matrix(np.vstack([Zr, Zc]) if rank == 0 else Zr)
+        self.kernel_bodies = list(mode_bodies)
+        self.child = CornerSystem(self, B, c[self.kept], f, parent.types[self.kept])
+        self.Krr_plus: FixingNodesInverse | None = None
+        self.S_plus: FixingNodesInverse | None = None
+
+    # --- the coarse problem ----------------------------------------------------------------
+    def _colours(self) -> list[np.ndarray]:
+        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks."""
+        ci = np.flatnonzero(self.is_corner)
+        self._blocks_of = {}
+        if ci.size == 0:
+            return []
+        pairs = np.unique(np.stack([self.coarse[ci], self._block[ci]], axis=1), axis=0)
+        cols = np.unique(pairs[:, 0])
+        blocks_of = np.split(pairs[:, 1], np.searchsorted(pairs[:, 0], cols[1:]))
+        colour_of_block: dict[int, set[int]] = {}
+        colour = np.empty(cols.size, dtype=np.int64)
+        for j, blocks in enumerate(blocks_of):  # greedy, over the few local corner unknowns
+            used = set().union(*(colour_of_block.get(int(b), set()) for b in blocks))
+            k = 0
+            while k in used:
+                k += 1
+            colour[j] = k
+            for b in blocks:
+                colour_of_block.setdefault(int(b), set()).add(k)
+        self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
+        return [cols[colour == k] for k in range(int(colour.max(initial=-1)) + 1)]
+
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
+
+        The rank-local part runs in one guard (:func:`~dolfinx_feti.errors.collective`, phase
+        ``site``); the assembly of S_cc after it is collective.
+        """
+        comm, parent, nc = self.parent.comm, self.parent, self.n_coarse
+        with collective(comm, site):
+            self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
+            n = self._n_local
+            rows, cols, vals = [], [], []
+            groups = self._colours()
+            for first in range(0, len(groups), _BATCH):
+                batch = groups[first:first + _BATCH]
+                rhs = np.column_stack([np.asarray(self.K_rc[:, g].sum(axis=1)).ravel()
+                                       for g in batch])
+                Y = self.Krr_plus.solve_matrix(rhs)
+                for group, y in zip(batch, Y.T, strict=True):
+                    owner = np.full(len(parent.kernels), -1, dtype=np.int64)
+                    for j in group:
+                        owner[self._blocks_of[int(j)]] = j
+                    col = owner[self._block]
+                    sel = np.flatnonzero((col >= 0) & (y != 0.0))
+                    rows.append(sel)
+                    cols.append(col[sel])
+                    vals.append(y[sel])
+            self.Psi = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
+                                                           _cat(cols, np.int64))), shape=(n, nc))
+            S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()
+        parts = comm.allgather((S_loc.row, S_loc.col, S_loc.data))
+        S = sp.csr_matrix((np.concatenate([p[2] for p in parts]),
+                           (np.concatenate([p[0] for p in parts]),
+                            np.concatenate([p[1] for p in parts]))), shape=(nc, nc))
+        S = (0.5 * (S + S.T)).tocsr()
+        S.eliminate_zeros()
+        self.S = S
+        self._t = np.empty(nc)
+        if nc == 0:  # no corners (e.g. one subdomain per body): K̃ = K
+            return
+        kernel = self._coarse_kernel()
+        try:
+            self.S_plus = FixingNodesInverse(S, [kernel], factor,
+                                             ["the FETI-DP corner problem S_cc"])
+        except SolveError as e:
+            raise SolveError(
+                f"FETI-DP: {e}. The corners do not join the subdomains rigidly (a mechanism "
+                "in the corner problem); use method='tfeti' or 'feti1'") from None
+
+    def _coarse_kernel(self) -> np.ndarray:
+        """Orthonormal basis of ker S_cc: the corner values of the floating bodies' motions."""
+        Zc = self.Z_c
+        if Zc.shape[1] == 0 or Zc.shape[0] == 0:
+            return np.zeros((Zc.shape[0], 0))
+        U, sv, _ = np.linalg.svd(Zc, full_matrices=False)
+        return U[:, sv > 1e-10 * sv.max(initial=0.0)] if sv.size and sv.max() > 0 else \
+            np.zeros((Zc.shape[0], 0))
+
+    def apply_kplus(self, x: np.ndarray, out: np.ndarray) -> None:
+        """out = K̃⁺ x on the local array of the new layout (collective)."""
+        n, comm = self._n_local, self.parent.comm
+        yr = out[:n]
+        self.Krr_plus.solve(x[:n], yr)
+        if self.n_coarse == 0:
+            return
+        t = -(self.K_rc.T @ yr) if n else np.zeros(self.n_coarse)
+        if comm.rank == 0:
+            t += x[n:]
+        comm.Allreduce(np.ascontiguousarray(t), self._t, op=MPI.SUM)
+        yc = np.empty(self.n_coarse)
+        self.S_plus.solve(self._t, yc)
+        if n:
+            yr -= self.Psi @ yc
+        if comm.rank == 0:
+            out[n:] = yc
+
+    def assembled(self) -> PETSc.Mat:
+        """K̃ = Eᵀ K E (MPIAIJ; for checks, not used by the solve)."""
+        Kl = self.parent.K.tocsr()
+        start = self.parent.primal_start
+        Kg = sp.csr_matrix((Kl.data, Kl.indices + start, Kl.indptr),
+                           shape=(Kl.shape[0], self.parent.primal_size[1]))
+        K = petsc_aij(Kg, self.parent.primal_size, self.parent.primal_size, self.parent.comm)
+        Kt = K.PtAP(self.E)
+        K.destroy()
+        return Kt
+
+    def map_primal(self, Z: np.ndarray) -> np.ndarray:
+        """Primal vectors (columns, local rows) of the child → of the parent: E Z."""
+        comm, n = self.parent.comm, self._n_local
+        Zc = comm.bcast(Z[n:] if comm.rank == 0 else None, root=0)
+        out = Z[:n].copy()
+        out[self.is_corner] = Zc[self.coarse[self.is_corner]]
+        return out
+
+    def map_back(self, u: PETSc.Vec, lam: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """(u, λ) of the child → of the parent: u = E ũ, the removed rows' λ recovered."""
+        up = self.parent.B.createVecRight()
+        self.E.mult(u, up)
+        lp = self.parent.B.createVecLeft()
+        lp.set(0.0)
+        lp.array[self.kept] = lam.array_r
+        recover_multipliers(self.parent, up, lp, ~self.kept)
+        return up, lp

@@ -1,0 +1,125 @@
+"""Dualization: from a primal FETI problem to F, d, G, e, and from λ back to u.
+
+    F = B K⁺ Bᵀ (a PETSc shell),  d = B K⁺ f − c,  Gᵀ = B R (local rows),  e = Rᵀ f,
+
+    u = K⁺ (f − Bᵀ λ) + R α.
+
+The primal problem is anything with ``B``, ``f``, ``c``, ``apply_kplus`` and ``kernel_matrix``
+(:class:`.system.BlockSystem` for Total FETI and FETI-1, :class:`.corners.CornerSystem` for
+FETI-DP), so the same step serves every method.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..qp.equality import RowBlockConstraint, orthonormalize
+from ..qp.shell import python_shell
+from .system import petsc_aij
+
+
+class _DualShell:
+    """The python context of the F shell: y = B K⁺ Bᵀ x, counting applications."""
+
+    def __init__(self, primal) -> None:
+        self.primal = primal
+        self.count = 0
+        self._w = primal.B.createVecRight()
+        self._v = primal.B.createVecRight()
+
+    def mult(self, mat: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.count += 1
+        self.primal.B.multTranspose(x, self._w)
+        self.primal.apply_kplus(self._w, self._v)
+        self.primal.B.mult(self._v, y)
+
+
+class Dualization:
+    """The dual operators of a primal problem, and the primal recovery (collective).
+
+    Attributes:
+        primal: The primal problem.
+        B: Its constraint matrix.
+        F: Dual operator B K⁺ Bᵀ, a PETSc shell Mat.
+        d: Dual linear term B K⁺ f − c.
+        c: Right-hand sides of the rows.
+        Gt_local: Local rows of Gᵀ = B R (owned dual rows × coarse dofs), SciPy CSR.
+        e: Rᵀ f, the same array on every rank.
+        kernel_bodies: The body of each column of R (for messages).
+        coarse_size: Number of columns of R (the coarse space before orthonormalization).
+        rows_local: The global rows owned by this rank.
+    """
+
+    def __init__(self, primal) -> None:
+        self.primal = primal
+        self.comm: MPI.Comm = primal.comm
+        self.B, self.c, self.f = primal.B, primal.c, primal.f
+        self.rows_local = primal.rows_local
+        self.dual_size, self.primal_size = primal.dual_size, primal.primal_size
+        self._shell = _DualShell(primal)
+        self.F = python_shell(self._shell, self.c)
+        self.R, self.kernel_bodies = primal.kernel_matrix()
+        m = self.coarse_size = self.R.shape[1]
+        Rmat = petsc_aij(self.R, self.primal_size, (PETSc.DECIDE, m), self.comm)
+        Gt = self.B.matMult(Rmat)
+        indptr, indices, data = Gt.getValuesCSR()
+        self.Gt_local = sp.csr_matrix((data, indices, indptr), shape=(self.dual_size[0], m))
+        Gt.destroy()
+        Rmat.destroy()
+        self.e = self.comm.allreduce(self.R.T @ self.f.array_r, op=MPI.SUM) if m else \
+            np.zeros(0)
+        self.d = self.B.createVecLeft()
+        v = self.B.createVecRight()
+        primal.apply_kplus(self.f, v)
+        self.B.mult(v, self.d)
+        self.d.axpy(-1.0, self.c)
+        v.destroy()
+
+    @property
+    def hessian_mults(self) -> int:
+        """Number of F applications so far."""
+        return self._shell.count
+
+    def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = K⁺ x."""
+        self.primal.apply_kplus(x, y)
+
+    def primal_solution(self, lam: PETSc.Vec, alpha: np.ndarray) -> PETSc.Vec:
+        """u = K⁺(f − Bᵀλ) + R α."""
+        w = self.B.createVecRight()
+        self.B.multTranspose(lam, w)
+        w.aypx(-1.0, self.f)
+        u = self.B.createVecRight()
+        self.primal.apply_kplus(w, u)
+        if self.R.shape[1]:
+            u.array[:] += self.R @ alpha
+        w.destroy()
+        return u
+
+    def rigid_amplitudes(self, gradient: PETSc.Vec, active: np.ndarray,
+                         hint: np.ndarray | None = None) -> np.ndarray:
+        """α with G_Aᵀ α = g_A on the active rows, g = Fλ − d the dual gradient.
+
+        On the active rows B_A u = c_A, which with u = K⁺(f − Bᵀλ) + Rα reads G_Aᵀ α = g_A;
+        that is solved by least squares. A rigid motion that no active row sees (a body that
+        touches nothing with a positive force) is not fixed by it: its amplitude is taken
+        from ``hint`` (the QP solver's equality multiplier, which the dual KKT conditions
+        tie to α so that the inactive contact rows hold too), or zero without a hint.
+        """
+        GA = self.Gt_local[np.flatnonzero(active)]
+        r = self.comm.allreduce(GA.T @ gradient.array_r[active], op=MPI.SUM)
+        # (G_A G_Aᵀ)⁺ r through the coarse machinery (sparse when it is large), not eigh.
+        con = orthonormalize(RowBlockConstraint(GA, self.comm), rtol=1e-12)
+        alpha = con.gram_solve(r)
+        N = con.null_space
+        if hint is not None and N.shape[1]:
+            alpha += N @ (N.T @ hint)
+        return alpha
+
+    def destroy(self) -> None:
+        """Free the PETSc objects of the dual (not the primal's)."""
+        for obj in (self.F, self.d):
+            obj.destroy()
