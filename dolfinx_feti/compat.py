@@ -65,14 +65,22 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str
     ``cells`` in DOLFINx's node order: the vertices (tensor-product order for quadrilaterals
     and hexahedra), then for ``degree`` 2 the edge, face and interior nodes in basix's order.
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
-    DOLFINx distributes it.
+    DOLFINx distributes it. On one rank under DOLFINx 0.5 the partitioner is skipped (every cell
+    stays here): the default one builds the dual graph first, a third of the mesh creation.
     """
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     x = np.ascontiguousarray(x, dtype=np.float64)
     domain = ufl_domain(cell_type, x.shape[1], degree)
     if VERSION >= (0, 10):  # the element moved before the coordinates
         return dolfinx.mesh.create_mesh(comm, cells, domain, x)
+    if VERSION < (0, 6) and comm.size == 1:  # 0.5's partitioner signature
+        return dolfinx.mesh.create_mesh(comm, cells, x, domain, partitioner=_all_here)
     return dolfinx.mesh.create_mesh(comm, cells, x, domain)
+
+
+def _all_here(comm, nparts, tdim, cells, ghost_mode):
+    """A cell partitioner (DOLFINx 0.5) that keeps every cell on rank 0 (a mesh on one rank)."""
+    return dolfinx.cpp.graph.AdjacencyList_int32(np.zeros(cells.num_nodes, dtype=np.int32))
 
 
 def is_mesh(obj) -> bool:

@@ -26,6 +26,8 @@ import math
 import gmsh
 import numpy as np
 
+from .mesh.topology import _row_keys
+
 #: gmsh element types of first-order simplices by topological dimension.
 _SIMPLEX_TYPE = {1: 1, 2: 2, 3: 4}
 
@@ -95,10 +97,15 @@ def _boundary_facets(simplices: np.ndarray) -> np.ndarray:
             f[:, [0, 1]] = f[:, [1, 0]]
         facets.append(f)
     facets = np.concatenate(facets)
-    _, inverse, counts = np.unique(
-        np.sort(facets, axis=1), axis=0, return_inverse=True, return_counts=True
-    )
-    return facets[counts[inverse.ravel()] == 1]
+    # One int64 key per facet (its sorted nodes) and one sort, not np.unique on rows (a sort of
+    # row views, the slowest step of building the seed's 2 M-triangle mesh).
+    keys = _row_keys(facets, int(simplices.max()) + 1)
+    order = np.argsort(keys)
+    sk = keys[order]
+    lone = np.ones(sk.size, dtype=bool)
+    lone[1:] &= sk[1:] != sk[:-1]
+    lone[:-1] &= sk[:-1] != sk[1:]
+    return facets[np.sort(order[lone])]
 
 
 def _add_structured_box(
@@ -133,7 +140,9 @@ def _add_structured_box(
     simplices = _kuhn_simplices(tuple(cells))
     facets = _boundary_facets(simplices)
 
-    # Nodes first (each on one entity), then the elements that refer to them.
+    # Nodes first (each on one entity), then the elements that refer to them. NumPy arrays go
+    # to gmsh as they are (its API copies them with ascontiguousarray; lists would be converted
+    # element by element).
     sides, side_facets = {}, {}
     unclassified = np.ones(index.shape[0], dtype=bool)
     for a in range(d):
@@ -143,17 +152,17 @@ def _add_structured_box(
             unclassified &= ~on_side
             sides[a, s] = gmsh.model.addDiscreteEntity(d - 1)
             gmsh.model.mesh.addNodes(
-                d - 1, sides[a, s], tags[nodes].tolist(), coords[nodes].ravel().tolist()
+                d - 1, sides[a, s], tags[nodes], coords[nodes].ravel()
             )
             side_facets[a, s] = facets[on_side[facets].all(axis=1)]
     body = gmsh.model.addDiscreteEntity(d, -1, list(sides.values()))
     gmsh.model.mesh.addNodes(
-        d, body, tags[unclassified].tolist(), coords[unclassified].ravel().tolist()
+        d, body, tags[unclassified], coords[unclassified].ravel()
     )
-    gmsh.model.mesh.addElementsByType(body, _SIMPLEX_TYPE[d], [], tags[simplices].ravel().tolist())
+    gmsh.model.mesh.addElementsByType(body, _SIMPLEX_TYPE[d], [], tags[simplices].ravel())
     for key, entity in sides.items():
         gmsh.model.mesh.addElementsByType(
-            entity, _SIMPLEX_TYPE[d - 1], [], tags[side_facets[key]].ravel().tolist()
+            entity, _SIMPLEX_TYPE[d - 1], [], tags[side_facets[key]].ravel()
         )
     return body, sides, int(tags[-1]) + 1
 

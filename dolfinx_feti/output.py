@@ -4,6 +4,12 @@ The output mesh is the user's own DOLFINx mesh when the problem came from
 :func:`~dolfinx_feti.from_dolfinx`, else a mesh built once from the :class:`MeshData` and
 distributed over the communicator. Values at the global dof points (:mod:`.mesh.dofpoints`)
 become Lagrange Functions of the problem's degree on it; values per cell become DG0 Functions.
+
+The Lagrange Functions are filled from the distributed solution: each rank gives its own
+(dof point, value) pairs, and asks for the values at the dof points of its own dofs of the
+output space through a directory (rank r keeps the points r·M // size to (r + 1)·M // size − 1),
+so no rank holds an array of the whole mesh's values. (The parent mesh itself is still built
+from the global mesh arrays on rank 0, as long as the input is global.)
 """
 
 from __future__ import annotations
@@ -44,8 +50,15 @@ def parent_mesh(mesh: MeshData, comm: MPI.Comm):
     return _PARENT[2]
 
 
-def output_mesh(mesh: MeshData, comm: MPI.Comm) -> tuple[object, np.ndarray, np.ndarray]:
+def output_mesh(mesh: MeshData, comm: MPI.Comm, msh=None) -> tuple[object, np.ndarray, np.ndarray]:
     """The mesh to put results on, and the global vertex and cell of its local ones.
+
+    Args:
+        mesh: The mesh data.
+        comm: The communicator of the parent mesh (unused with a user's mesh).
+        msh: The parent mesh, if already made (e.g. that of ``solution.u``: the cache keeps
+            only the last parent mesh, and Functions combined in UFL or in one file must live
+            on one mesh object).
 
     Returns:
         ``(msh, vertex, cell)``: the user's mesh (input from DOLFINx) or the parent mesh; the
@@ -53,37 +66,124 @@ def output_mesh(mesh: MeshData, comm: MPI.Comm) -> tuple[object, np.ndarray, np.
     """
     if mesh.source is not None:
         return mesh.source.mesh, mesh.source.vertex_ids(), mesh.source.cell_ids()
-    msh = parent_mesh(mesh, comm)
+    msh = parent_mesh(mesh, comm) if msh is None else msh
     return msh, compat.node_input_indices(msh), compat.cell_input_indices(msh)
 
 
-def point_function(mesh: MeshData, values: np.ndarray, comm: MPI.Comm, name: str,
-                   points: DofPoints | None = None, degree: int | None = None):
-    """A Lagrange Function on the output mesh with the given values at the global dof points.
+def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
+                         comm: MPI.Comm, name: str, points: DofPoints | None = None,
+                         degree: int | None = None, local: bool = False, msh=None):
+    """A Lagrange Function on the output mesh from (global dof point, value) pairs.
 
     Args:
         mesh: The mesh data.
-        values: (M, value size) values at the dof points of ``points``.
-        comm: The communicator of the parent mesh (unused with a user's mesh).
+        nodes: Global dof point of each pair.
+        values: The pairs' values, shape (pairs, value size).
+        comm: The ranks that hold the pairs (those of the output mesh).
         name: The Function's name.
-        points: The dof points of the values (default: the vertices).
+        points: The dof points of the pairs (default: the vertices).
         degree: The Lagrange degree of the Function (default: that of ``points``); a degree-1
             Function of degree-2 values takes their values at the vertices.
+        local: The pairs are the same on every rank (e.g. gathered contact data): values of
+            repeated points are summed, no communication. Otherwise each rank gives its own
+            pairs and the value at a point is the mean over all ranks' pairs there.
+        msh: The parent mesh, if already made (see :func:`output_mesh`).
     """
     points = dof_points(mesh, 1) if points is None else points
     degree = points.degree if degree is None else degree
-    if degree != points.degree:
-        points, values = dof_points(mesh, degree), values[:mesh.num_nodes]
-    msh, vertex, _ = output_mesh(mesh, comm)
-    V = compat.function_space(msh, values.shape[1], degree)
+    nodes = np.asarray(nodes, dtype=np.int64)
+    values = np.asarray(values, dtype=np.float64)
+    if degree != points.degree:  # the vertices are the first dof points of every degree
+        keep = nodes < mesh.num_nodes
+        points, nodes, values = dof_points(mesh, degree), nodes[keep], values[keep]
+    msh, vertex, _ = output_mesh(mesh, comm, msh)
+    bs = values.shape[1]
+    V = compat.function_space(msh, bs, degree)
     u = compat.function(V, name)
-    u.x.array[:] = values[dof_points_of_space(V, vertex, points)].ravel()
+    wanted = dof_points_of_space(V, vertex, points)
+    if local:
+        keys, inv = np.unique(nodes, return_inverse=True)
+        summed = np.zeros((keys.size, bs))
+        np.add.at(summed, inv, values)
+        pos = np.minimum(np.searchsorted(keys, wanted), max(keys.size - 1, 0))
+        hit = keys[pos] == wanted if keys.size else np.zeros(wanted.size, dtype=bool)
+        out = np.where(hit[:, None], summed[pos] if keys.size else 0.0, 0.0)
+    else:
+        out = node_values(nodes, values, wanted, points.num_points, comm)
+    u.x.array[:] = out.ravel()
     return u
 
 
-def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm):
-    """A DG0 (cell-wise constant) Function on the output mesh, one value per global cell."""
-    msh, _, cell = output_mesh(mesh, comm)
+def _exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
+    """Send row i of each array to rank ``dest[i]``.
+
+    Returns the received arrays, and the send order and counts (to answer in that layout).
+    """
+    order = np.argsort(dest, kind="stable")
+    counts = np.bincount(dest, minlength=comm.size).astype(np.int64)
+    rcounts = np.empty_like(counts)
+    comm.Alltoall(counts, rcounts)
+    out = []
+    for a in arrays:
+        a = np.ascontiguousarray(a[order])
+        width = int(np.prod(a.shape[1:], dtype=np.int64))
+        recv = np.empty((int(rcounts.sum()),) + a.shape[1:], dtype=a.dtype)
+        comm.Alltoallv([a, counts * width], [recv, rcounts * width])
+        out.append(recv)
+    return out, order, counts, rcounts
+
+
+def _answer(comm: MPI.Comm, values: np.ndarray, order: np.ndarray, counts: np.ndarray,
+            rcounts: np.ndarray) -> np.ndarray:
+    """Return to each sender of :func:`_exchange` the rows ``values`` answering its rows."""
+    width = int(np.prod(values.shape[1:], dtype=np.int64))
+    back = np.empty((int(counts.sum()),) + values.shape[1:], dtype=values.dtype)
+    comm.Alltoallv([np.ascontiguousarray(values), rcounts * width], [back, counts * width])
+    out = np.empty_like(back)
+    out[order] = back
+    return out
+
+
+def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_nodes: int,
+                comm: MPI.Comm) -> np.ndarray:
+    """The mean of the given (point, value) pairs of all ranks at the ``wanted`` points.
+
+    Args:
+        nodes: Global (dof) point of each local pair (a point may repeat: subdomain copies).
+        values: The pairs' values, shape (pairs, bs).
+        wanted: Global points whose values this rank needs.
+        num_nodes: Number of (dof) points of the whole mesh.
+        comm: The ranks.
+
+    Returns:
+        Shape (wanted, bs); zero at a point no rank gave.
+    """
+    size = comm.size
+    lo = np.arange(size + 1, dtype=np.int64) * num_nodes // size  # directory blocks
+
+    def home(p):  # the rank whose block [lo[r], lo[r + 1]) holds node p
+        return np.searchsorted(lo, np.asarray(p, dtype=np.int64), side="right") - 1
+
+    (rn, rv), *_ = _exchange(comm, home(nodes), np.asarray(nodes, dtype=np.int64),
+                             np.asarray(values, dtype=np.float64))
+    bs = values.shape[1]
+    n_home = int(lo[comm.rank + 1] - lo[comm.rank])
+    acc = np.zeros((n_home, bs))
+    cnt = np.zeros(n_home)
+    np.add.at(acc, rn - lo[comm.rank], rv)
+    np.add.at(cnt, rn - lo[comm.rank], 1.0)
+    mean = acc / np.maximum(cnt, 1.0)[:, None]
+    (asked,), order, counts, rcounts = _exchange(comm, home(wanted),
+                                                 np.asarray(wanted, dtype=np.int64))
+    return _answer(comm, mean[asked - lo[comm.rank]], order, counts, rcounts)
+
+
+def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm, msh=None):
+    """A DG0 (cell-wise constant) Function on the output mesh, one value per global cell.
+
+    ``msh``: the parent mesh, if already made (see :func:`output_mesh`).
+    """
+    msh, _, cell = output_mesh(mesh, comm, msh)
     V = compat.dg0_space(msh)
     f = compat.function(V, name)
     dofs = compat.cell_dofs(V).ravel()  # one dof per local cell, in cell order
@@ -97,7 +197,7 @@ def write_xdmf(path: str | os.PathLike, u, functions) -> None:
     """Write Functions on one mesh to XDMF; the files appear under their names only when done.
 
     XDMF holds Lagrange Functions of the mesh's own geometry degree: on a straight-sided mesh
-    pass degree-2 fields as their vertex values (:func:`point_function` with ``degree=1``).
+    pass degree-2 fields as their vertex values (:func:`distributed_function` with ``degree=1``).
 
     Collective; a failure on any rank (the folder cannot be made, the disk is full) raises on
     every rank and leaves no file behind.

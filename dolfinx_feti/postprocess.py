@@ -104,17 +104,20 @@ def output_functions(solution) -> list:
     """DG0 Functions for the XDMF output besides the displacement and the contact pressure.
 
     ``subdomain`` (the subdomain index of each cell) always; ``von_mises`` when the forms are
-    :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown).
+    :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown). The von
+    Mises stress is interpolated on each rank's own cells from the distributed ``solution.u``:
+    no rank holds the whole mesh's displacements.
     """
     from .output import cell_function
 
     mesh, comm = solution.problem.mesh, solution.comm
-    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", comm)]
+    msh = solution.u.function_space.mesh
+    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", comm, msh)]
     forms = solution.problem.forms
     if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        E = cell_function(mesh, _per_cell(forms.E, mesh), "E", comm)
-        nu = cell_function(mesh, _per_cell(forms.nu, mesh), "nu", comm)
-        vm = cell_function(mesh, np.zeros(mesh.cells.shape[0]), "von_mises", comm)
+        E = cell_function(mesh, _per_cell(forms.E, mesh), "E", comm, msh)
+        nu = cell_function(mesh, _per_cell(forms.nu, mesh), "nu", comm, msh)
+        vm = cell_function(mesh, np.zeros(mesh.cells.shape[0]), "von_mises", comm, msh)
         compat.interpolate_expression(vm, _von_mises_ufl(solution.u, E, nu))
         out.append(vm)
     return out

@@ -208,14 +208,22 @@ class Solution:
         on a mesh built from the MeshData and distributed over ``comm``.
         """
         if self._function is None:
-            self._function = self._point_function(
-                self.nodal_values(), "displacement" if self.problem.value_size > 1 else "u")
+            self._function = self._local_pairs_function(
+                self.u_vec.array_r.reshape(-1, self.problem.value_size),
+                "displacement" if self.problem.value_size > 1 else "u")
         return self._function
 
-    def _point_function(self, values: np.ndarray, name: str, degree: int | None = None):
-        from .output import point_function
-        return point_function(self.problem.mesh, values, self.comm, name,
-                              self.problem.dof_points, degree)
+    def _local_pairs_function(self, values: np.ndarray, name: str, degree: int | None = None):
+        """A Function from this rank's subdomain values (in the pairs' order), exchanged."""
+        from .output import distributed_function
+        dec = self.dec
+        # consecutive: their pairs are one slice, in dof order
+        subs = dec.local_subdomains(self.comm.rank)
+        pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
+            else slice(0, 0)
+        msh = None if self._function is None else self._function.function_space.mesh
+        return distributed_function(self.problem.mesh, dec.pair_node[pairs], values, self.comm,
+                                    name, self.problem.dof_points, degree, msh=msh)
 
     def pressure_function(self, degree: int | None = None):
         """The contact pressure as a scalar Lagrange Function on the whole mesh.
@@ -223,9 +231,11 @@ class Solution:
         Of the problem's degree unless ``degree`` is given (1: the values at the vertices);
         zero off the contact surfaces.
         """
-        p = np.zeros((self.dec.num_nodes, 1))
-        np.add.at(p[:, 0], self.contact.node, self.contact.pressure)
-        return self._point_function(p, "contact_pressure", degree)
+        from .output import distributed_function
+        c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
+        return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
+                                    "contact_pressure", self.problem.dof_points, degree,
+                                    local=True, msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:
         """Write the solution to XDMF (for ParaView), atomically.
@@ -240,8 +250,8 @@ class Solution:
         from .output import write_xdmf
         from .postprocess import output_functions
         degree = self.problem.mesh.geometry_degree
-        u = self.u if self.problem.degree == degree else self._point_function(
-            self.nodal_values(), self.u.name, degree=degree)
+        u = self.u if self.problem.degree == degree else self._local_pairs_function(
+            self.u_vec.array_r.reshape(-1, self.problem.value_size), self.u.name, degree)
         write_xdmf(path, u, [u, self.pressure_function(degree=degree), *output_functions(self)])
 
     def multipliers(self, kind: Kind | None = None) -> np.ndarray:

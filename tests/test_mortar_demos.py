@@ -73,13 +73,24 @@ def test_sphere_on_block_against_hertz(sphere, tmp_path_factory):
     assert (sphere["folder"] / "sphere_block3d_pressure.png").read_bytes()[:4] == b"\x89PNG"
 
 
+#: The solver tolerance of the rank-count comparison. At the demo's default (1e-8) two runs
+#: stop at different points inside the tolerance (their reductions round differently), and
+#: the peak nodal pressure, a single multiplier, is the most sensitive figure: measured 1.9e-6
+#: apart between 1 and 2 ranks (the 1-rank value 2.0e-6 and the 2-rank one 1.8e-7 from the
+#: solution at 1e-10; the preconditioner Z is the same on both); at 1e-10, 3.8e-9 apart.
+COMPARE_RTOL = "1e-10"
+
+
 @pytest.mark.serial
 @subprocess_test
-def test_sphere_on_block_under_mpirun_gives_the_serial_figures(sphere, tmp_path_factory):
+def test_sphere_on_block_under_mpirun_gives_the_serial_figures(tmp_path_factory):
+    ser = run_demo("sphere_block3d", tmp_path_factory.mktemp("sphere_serial"),
+                   "--rtol", COMPARE_RTOL)
     par = run_demo("sphere_block3d", tmp_path_factory.mktemp("sphere_mpi"),
-                   launcher=mpi_launcher(2))
+                   "--rtol", COMPARE_RTOL, launcher=mpi_launcher(2))
+    assert ser["sizes"]["ranks"] == 1 and ser["converged"] and not ser["warnings"]
     assert par["sizes"]["ranks"] == 2 and par["converged"] and not par["warnings"]
-    s, p = sphere["extra"]["hertz"], par["extra"]["hertz"]
+    s, p = ser["extra"]["hertz"], par["extra"]["hertz"]
     assert p["a_h"] == s["a_h"] and p["nodes"] == s["nodes"]  # the same active set
     for key in ("p0_fit", "a_fit", "peak", "contact_force"):
         assert p[key] == pytest.approx(s[key], rel=1e-6), key

@@ -103,8 +103,9 @@ class Subdomain:
         for f, v, o in zip(facets, verts, offsets, strict=True):
             for name, fac in f.items():
                 local_facets.setdefault(name, []).append(np.searchsorted(v, fac) + o)
-        self._facet_tags, self._facet_ids = self._tag_facets(
+        self._facet_ids, self._facet_data = self._group_facets(
             {name: np.concatenate(parts) for name, parts in local_facets.items()})
+        self._facet_tags_made = None
 
     @property
     def _ids(self) -> str:
@@ -115,14 +116,14 @@ class Subdomain:
         """The (first) subdomain number, for messages."""
         return self.indices[0]
 
-    def _tag_facets(self, facets: Mapping[str, np.ndarray]):
-        """Facet tags from facets given by local node indices."""
+    def _group_facets(self, facets: Mapping[str, np.ndarray]):
+        """Each facet's class (the set of groups it is in) and each group's classes."""
         # A facet may sit in several groups: tag each facet with the index of its set of
         # groups, so every group is a union of tag values of one MeshTags (UFL allows only one
         # subdomain_data per integral type in a form).
         names = [n for n, f in facets.items() if f.shape[0] > 0]
         if not names:
-            return None, {}
+            return {}, None
         allf = np.concatenate([facets[n] for n in names])
         group = np.concatenate([np.full(facets[n].shape[0], i) for i, n in enumerate(names)])
         keys = _row_keys(allf)
@@ -130,13 +131,19 @@ class Subdomain:
         member = np.zeros((ukeys.size, len(names)), dtype=bool)
         member[inv, group] = True
         classes, cls = np.unique(member, axis=0, return_inverse=True)
-        local = allf[first]
-        geom_of_node = np.empty_like(self._node_of_geom)
-        geom_of_node[self._node_of_geom] = np.arange(self._node_of_geom.size)
-        tags = compat.facet_tags(self.mesh, geom_of_node[local], cls.ravel() + 1)
         ids = {n: tuple(int(c) + 1 for c in np.flatnonzero(classes[:, i]))
                for i, n in enumerate(names)}
-        return tags, ids
+        return ids, (allf[first], cls.ravel() + 1)
+
+    @property
+    def _facet_tags(self):
+        """The facet MeshTags, made on the first ``ds`` (facet connectivity is not cheap)."""
+        if self._facet_tags_made is None and self._facet_data is not None:
+            local, values = self._facet_data
+            geom_of_node = np.empty_like(self._node_of_geom)
+            geom_of_node[self._node_of_geom] = np.arange(self._node_of_geom.size)
+            self._facet_tags_made = compat.facet_tags(self.mesh, geom_of_node[local], values)
+        return self._facet_tags_made
 
     @property
     def body(self) -> str:

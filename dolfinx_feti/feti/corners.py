@@ -32,7 +32,14 @@ from petsc4py import PETSc
 
 from ..errors import InputError, SolveError, collective
 from .kplus import FixingNodesInverse
-from .system import EQUALITY, BlockSystem, _Rows, local_csr, petsc_aij
+from .system import (
+    EQUALITY,
+    BlockSystem,
+    PreconditionerOperands,
+    _Rows,
+    local_csr,
+    petsc_aij,
+)
 from .transforms import _drop_small, recover_multipliers, row_max, select_rows
 
 #: Entries of B̃ = B E below this times the largest entry of their row are cancellations
@@ -77,9 +84,12 @@ class CornerSystem(_Rows):
         """The rigid motions of the floating bodies in the new layout, and their bodies."""
         return self._step.kernel_local, list(self._step.kernel_bodies)
 
-    def preconditioner_operands(self):
+    def preconditioner_operands(self) -> PreconditionerOperands:
         """The parent's K and rows (kept), with the corner dofs left out of the interiors."""
-        return self._step.parent.K, self._step.B_parent, self._step.is_corner
+        step = self._step
+        blocks = step.parent.blocks
+        return PreconditionerOperands(step.parent.K, step.B_parent, step.is_corner,
+                                      None if blocks is None else blocks[step.kept])
 
     def assembled(self) -> PETSc.Mat:
         """K̃ = Eᵀ K E as an MPIAIJ matrix (for checks)."""

@@ -16,6 +16,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..qp.equality import RowBlockConstraint, orthonormalize
 from ..qp.shell import python_shell
 from .system import petsc_aij
 
@@ -109,14 +110,12 @@ class Dualization:
         tie to α so that the inactive contact rows hold too), or zero without a hint.
         """
         GA = self.Gt_local[np.flatnonzero(active)]
-        gA = gradient.array_r[active]
-        M = self.comm.allreduce((GA.T @ GA).toarray(), op=MPI.SUM)
-        r = self.comm.allreduce(GA.T @ gA, op=MPI.SUM)
-        w, V = np.linalg.eigh(M)
-        keep = w > 1e-12 * max(w.max(initial=0.0), 1e-300)
-        alpha = V[:, keep] @ ((V[:, keep].T @ r) / w[keep])
-        if hint is not None and not np.all(keep):
-            N = V[:, ~keep]
+        r = self.comm.allreduce(GA.T @ gradient.array_r[active], op=MPI.SUM)
+        # (G_A G_Aᵀ)⁺ r through the coarse machinery (sparse when it is large), not eigh.
+        con = orthonormalize(RowBlockConstraint(GA, self.comm), rtol=1e-12)
+        alpha = con.gram_solve(r)
+        N = con.null_space
+        if hint is not None and N.shape[1]:
             alpha += N @ (N.T @ hint)
         return alpha
 

@@ -11,6 +11,7 @@ of :mod:`.transforms` and :mod:`.corners` produce new systems from it.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -56,6 +57,34 @@ def row_types(rows: Rows) -> np.ndarray:
     return t
 
 
+def row_blocks(rows: Rows) -> np.ndarray:
+    """A label per row: its node and kind class (gluing, Dirichlet, other).
+
+    Rows with one label couple in B diag(K)⁻¹ Bᵀ (the k − 1 gluing rows of one node component
+    set, the rows of one contact node); the stiffness scaling inverts these blocks.
+    """
+    cls = np.select([rows.kind == Kind.GLUE, rows.kind == Kind.DIRICHLET], [0, 1], 2)
+    return rows.node.astype(np.int64) * 3 + cls
+
+
+class PreconditionerOperands(NamedTuple):
+    """What the lumped and Dirichlet preconditioners act with (:mod:`.precond`).
+
+    Attributes:
+        K: The rank's block-diagonal matrix (CSR, local numbering).
+        B: The rows of the dual (MPIAIJ, columns in the layout of ``K``).
+        left_out: Local mask of dofs held in the Dirichlet preconditioner (FETI-DP's corners),
+            or None.
+        row_blocks: Per local row of ``B``, a label of its block of B diag(K)⁻¹ Bᵀ (see
+            :func:`row_blocks`), or None (then no stiffness scaling).
+    """
+
+    K: sp.csr_matrix
+    B: PETSc.Mat
+    left_out: np.ndarray | None = None
+    row_blocks: np.ndarray | None = None
+
+
 def nullspace_columns(M: np.ndarray, tol: float = KERNEL_TOL) -> np.ndarray:
     """An orthonormal basis (columns) of the null space of a small dense matrix."""
     if M.shape[0] == 0:
@@ -95,13 +124,17 @@ class BlockSystem(_Rows):
         labels: Per block, a name for messages.
         bodies: Per block, the name of what it belongs to (e.g. its body), for messages about
             rigid motions; ``labels`` if not given.
+        blocks: Per local row, its label for the stiffness scaling (:func:`row_blocks`), or
+            None.
     """
 
     def __init__(self, comm: MPI.Comm, K: sp.csr_matrix, f: np.ndarray, B: PETSc.Mat,
                  c: np.ndarray, types: np.ndarray, offsets: np.ndarray,
                  kernels: Sequence[np.ndarray], labels: Sequence[str],
-                 bodies: Sequence[str] | None = None) -> None:
+                 bodies: Sequence[str] | None = None, blocks: np.ndarray | None = None
+                 ) -> None:
         self.comm, self.K = comm, sp.csr_matrix(K)
+        self.blocks = blocks
         self.offsets = np.asarray(offsets, dtype=np.int64)
         self.kernels, self.labels = list(kernels), list(labels)
         self.bodies = list(labels if bodies is None else bodies)
@@ -130,7 +163,8 @@ class BlockSystem(_Rows):
                              shape=(stop - start, data.primal_size[1]))
         B = petsc_aij(Bloc, (stop - start, rows.size), data.primal_size, comm)
         return cls(comm, data.K, data.f, B, rows.rhs[start:stop], row_types(rows)[start:stop],
-                   data.offsets, data.kernels, data.labels, data.bodies)
+                   data.offsets, data.kernels, data.labels, data.bodies,
+                   row_blocks(rows)[start:stop])
 
     # --- the generalized inverse -----------------------------------------------------------
     def factorize(self, factor: str | None = None, site: str = "") -> None:
@@ -212,9 +246,9 @@ class BlockSystem(_Rows):
         e = 0.5 * float(ua @ (self.K @ ua)) - float(fa @ ua)
         return self.comm.allreduce(e, op=MPI.SUM)
 
-    def preconditioner_operands(self) -> tuple[sp.csr_matrix, PETSc.Mat, np.ndarray | None]:
-        """(K, B, dofs to leave out): what the lumped and Dirichlet preconditioners act with."""
-        return self.K, self.B, None
+    def preconditioner_operands(self) -> PreconditionerOperands:
+        """K, B and the row blocks: what the lumped and Dirichlet preconditioners act with."""
+        return PreconditionerOperands(self.K, self.B, None, self.blocks)
 
     def destroy(self) -> None:
         """Free the PETSc objects."""

@@ -165,7 +165,8 @@ class EliminateDirichlet:
         f[self.fixed] = 0.0
         self.child = BlockSystem(comm, Kc, f, B, c.array_r[self.kept],
                                  parent.types[self.kept], parent.offsets, kernels,
-                                 parent.labels, parent.bodies)
+                                 parent.labels, parent.bodies,
+                                 None if parent.blocks is None else parent.blocks[self.kept])
         for obj in (uD, c, BuD, keep_col):
             obj.destroy()
 

@@ -14,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
+from .topology import _row_keys
 
 #: gmsh element type → (cell name, geometry order, number of nodes): first-order cells and
 #: the complete second-order ones (curved cells, nodes on edges, faces and interiors).
@@ -135,7 +136,11 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
             from .checks import check_mesh  # degenerate or inverted cells, empty bodies
 
             check_mesh(data)
-    return comm.bcast(data, root=0)
+    data = comm.bcast(data, root=0)
+    from .checks import mark_checked  # rank 0 checked it: the received copy needs no re-check
+
+    mark_checked(data)
+    return data
 
 
 def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
@@ -346,11 +351,12 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
     cell_body = np.concatenate(body_blocks)
 
     # A cell listed under two bodies means the bodies overlap: refuse rather than guess.
-    key = np.sort(cells_g, axis=1)
-    _, first, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    # One int64 per cell (np.unique on rows is far slower).
+    key = _row_keys(cells_g, int(cells_g.max()) + 1 if cells_g.size else 1)
+    _, first, counts = np.unique(key, return_index=True, return_counts=True)
     if np.any(counts > 1):
         dup = np.flatnonzero(counts > 1)[0]
-        same = np.flatnonzero((key == key[first[dup]]).all(axis=1))
+        same = np.flatnonzero(key == key[first[dup]])
         names = sorted({body_names[cell_body[c]] for c in same})
         raise InputError(f"bodies overlap: {int(np.sum(counts > 1))} cells belong to more than one "
                          f"physical group of dimension {tdim} (e.g. {names})")
