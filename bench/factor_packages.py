@@ -49,9 +49,9 @@ CANDIDATES = [
 ]
 
 
-def fixed_matrix(feti) -> sp.csr_matrix:
+def fixed_matrix(system) -> sp.csr_matrix:
     """K with the fixing dofs' rows and columns replaced by identity rows (what K⁺ factors)."""
-    K, kernels = feti.K_local, list(feti.R.values())
+    K, kernels = system.K, list(system.kernels)
     offsets = np.concatenate([[0], np.cumsum([R.shape[0] for R in kernels])])
     fixed = np.concatenate([choose_fixing_dofs(R) + o for R, o in zip(kernels, offsets,
                                                                        strict=False)])
@@ -63,11 +63,11 @@ def fixed_matrix(feti) -> sp.csr_matrix:
     return A
 
 
-def scaling_matrix(feti) -> sp.csr_matrix:
+def scaling_matrix(system) -> sp.csr_matrix:
     """B diag(K)⁻¹ Bᵀ (serial)."""
-    indptr, indices, data = feti.B.getValuesCSR()
-    B = sp.csr_matrix((data, indices, indptr), shape=feti.B.getSize())
-    return (B @ sp.diags(1.0 / feti.K_local.diagonal()) @ B.T).tocsr()
+    indptr, indices, data = system.B.getValuesCSR()
+    B = sp.csr_matrix((data, indices, indptr), shape=system.B.getSize())
+    return (B @ sp.diags(1.0 / system.K.diagonal()) @ B.T).tocsr()
 
 
 def measure(A: sp.csr_matrix, pc_type: str, package: str, ordering: str | None,
@@ -137,9 +137,9 @@ def main() -> None:
              f"Cholesky packages of this PETSc: {', '.join(available_factors())}; "
              f"default of the option `factor`: {default_factor()}.", ""]
     for name, problem in cases(args.quick):
-        feti = dual_qp(problem, MPI.COMM_SELF).feti
-        for what, A in (("K with fixing dofs (K⁺)", fixed_matrix(feti)),
-                        ("B diag(K)⁻¹ Bᵀ (stiffness scaling)", scaling_matrix(feti))):
+        system = dual_qp(problem, MPI.COMM_SELF).primal  # the primal system that was dualized
+        for what, A in (("K with fixing dofs (K⁺)", fixed_matrix(system)),
+                        ("B diag(K)⁻¹ Bᵀ (stiffness scaling)", scaling_matrix(system))):
             lines += [f"## {name}: {what}, n = {A.shape[0]}, nnz = {A.nnz}", "",
                       "| solver | factorization [ms] | solve [ms] | residual |",
                       "|---|---|---|---|"]
