@@ -90,8 +90,9 @@ def is_mesh(obj) -> bool:
 
 def describe_mesh(msh: dolfinx.mesh.Mesh) -> tuple[str, int, int]:
     """``(cell type name, geometric dimension, degree of the coordinate element)``."""
-    return (msh.topology.cell_type.name, int(msh.geometry.dim),
-            int(msh.geometry.cmap.degree))
+    cmaps = getattr(msh.geometry, "cmaps", None)  # 0.10 and later; `cmap` is deprecated there
+    cmap = cmaps[0] if cmaps else msh.geometry.cmap
+    return msh.topology.cell_type.name, int(msh.geometry.dim), int(cmap.degree)
 
 
 def cell_counts(msh: dolfinx.mesh.Mesh) -> tuple[int, int]:
