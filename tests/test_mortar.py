@@ -20,10 +20,16 @@ from dolfinx_feti.constraints.mortar_rows import mortar_contact_rows
 from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 
-def occ_mesh(model, *args, **kwargs) -> df.MeshData:
+def occ_mesh(model, *args, subdivide: int = 0, quads: bool = False, **kwargs) -> df.MeshData:
+    """A model meshed by gmsh; ``quads``: recombined 2D, ``subdivide=2``: all hexahedra."""
     gmsh.initialize()
     gmsh.option.setNumber("General.Terminal", 0)
     try:
+        if quads:
+            gmsh.option.setNumber("Mesh.RecombineAll", 1)
+            gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quadrilaterals
+        if subdivide:
+            gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", subdivide)
         model(*args, **kwargs)
         return df.read_gmsh(None)
     finally:

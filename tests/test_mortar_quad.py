@@ -9,9 +9,9 @@ tetrahedral mortar result).
 
 from __future__ import annotations
 
-import gmsh
 import numpy as np
 import pytest
+from test_mortar import occ_mesh, patch_problem, uniaxial
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_quad
@@ -19,23 +19,6 @@ from dolfinx_feti.constraints.mortar import mortar_coupling, penetration
 from dolfinx_feti.errors import InputError
 from dolfinx_feti.mesh.topology import facet_normals, nodal_normals_and_areas
 from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
-
-
-def occ_mesh(model, *args, subdivide: int = 0, quads: bool = False, **kwargs) -> df.MeshData:
-    """A model meshed by gmsh; ``quads``: recombined 2D, ``subdivide=2``: all hexahedra."""
-    gmsh.initialize()
-    gmsh.option.setNumber("General.Terminal", 0)
-    try:
-        if quads:
-            gmsh.option.setNumber("Mesh.RecombineAll", 1)
-            gmsh.option.setNumber("Mesh.Algorithm", 8)  # frontal-Delaunay for quadrilaterals
-        if subdivide:
-            gmsh.option.setNumber("Mesh.SubdivisionAlgorithm", subdivide)
-        model(*args, **kwargs)
-        return df.read_gmsh(None)
-    finally:
-        gmsh.finalize()
-
 
 # -- the dual basis and the mortar matrices on hand-made facets ---------------------------------
 
@@ -128,35 +111,6 @@ def test_matching_quads_give_diagonal_mortar_matrix(shake):
 
 
 # -- patch tests (exact linear solutions) on non-matching structured blocks ---------------------
-
-def uniaxial(mesh, dim, p, E_of_body, nu, lower_height=1.0):
-    """Exact displacement of two stacked blocks under pressure p on top: σ_zz = −p."""
-    x = mesh.x
-    u = np.zeros((mesh.num_nodes, dim))
-    for b, name in enumerate(mesh.body_names):
-        E = E_of_body[name]
-        ex, ez = ((1 + nu) * nu * p / E, -(1 - nu**2) * p / E) if dim == 2 else \
-            (nu * p / E, -p / E)
-        nodes = np.unique(mesh.cells[mesh.cell_body == b])
-        u[nodes, :dim - 1] = ex * x[nodes, :dim - 1]
-        if name == "lower":
-            u[nodes, -1] = ez * x[nodes, -1]
-        else:
-            E1 = E_of_body["lower"]
-            ez1 = -(1 - nu**2) * p / E1 if dim == 2 else -p / E1
-            u[nodes, -1] = ez1 * lower_height + ez * (x[nodes, -1] - lower_height)
-    return u
-
-
-def patch_problem(mesh, dim, E, nu, p, contact=(), ties=()):
-    t = [0.0] * (dim - 1) + [-p]
-    bcs = [df.Dirichlet("bottom", components=[dim - 1]), df.Dirichlet("sym0", components=[0])]
-    if dim == 3:
-        bcs.append(df.Dirichlet("sym1", components=[1]))
-    return df.ContactProblem(mesh, df.Elasticity(E, nu, tractions={"top": tuple(t)}),
-                             dirichlet=bcs, contact=list(contact), ties=list(ties),
-                             decomposition=df.Parts(3))
-
 
 SIZES = {2: (1 / 10, 1 / 6), 3: (1 / 7, 1 / 4)}  # element sizes 1 : 1.7, 1 : 1.75
 
