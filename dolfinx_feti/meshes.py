@@ -1,4 +1,4 @@
-"""Benchmark geometries as gmsh models (see ``/work/shared/benchmarks/BENCHMARKS.md``).
+"""Benchmark geometries as gmsh models (the problems B1–B5 of docs/benchmarks.md).
 
 Each function adds a new model to the current gmsh session (the caller runs
 ``gmsh.initialize()`` and ``gmsh.finalize()``), meshes it with first-order simplices, names its
