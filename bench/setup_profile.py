@@ -16,7 +16,8 @@ dofs, 128 subdomains, rtol 1e-6, the library's default solver. Phases:
 
 Every phase is the maximum over the ranks. ``--repeat r`` runs the whole sequence r times and
 reports each phase's median. ``--n`` and ``--H`` pick another size (n squares per membrane
-side, H×H subdomains).
+side, H×H subdomains). The last line gives each rank's peak resident set size (VmHWM) after
+the FETI solve and at the end (after the direct solve, which runs on rank 0).
 
     mpirun -n 2 python bench/setup_profile.py               # ~2 min per repeat on 2 cores
     mpirun -n 2 python bench/setup_profile.py --repeat 3 --json output/bench/setup.json
@@ -39,6 +40,7 @@ ROOT = Path(__file__).resolve().parent.parent
 for _p in (ROOT / "bench", ROOT / "tests"):
     sys.path.insert(0, str(_p))
 import reference as ref  # noqa: E402
+from memory_scaling import vm_hwm_mib  # noqa: E402
 
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
@@ -160,11 +162,13 @@ def main() -> None:
         mesh, times = build_mesh(args.n)
         phases, info = feti(mesh, args.H, args.rtol)
         times.update(phases)
+        info["peak MiB after FETI"] = COMM.allgather(vm_hwm_mib())
         if not args.no_direct:
             d = direct(mesh) if COMM.rank == 0 else None
             d = COMM.bcast(d, root=0)
             info.update({k: d.pop(k) for k in ("direct residual", "direct dofs")})
             times.update(d)
+        info["peak MiB at end"] = COMM.allgather(vm_hwm_mib())
         runs.append((times, info))
         del mesh
         if COMM.rank == 0:
@@ -191,6 +195,10 @@ def main() -> None:
         lines += [f"| **direct gmsh to solution** ({info['direct dofs']} dofs, residual "
                   f"{info['direct residual']:.1e}) | {d2s:.2f} |",
                   f"| **ratio FETI / direct** | {g2s / d2s:.2f} |"]
+    last = runs[-1][1]
+    lines += ["", "peak RSS per rank (VmHWM, MiB): after FETI "
+              + ", ".join(f"{v:.0f}" for v in last["peak MiB after FETI"])
+              + "; at end " + ", ".join(f"{v:.0f}" for v in last["peak MiB at end"])]
     text = "\n".join(lines)
     if COMM.rank == 0:
         print(text)
