@@ -231,6 +231,7 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
                 stage.path(out.xdmf.with_suffix(".h5"))
                 solution.write_xdmf(stage.path(out.xdmf))  # collective
             solution.nodal_values()  # collective: computed (and cached) on every rank first
+            solution.cell_subdomains()
             npz = None if out.nodal_values is None else stage.path(out.nodal_values)
             png = None if plot is None else stage.path(plot.path)
             with collective(comm, "outputs"):

@@ -33,6 +33,7 @@ from petsc4py import PETSc
 
 from .constraints import Kind, build_rows
 from .constraints.dirichlet import dirichlet_mask
+from .constraints.friction import friction_data
 from .errors import InputError, collective
 from .fem.assembly import assemble_subdomains
 from .fem.corners import choose_corners, floating_motions, primal_components
@@ -50,6 +51,7 @@ from .qp import (
     orthonormalize,
     projected_operator,
 )
+from .share import share_out
 from .timing import Timer
 
 #: A load component along a free rigid motion above this, relative to the size of the load
@@ -78,8 +80,8 @@ class DualQP:
             against).
         steps: The primal transforms (eliminate Dirichlet, eliminate corners), in order.
         method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"``.
-        dec: The decomposition.
-        rows: The constraint rows (all of them).
+        dec: This rank's part of the decomposition (:class:`.share.LocalDecomposition`).
+        rows: This rank's rows and the contact rows (:class:`.share.RankRows`).
         row_index: Local indices, into the rows of ``system`` owned by this rank, of the rows
             of this QP.
         constraint: ``G̃`` with orthonormal rows (:class:`.qp.RowBlockConstraint`).
@@ -97,6 +99,8 @@ class DualQP:
             (:class:`.constraints.mortar_rows.MortarInfo`).
         copy_weight: Per local entry of ``system``'s primal vector, 1 / the number of subdomain
             copies of its node (None: all ones).
+        friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
+        share: What this rank holds of the problem (:class:`.share.RankShare`).
     """
 
     feti: Dualization
@@ -119,6 +123,8 @@ class DualQP:
     info: dict = field(default_factory=dict)
     mortar: list = field(default_factory=list)
     copy_weight: np.ndarray | None = None
+    friction: object = None
+    share: object = None
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -195,44 +201,78 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     if method not in (*METHODS, "auto"):
         raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
     timer = Timer() if timer is None else timer
+    bs = problem.value_size
+    held = problem.mesh.root_only
+    if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
+        raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
+                         "(read_gmsh(..., replicate=False)): solve on that communicator")
+    dec = rows = extra = common = None
+    # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
+    # arrays; every rank then keeps only its share (:mod:`.share`).
     with timer.phase("decomposition"):
         with collective(comm, "decomposition"):
-            dec = decompose(problem.mesh, problem.decomposition, comm, problem.dof_points)
-        mortar = []
+            if comm.rank == 0:
+                dec = decompose(problem.mesh, problem.decomposition, comm.size,
+                                problem.dof_points)
         with collective(comm, "constraints"):
-            rows = build_rows(problem, dec, mortar)
-            if method == "auto":
-                method = choose_method(problem, dec, rows)
-    data = assemble_subdomains(problem, dec, comm, timer)
+            if comm.rank == 0:
+                mortar: list = []
+                rows = build_rows(problem, dec, mortar)
+                if method == "auto":
+                    method = choose_method(problem, dec, rows)
+                if method == "fetidp":
+                    extra = _fetidp_parts(problem, dec, rows, comm.size)
+                common = (method, mortar)
+        fdata = None
+        with collective(comm, "friction"):
+            if comm.rank == 0:
+                fdata = friction_data(problem, rows)
+        method, mortar = comm.bcast(common, root=0)
+        fdata = comm.bcast(fdata, root=0)
+        share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
+                          rows, bs, comm, extra)
+        del dec, rows
+    data = assemble_subdomains(problem, share, comm, timer)
     info: dict = {}
     with timer.phase("constraints"):
-        total = BlockSystem.from_rows(data, rows, dec)
+        total = BlockSystem.from_rows(data, share.rows)
         steps: list = []
         if method in ("feti1", "fetidp"):
-            steps.append(EliminateDirichlet(total, rows.kind[total.rows_local] == Kind.DIRICHLET))
+            steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
         if method == "fetidp":
-            mesh, bs = problem.mesh, problem.value_size
-            fixed, _ = dirichlet_mask(problem, mesh)
-            with collective(comm, "constraints"):  # local work on global arrays
-                avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
-                    rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
-                x = problem.dof_points.x
-                corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
-                                         edges=CORNER_EDGES and mesh.gdim == 3)
-                modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, data.dof_node,
-                                                 data.dof_comp, data.dof_sub, x,
-                                                 primal_components(mesh, dec))
-            steps.append(EliminateCorners(steps[-1].child,
-                                          corners.local(data.dof_node, data.dof_comp),
-                                          corners.count, modes, bodies))
-            info = {"corner_nodes": int(corners.nodes.size), "vertices": corners.vertices,
-                    "corner_dofs": corners.count}
+            part = share.extra
+            steps.append(EliminateCorners(steps[-1].child, part["corners"], part["count"],
+                                          part["modes"], part["bodies"]))
+            info = part["info"]
     qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
-                  timer=timer, dec=dec, rows=rows, info=info)
-    qp.mortar = mortar
-    count = np.diff(dec.node_subdomains()[0])
-    qp.copy_weight = 1.0 / count[data.dof_node]
+                  timer=timer, dec=share.dec, rows=share.rows, info=info)
+    qp.mortar, qp.friction, qp.share = mortar, fdata, share
+    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, bs)
     return qp
+
+
+def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
+    """FETI-DP's corners and floating motions, for the dofs of each rank (on rank 0)."""
+    mesh, bs = problem.mesh, problem.value_size
+    fixed, _ = dirichlet_mask(problem, mesh)
+    avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
+        rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
+    x = problem.dof_points.x
+    corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
+                             edges=CORNER_EDGES and mesh.gdim == 3)
+    dofs = []
+    for r in range(size):
+        pairs = dec.rank_pairs(r)
+        node = np.repeat(dec.pair_node[pairs], bs)
+        dofs.append((node, np.tile(np.arange(bs), node.size // bs),
+                     np.repeat(dec.pair_sub[pairs], bs)))
+    modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, dofs, x,
+                                     primal_components(mesh, dec))
+    info = {"corner_nodes": int(corners.nodes.size), "vertices": corners.vertices,
+            "corner_dofs": corners.count}
+    return [{"corners": corners.local(node, comp), "count": corners.count, "modes": Z,
+             "bodies": bodies, "info": info} for (node, comp, _), Z in zip(dofs, modes,
+                                                                          strict=True)]
 
 
 def choose_method(problem: ContactProblem, dec, rows) -> str:
@@ -251,14 +291,15 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
     - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
       3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
 
-    Only global arrays are read (the same on every rank).
+    Reads the global decomposition and rows (on the rank that holds them).
     """
     if not np.any(rows.kind == Kind.GLUE):
         return "feti1"
     fixed, _ = dirichlet_mask(problem, problem.mesh)
     none = np.zeros(0, dtype=np.int64)
-    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size, none, none,
-                               none, problem.dof_points.x, primal_components(problem.mesh, dec))
+    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size,
+                               [(none, none, none)], problem.dof_points.x,
+                               primal_components(problem.mesh, dec))
     return "tfeti" if free else "fetidp"
 
 

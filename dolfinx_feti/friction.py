@@ -23,8 +23,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .constraints.friction import SLIP, STICK, FrictionData
-from .constraints.rows import Rows
 from .qp import Discs, QPResult
+from .share import RankRows
 
 
 class FrictionSolve:
@@ -39,15 +39,15 @@ class FrictionSolve:
         info: What is reported in ``report.extra['friction']``.
     """
 
-    def __init__(self, data: FrictionData, rows: Rows, rows_local: slice,
+    def __init__(self, data: FrictionData, rows: RankRows, rows_local: slice,
                  comm: MPI.Comm) -> None:
         self.data, self.rows, self.comm = data, rows, comm
         lo, hi = np.searchsorted(data.rows, [rows_local.start, rows_local.stop])
         self._global = slice(int(lo), int(hi))
         self.t = data.rows[lo:hi] - rows_local.start
         self.n = data.normal_row[lo:hi] - rows_local.start
-        self.scale = rows.scale[data.rows[lo:hi]]
-        self.scale_n = rows.scale[data.normal_row[lo:hi]]
+        self.scale = rows.contact.scale[rows.contact_rows(data.rows[lo:hi])]
+        self.scale_n = rows.contact.scale[rows.contact_rows(data.normal_row[lo:hi])]
         self.tresca = data.tresca[lo:hi]
         self.coef = data.coefficient[lo:hi]
         self.coulomb_rows = ~np.isnan(self.coef)
@@ -206,9 +206,9 @@ class FrictionSolve:
         s = gather(viol[self.t])
         g = gather(self.g)
         slip_state = gather(self.at_bound)
-        sel = np.flatnonzero(rows.inequality)
+        sel = rows.inequality_index
         pos = np.searchsorted(sel, data.normal_row)
-        tang = rows.normal[data.rows]
+        tang = rows.contact.normal[rows.contact_rows(data.rows)]
         nc = sel.size
         force = np.zeros((nc, gdim))
         slip = np.zeros((nc, gdim))

@@ -23,7 +23,7 @@ from mpi4py import MPI
 from . import compat
 from .errors import collective
 from .fem.dofmap import dof_points_of_space
-from .mesh.dofpoints import DofPoints, dof_points
+from .mesh.dofpoints import DofPoints, RootLookup, dof_points
 from .mesh.gmsh_input import MeshData
 
 #: The last parent mesh built: (the MeshData it was built from, communicator handle, mesh). The
@@ -41,7 +41,7 @@ def parent_mesh(mesh: MeshData, comm: MPI.Comm):
     global _PARENT
     if _PARENT is None or _PARENT[0] is not mesh or _PARENT[1] != comm.py2f():
         degree = mesh.geometry_degree
-        points = dof_points(mesh, degree)
+        points = dof_points(mesh, degree)  # rank 0 holds the arrays (the others: sizes)
         cells, x = points.cell_points, points.x
         if comm.rank != 0:
             cells, x = cells[:0], x[:0]
@@ -96,6 +96,8 @@ def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
     if degree != points.degree:  # the vertices are the first dof points of every degree
         keep = nodes < mesh.num_nodes
         points, nodes, values = dof_points(mesh, degree), nodes[keep], values[keep]
+    if mesh.root_only is not None:  # only rank 0 knows the points of edges and faces
+        points = RootLookup(points, mesh.root_only)
     msh, vertex, _ = output_mesh(mesh, comm, msh)
     bs = values.shape[1]
     V = compat.function_space(msh, bs, degree)
@@ -178,9 +180,13 @@ def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_n
     return _answer(comm, mean[asked - lo[comm.rank]], order, counts, rcounts)
 
 
-def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm, msh=None):
-    """A DG0 (cell-wise constant) Function on the output mesh, one value per global cell.
+def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm, msh=None,
+                  cells: np.ndarray | None = None, num_cells: int | None = None):
+    """A DG0 (cell-wise constant) Function on the output mesh.
 
+    ``values`` holds one value per global cell, or, with ``cells`` (this rank's global cells,
+    e.g. those of its subdomains) and ``num_cells`` (of the whole mesh), one value per given
+    cell: the values then go to the ranks that hold those cells of the output mesh.
     ``msh``: the parent mesh, if already made (see :func:`output_mesh`).
     """
     msh, _, cell = output_mesh(mesh, comm, msh)
@@ -188,7 +194,11 @@ def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm,
     f = compat.function(V, name)
     dofs = compat.cell_dofs(V).ravel()  # one dof per local cell, in cell order
     n = min(dofs.size, cell.size)
-    f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cell[:n]]
+    if cells is None:
+        f.x.array[dofs[:n]] = np.asarray(values, dtype=float)[cell[:n]]
+    else:
+        f.x.array[dofs[:n]] = node_values(cells, np.asarray(values, dtype=float)[:, None],
+                                          cell[:n], num_cells, comm)[:, 0]
     compat.scatter_forward(f)
     return f
 

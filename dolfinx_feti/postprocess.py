@@ -112,12 +112,18 @@ def output_functions(solution) -> list:
 
     mesh, comm = solution.problem.mesh, solution.comm
     msh = solution.u.function_space.mesh
-    out = [cell_function(mesh, solution.dec.cell_sub.astype(float), "subdomain", comm, msh)]
+    share = solution.share  # the values of this rank's own cells go where the output has them
+
+    def cellwise(values, name):
+        return cell_function(mesh, values, name, comm, msh, cells=share.cell_ids,
+                             num_cells=share.num_cells)
+
+    out = [cellwise(share.dec.cell_sub.astype(float), "subdomain")]
     forms = solution.problem.forms
     if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        E = cell_function(mesh, _per_cell(forms.E, mesh), "E", comm, msh)
-        nu = cell_function(mesh, _per_cell(forms.nu, mesh), "nu", comm, msh)
-        vm = cell_function(mesh, np.zeros(mesh.cells.shape[0]), "von_mises", comm, msh)
+        E = cellwise(_per_cell(forms.E, share.mesh), "E")
+        nu = cellwise(_per_cell(forms.nu, share.mesh), "nu")
+        vm = cellwise(np.zeros(share.cell_ids.size), "von_mises")
         compat.interpolate_expression(vm, _von_mises_ufl(solution.u, E, nu))
         out.append(vm)
     return out
@@ -244,6 +250,9 @@ def plot_pressure(solution, path: str | os.PathLike, contact: int = 0, along: st
 def save_nodal_values(solution, path: str | os.PathLike) -> None:
     """Write the solution in the mesh's node order to ``.npz`` (call on one rank).
 
+    ``solution.nodal_values()`` and ``solution.cell_subdomains()`` are collective: call them
+    on every rank first (they are cached).
+
     Arrays: ``x`` (N, gdim) node coordinates, ``u`` (N, value_size) the solution, ``cells``,
     ``cell_body``, ``body_names``, ``cell_subdomain``, and per contact node ``contact_<name>``
     for every field of :class:`~dolfinx_feti.ContactData` that is set (``spec``, ``node``,
@@ -255,7 +264,7 @@ def save_nodal_values(solution, path: str | os.PathLike) -> None:
                if v is not None and k != "x"}  # spec, node, force, ... (friction data too)
     with atomic_file(path) as tmp, open(tmp, "wb") as f:
         np.savez(f, x=mesh.x, u=solution.nodal_values(), cells=mesh.cells,
-                 cell_body=mesh.cell_body, cell_subdomain=solution.dec.cell_sub,
+                 cell_body=mesh.cell_body, cell_subdomain=solution.cell_subdomains(),
                  body_names=np.array(mesh.body_names), **contact)
 
 

@@ -8,7 +8,7 @@ from typing import Protocol
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, collective
 from .mesh.checks import (
     check_boundary_group,
     check_conforming,
@@ -16,6 +16,7 @@ from .mesh.checks import (
     check_mesh,
 )
 from .mesh.decompose import ByFunction, ByTags, Parts
+from .mesh.dofpoints import facet_weights
 from .mesh.gmsh_input import MeshData
 from .validation import (
     Choice,
@@ -315,7 +316,9 @@ class ContactProblem:
     """A contact problem: mesh, forms, boundary conditions, contact and decomposition.
 
     Args:
-        mesh: The mesh (see :func:`dolfinx_feti.read_gmsh`).
+        mesh: The mesh (see :func:`dolfinx_feti.read_gmsh`). For a mesh only rank 0 holds
+            (``read_gmsh(..., replicate=False)``) create the problem on every rank of its
+            communicator: rank 0 checks it.
         forms: ``forms(V, sub) -> (a, L)``: the bilinear and linear UFL forms on a subdomain's
             function space ``V``; ``sub`` (:class:`dolfinx_feti.fem.Subdomain`) tells which
             body it belongs to and gives the tagged measures ``sub.dx(...)``, ``sub.ds(...)``.
@@ -395,7 +398,17 @@ class ContactProblem:
         check_dimensions(self)
         contact_groups = [g for c in [*self.contact, *self.ties] for g in
                           ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
-        _check_mesh(self.mesh, contact_groups, self.forms)
+        if self.mesh.root_only is None:
+            _check_mesh(self.mesh, contact_groups, self.forms)
+        else:  # collective on the mesh's ranks: rank 0 holds the arrays
+            comm, points = self.mesh.root_only, None
+            with collective(comm, "mesh"):
+                if self.mesh.holds_arrays:
+                    _check_mesh(self.mesh, contact_groups, self.forms)
+                    points = self.dof_points.num_points
+            points = comm.bcast(points, root=0)
+            if not self.mesh.holds_arrays:
+                self.mesh.counts[f"points{self.degree}"] = points
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
         if mortar and self.degree != 1:
             raise InputError(
@@ -405,7 +418,7 @@ class ContactProblem:
                 "needs a basis transformation to keep positive weights (Popp, Wohlmuth, Gee "
                 "and Wall 2012); use NodeToNode (matching meshes) or RigidObstacle there, "
                 "or degree 1")
-        if contact_groups and np.any(self.dof_points.facet_weights <= 0):
+        if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
                 "cells is not supported: the vertex dofs of its quadratic triangular facets "

@@ -12,11 +12,11 @@ from petsc4py import PETSc
 
 from .constraints.contact import surface
 from .constraints.friction import FRICTIONLESS, SLIP, STICK
-from .constraints.rows import Kind, Rows
+from .constraints.rows import Kind
 from .feti.system import BlockSystem
-from .mesh.decompose import Decomposition
 from .problem import ContactProblem, RigidObstacle
 from .report import Report
+from .share import RankShare
 
 
 @dataclass
@@ -85,30 +85,32 @@ class Solution:
         alpha: Rigid-body amplitudes (the same on every rank).
     """
 
-    def __init__(self, problem: ContactProblem, feti: BlockSystem, dec: Decomposition,
-                 rows: Rows, u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
+    def __init__(self, problem: ContactProblem, feti: BlockSystem, share: RankShare,
+                 u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
                  comm: MPI.Comm, friction=None) -> None:
         """Collect results (collective).
 
         ``feti`` is the Total FETI system of the problem (all rows, whatever the method),
-        ``friction`` the solve's FrictionSolve or None.
+        ``share`` what this rank holds of the problem (:mod:`.share`), ``friction`` the
+        solve's FrictionSolve or None.
         """
-        self.problem, self.feti, self.dec, self.rows = problem, feti, dec, rows
+        self.problem, self.feti, self.share = problem, feti, share
+        self.dec, self.rows = share.dec, share.rows
         self.friction = friction
         self.dual = None
         self.u_vec, self.lam, self.alpha, self.report, self.comm = u, lam, alpha, report, comm
         self._Bu = feti.B.createVecLeft()
         feti.B.mult(u, self._Bu)
         self._nodal = None
+        self._cell_sub = None
         self._function = None
         self.contact = self._contact_data()
 
     # --- residuals -------------------------------------------------------------------------
     def check_kkt(self, ineq: np.ndarray) -> None:
         """Fill ``report.kkt`` and ``report.max_penetration`` from u and λ (collective)."""
-        comm, rows, feti = self.comm, self.rows, self.feti
-        sl = feti.rows_local
-        scale = rows.scale[sl]
+        comm, own, feti = self.comm, self.rows.own, self.feti
+        scale = own.scale
         viol = (self._Bu.array_r - feti.c.array_r) / scale  # B u − c, physical units
         lam_phys = self.lam.array_r * scale
 
@@ -121,7 +123,7 @@ class Solution:
         kkt = {
             "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
             "primal_feasibility": max(pen, 0.0) / u_max,
-            "equality": gmax(np.abs(viol[~ineq & (rows.kind[sl] != Kind.TANGENT)])) / u_max,
+            "equality": gmax(np.abs(viol[~ineq & (own.kind != Kind.TANGENT)])) / u_max,
             "complementarity": gmax(np.abs(lam_phys[ineq] * viol[ineq]))
             / max(lam_max * u_max, 1e-300),
         }
@@ -133,28 +135,31 @@ class Solution:
 
     # --- contact ---------------------------------------------------------------------------
     def _contact_data(self) -> ContactData:
-        rows, feti, mesh = self.rows, self.feti, self.problem.mesh
-        sl = feti.rows_local
-        ineq = rows.inequality[sl]
-        lam = self.comm.allgather(self.lam.array_r[ineq] * rows.scale[sl][ineq])
-        gap = self.comm.allgather(((feti.c.array_r - self._Bu.array_r) / rows.scale[sl])[ineq])
+        own, feti, mesh = self.rows.own, self.feti, self.problem.mesh
+        ineq = own.inequality
+        lam = self.comm.allgather(self.lam.array_r[ineq] * own.scale[ineq])
+        gap = self.comm.allgather(((feti.c.array_r - self._Bu.array_r) / own.scale)[ineq])
         lam, gap = np.concatenate(lam), np.concatenate(gap)
+        rows = self.rows.contact  # every inequality row, in the global order
         sel = rows.inequality
         spec, node = rows.spec[sel], rows.node[sel]
-        area = np.ones(node.size)
-        for i, c in enumerate(self.problem.contact):
-            group = c.group
-            nodes, _, a = surface(mesh, group, self.problem.dof_points)
-            m = spec == i
-            area[m] = a[np.searchsorted(nodes, node[m])]
+        area = xs = None
+        if self.comm.rank == 0:  # from the whole mesh, which rank 0 holds
+            area = np.ones(node.size)
+            for i, c in enumerate(self.problem.contact):
+                nodes, _, a = surface(mesh, c.group, self.problem.dof_points)
+                m = spec == i
+                area[m] = a[np.searchsorted(nodes, node[m])]
+            xs = self.problem.dof_points.x[node]
+        area, xs = self.comm.bcast((area, xs), root=0)
         extra = {}
         if self.friction is not None:
-            scale = rows.scale[sl]
+            scale = own.scale
             extra = self.friction.contact_fields(self.lam.array_r * scale,
                                                  (self._Bu.array_r - feti.c.array_r) / scale,
                                                  mesh.gdim)
             extra["tangential_traction"] = extra["tangential_force"] / area[:, None]
-        return ContactData(spec=spec, node=node, x=self.problem.dof_points.x[node],
+        return ContactData(spec=spec, node=node, x=xs,
                            partner=rows.partner[sel],
                            normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap,
                            **extra)
@@ -180,19 +185,26 @@ class Solution:
         returned.
         """
         if self._nodal is None:
-            dec, bs, feti = self.dec, self.problem.value_size, self.feti
-            acc = np.zeros((dec.num_nodes, bs))
-            cnt = np.zeros(dec.num_nodes)
-            ua = self.u_vec.array_r
-            subs = dec.local_subdomains(self.comm.rank)
-            for i, seg in feti.segments():
-                nodes = dec.nodes(subs[i])
-                acc[nodes] += ua[seg].reshape(-1, bs)
-                cnt[nodes] += 1
+            share, bs = self.share, self.problem.value_size
+            acc = np.zeros((share.num_points, bs))
+            cnt = np.zeros(share.num_points)
+            nodes = share.point_ids[share.dec.pair_node]  # in the order of the local dofs
+            np.add.at(acc, nodes, self.u_vec.array_r.reshape(-1, bs))
+            np.add.at(cnt, nodes, 1.0)
             acc = self.comm.allreduce(acc, op=MPI.SUM)
             cnt = self.comm.allreduce(cnt, op=MPI.SUM)
             self._nodal = acc / np.maximum(cnt, 1)[:, None]
         return self._nodal
+
+    def cell_subdomains(self) -> np.ndarray:
+        """The subdomain of every cell of the mesh, on every rank (collective, then cached)."""
+        if self._cell_sub is None:
+            share = self.share
+            cells = np.concatenate(self.comm.allgather(share.cell_ids))
+            subs = np.concatenate(self.comm.allgather(share.dec.cell_sub))
+            self._cell_sub = np.empty(share.num_cells, dtype=subs.dtype)
+            self._cell_sub[cells] = subs
+        return self._cell_sub
 
     @property
     def energy(self) -> float:
@@ -216,13 +228,9 @@ class Solution:
     def _local_pairs_function(self, values: np.ndarray, name: str, degree: int | None = None):
         """A Function from this rank's subdomain values (in the pairs' order), exchanged."""
         from .output import distributed_function
-        dec = self.dec
-        # consecutive: their pairs are one slice, in dof order
-        subs = dec.local_subdomains(self.comm.rank)
-        pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
-            else slice(0, 0)
         msh = None if self._function is None else self._function.function_space.mesh
-        return distributed_function(self.problem.mesh, dec.pair_node[pairs], values, self.comm,
+        nodes = self.share.point_ids[self.dec.pair_node]  # in the order of the local dofs
+        return distributed_function(self.problem.mesh, nodes, values, self.comm,
                                     name, self.problem.dof_points, degree, msh=msh)
 
     def pressure_function(self, degree: int | None = None):
@@ -256,9 +264,11 @@ class Solution:
 
     def multipliers(self, kind: Kind | None = None) -> np.ndarray:
         """Physical multipliers (nodal forces) of all rows, or of one kind, on every rank."""
-        sl = self.feti.rows_local
-        lam = np.concatenate(self.comm.allgather(self.lam.array_r * self.rows.scale[sl]))
-        return lam if kind is None else lam[self.rows.kind == kind]
+        own = self.rows.own
+        lam = self.lam.array_r * own.scale
+        if kind is not None:
+            lam = lam[own.kind == kind]
+        return np.concatenate(self.comm.allgather(lam))
 
 
 __all__ = ["ContactData", "RigidObstacle", "Solution"]

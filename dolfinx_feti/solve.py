@@ -22,9 +22,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .constraints.friction import friction_data
 from .dual import DualQP, choose_method, dual_qp
-from .errors import NotConverged, collective
+from .errors import NotConverged
 from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
@@ -88,9 +87,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                  method=opts.method)
     report.warnings.extend(qp.warnings)
     feti, dec, rows, system = qp.feti, qp.dec, qp.rows, qp.system
-    n_ineq = int(rows.inequality.sum())
-    with collective(comm, "friction"):
-        fdata = friction_data(problem, rows)
+    n_ineq = int(rows.contact.inequality.sum())
+    fdata = qp.friction
     friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
     out = solve_qp(qp, opts, report=report, progress=progress, timer=timer, friction=friction)
     res, u, lam_all, alpha = out.result, out.u, out.lam, out.alpha
@@ -131,15 +129,15 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         report.sizes["tangential"] = n_tang
         report.extra["friction"] = friction.info
         friction.destroy()
-    sol = Solution(problem, system, dec, rows, u, lam_all, alpha, report, comm,
+    sol = Solution(problem, system, qp.share, u, lam_all, alpha, report, comm,
                    friction=friction)
     sol.dual = feti
-    sol.check_kkt(rows.inequality[system.rows_local])
+    sol.check_kkt(rows.own.inequality)
     if qp.mortar:
-        c = sol.contact
-        warn, report.extra["mortar"] = mortar_warnings(problem.mesh, qp.mortar,
-                                                       sol.nodal_values(), c.spec, c.node,
-                                                       c.force)
+        c, nodal, found = sol.contact, sol.nodal_values(), None
+        if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
+            found = mortar_warnings(problem.mesh, qp.mortar, nodal, c.spec, c.node, c.force)
+        warn, report.extra["mortar"] = comm.bcast(found, root=0)
         report.warnings.extend(warn)
     _warn_loose_stop(report, opts.rtol)
     report.timings = timer.reduced(comm)

@@ -180,7 +180,7 @@ def test_von_mises_and_subdomains_in_the_solution(outdir):
     n = cells.size
     dofs = compat.cell_dofs(vm.function_space).ravel()[:n]
     assert np.allclose(vm.x.array[dofs], expect[cells])
-    assert np.array_equal(sub.x.array[dofs], sol.dec.cell_sub[cells].astype(float))
+    assert np.array_equal(sub.x.array[dofs], sol.cell_subdomains()[cells].astype(float))
     # The upper block is nearly in a uniaxial-strain state: sigma_zz ~ -1, von Mises ~
     # (1 - 2 nu) / (1 - nu) = 0.571 at its top (where the rollers and the pressure dominate).
     upper = problem.mesh.cell_body == problem.mesh.body_names.index("upper")

@@ -37,7 +37,7 @@ def solved(problem):
 def test_sizes_and_bounds(problem, solved):
     qp, _, _ = solved
     assert qp.constraint.m == 32  # one constant per floating subdomain: all 32 in Total FETI
-    n_ineq = int(qp.rows.inequality.sum())
+    n_ineq = int(qp.rows.contact.inequality.sum())
     assert qp.feti.comm.allreduce(int(np.isfinite(qp.lb.array_r).sum())) == n_ineq == 9
     assert qp.norm_A > 0 and np.isfinite(qp.norm_A)
 

@@ -129,11 +129,13 @@ def test_decompositions_agree(tresca):
 
 
 def test_rows_of_a_node_are_consecutive(tresca):
-    rows = tresca["parts3"].rows
+    share = tresca["parts3"].rows  # the contact and friction rows are on every rank
+    rows = share.contact
     t = np.flatnonzero(rows.kind == Kind.TANGENT)
     n = np.flatnonzero(rows.inequality)
     assert t.size == n.size
-    assert np.array_equal(t, n + 1)  # 2D: normal row, then the tangential row
+    # 2D: normal row, then the tangential row (global indices)
+    assert np.array_equal(share.contact_index[t], share.contact_index[n] + 1)
     assert np.array_equal(rows.node[t], rows.node[n])
     assert np.allclose(rows.scale[t], 1 / np.sqrt(2))
     assert np.allclose(np.einsum("ij,ij->i", rows.normal[t], rows.normal[n]), 0.0)
@@ -142,7 +144,7 @@ def test_rows_of_a_node_are_consecutive(tresca):
 def test_limit_g_zero_is_frictionless(mesh):
     free = df.solve(b4(mesh, None), rtol=RTOL)
     zero = df.solve(b4(mesh, df.Tresca(0.0)), rtol=RTOL)
-    assert free.contact.state is None and free.rows.tangential.sum() == 0
+    assert free.contact.state is None and free.rows.contact.tangential.sum() == 0
     assert ref.rel_max_diff(zero.nodal_values(), free.nodal_values()) <= 1e-7
     assert np.abs(zero.contact.force - free.contact.force).max() <= 1e-7 * free.contact.force.max()
     assert np.all(zero.contact.state == df.ContactData.SLIP)
@@ -208,7 +210,7 @@ def test_obstacle_friction(mesh):
                                      ("foundation_top", (0, 0)), ("top", SHIFT)],
                           slave="block_bottom", normal=(0.0, 1.0), point=(0.0, 0.0))
     compare(sol, r.solve_tresca(G))
-    assert np.allclose(sol.rows.scale[sol.rows.tangential], 1.0)
+    assert np.allclose(sol.rows.contact.scale[sol.rows.contact.tangential], 1.0)
     c = sol.contact
     assert 1 <= np.sum(c.state == df.ContactData.STICK) < c.node.size
 

@@ -131,3 +131,21 @@ def test_untagged_cells_and_embedded_meshes():
                                       np.ones(n, dtype=np.int32))
     data = df.from_dolfinx(msh, all_cells, None)
     assert data.cells.shape[0] == 32 and data.facet_groups == {}
+
+
+def test_a_dolfinx_mesh_gathered_on_rank_0_only(hertz):
+    """from_dolfinx(..., replicate=False): rank 0 alone holds the arrays; same solution and
+    Functions on the user's mesh."""
+    _, (msh, ct, ft, names) = hertz
+    whole = df.from_dolfinx(msh, ct, ft, names=names)
+    held = df.from_dolfinx(msh, ct, ft, names=names, replicate=False)
+    if COMM.rank > 0:
+        assert held.x.shape[0] == 0 and held.num_nodes == whole.num_nodes
+    a = df.solve(hertz_problem(held), rtol=RTOL)
+    b = df.solve(hertz_problem(whole), rtol=RTOL)
+    assert a.report.converged and a.report.sizes == b.report.sizes
+    assert a.u.function_space.mesh is msh
+    scale = np.abs(b.u.x.array).max()
+    assert np.abs(a.u.x.array - b.u.x.array).max() <= 1e-10 * scale
+    assert np.allclose(a.pressure_function().x.array, b.pressure_function().x.array,
+                       rtol=1e-9, atol=1e-12 * b.contact.pressure.max())

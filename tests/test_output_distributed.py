@@ -54,7 +54,7 @@ def check_against_gathered(solution, degree=None):
     nodal = solution.nodal_values()
     assert np.allclose(u.x.array.reshape(-1, bs), nodal[node],
                        rtol=0, atol=1e-15 * np.abs(nodal).max())
-    full = np.zeros(solution.dec.num_nodes)
+    full = np.zeros(solution.share.num_points)
     np.add.at(full, solution.contact.node, solution.contact.pressure)
     p = solution.pressure_function()
     assert np.array_equal(p.x.array, full[dof_point_of_each_dof(p.function_space, points)])
@@ -65,11 +65,8 @@ def check_against_gathered(solution, degree=None):
             solution.problem.mesh, 1))
         assert compat.space_degree(p1.function_space) == 1
         assert np.array_equal(p1.x.array, full[vertex])
-        dec = solution.dec
-        subs = dec.local_subdomains(solution.comm.rank)
-        pairs = slice(dec.sub_ptr[subs[0]], dec.sub_ptr[subs[-1] + 1]) if subs.size \
-            else slice(0, 0)
-        u1 = distributed_function(solution.problem.mesh, dec.pair_node[pairs],
+        share = solution.share
+        u1 = distributed_function(solution.problem.mesh, share.point_ids[share.dec.pair_node],
                                   solution.u_vec.array_r.reshape(-1, bs), COMM, "u1", points,
                                   degree=1)
         assert np.allclose(u1.x.array.reshape(-1, bs),

@@ -13,9 +13,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 
 from ..errors import collective
-from ..mesh.decompose import Decomposition
-from ..mesh.topology import locate_facets
 from ..problem import ContactProblem
+from ..share import RankShare
 from ..timing import Timer
 from .rigid import rigid_modes
 from .subdomain import Subdomain
@@ -41,7 +40,7 @@ class SubdomainData:
         bodies: Per local subdomain, the name of its body.
         dof_x: Coordinates of the node of every local dof (n_local × gdim).
         dof_comp: Component of every local dof.
-        dof_node: Global node of every local dof.
+        dof_node: Global dof point of every local dof.
         dof_sub: Subdomain of every local dof.
     """
 
@@ -100,51 +99,39 @@ def _runs_of_equal_bodies(mesh, subs, cells_of) -> list[list[int]]:
     return runs
 
 
-def _subdomain_facets(mesh, dec) -> dict[int, dict[str, np.ndarray]]:
-    """Boundary groups split by the subdomain of the cell each facet bounds."""
-    out: dict[int, dict[str, np.ndarray]] = {}
-    for name, f in mesh.facet_groups.items():
-        if f.shape[0] == 0:
-            continue
-        cell, _ = locate_facets(mesh.cells, f, mesh.cell_type)
-        sub = np.where(cell >= 0, dec.cell_sub[np.maximum(cell, 0)], -1)
-        for s in np.unique(sub[sub >= 0]):
-            out.setdefault(int(s), {})[name] = f[sub == s]
-    return out
-
-
-def assemble_subdomains(problem: ContactProblem, dec: Decomposition, comm: MPI.Comm,
+def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Comm,
                         timer: Timer) -> SubdomainData:
     """Mesh and assemble the subdomains of this rank (collective on ``comm``).
 
     A rank's subdomains with the same bodies are meshed together as a disjoint union, so one
-    assembly gives their block-diagonal K (see :class:`~dolfinx_feti.fem.Subdomain`).
+    assembly gives their block-diagonal K (see :class:`~dolfinx_feti.fem.Subdomain`). Only
+    the rank's share (:mod:`dolfinx_feti.share`) is read.
     """
-    mesh, bs = problem.mesh, problem.value_size
-    local_subs = dec.local_subdomains(comm.rank)
-    sub_offset = np.concatenate([[0], np.cumsum(bs * np.diff(dec.sub_ptr))]).astype(np.int64)
+    mesh, dec, bs = share.mesh, share.dec, problem.value_size
+    local_subs = dec.subs
+    sub_offset = np.concatenate([[0], np.cumsum(bs * dec.sub_size)]).astype(np.int64)
     with timer.phase("assembly"), collective(comm, "assembly"):
-        facets = _subdomain_facets(mesh, dec)
         cells_of = _cells_by_subdomain(dec.cell_sub, local_subs)
         K_parts, f_parts = [], []
         for group in _runs_of_equal_bodies(mesh, local_subs, cells_of):
             sub = Subdomain(group, mesh, [cells_of[s] for s in group],
-                            [dec.nodes(s) for s in group], [facets.get(s, {}) for s in group],
-                            problem.dof_points)
+                            [dec.nodes(s) for s in group],
+                            [share.facets.get(s, {}) for s in group], share.points,
+                            check_group=share.check_group)
             K, f = sub.assemble(problem.forms, bs)
             K_parts.append(K)
             f_parts.append(f)
         K = sp.block_diag(K_parts, format="csr") if K_parts else sp.csr_matrix((0, 0))
         nodes = [dec.nodes(s) for s in local_subs]
         # The rigid motions are linear: their nodal interpolation at the dof points is exact.
-        x = problem.dof_points.x
+        x = share.points.x
         kernels = [rigid_modes(x[n], bs) for n in nodes]
-        dof_node = np.repeat(np.concatenate(nodes), bs) if nodes else np.zeros(0, np.int64)
+        local_node = np.repeat(np.concatenate(nodes), bs) if nodes else np.zeros(0, np.int64)
         dof_sub = np.repeat(local_subs, bs * np.array([n.size for n in nodes], dtype=np.int64))
     labels = [f"subdomain {s} of body {mesh.body_names[dec.sub_body[s]]!r}" for s in local_subs]
     return SubdomainData(
         comm=comm, bs=bs, gdim=mesh.gdim, local_subs=local_subs, sub_offset=sub_offset, K=K,
         f=np.concatenate(f_parts) if f_parts else np.zeros(0), kernels=kernels, labels=labels,
         bodies=[mesh.body_names[dec.sub_body[s]] for s in local_subs],
-        dof_x=x[dof_node], dof_comp=np.tile(np.arange(bs), dof_node.size // bs),
-        dof_node=dof_node, dof_sub=dof_sub)
+        dof_x=x[local_node], dof_comp=np.tile(np.arange(bs), local_node.size // bs),
+        dof_node=share.point_ids[local_node], dof_sub=dof_sub)

@@ -192,22 +192,25 @@ def primal_components(mesh: MeshData, dec: Decomposition) -> np.ndarray:
 
 
 def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.ndarray,
-                     bs: int, dof_node: np.ndarray, dof_comp: np.ndarray,
-                     dof_sub: np.ndarray, x: np.ndarray | None = None,
-                     comp: np.ndarray | None = None) -> tuple[np.ndarray, list[str]]:
+                     bs: int, parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                     x: np.ndarray | None = None, comp: np.ndarray | None = None
+                     ) -> tuple[list[np.ndarray], list[str]]:
     """The rigid motions of the floating components that their fixed dofs allow.
 
-    ``x`` holds the coordinates of the dof points numbering the nodes (default: the vertices);
-    ``comp`` the component of every subdomain (default: joined by equality rows,
-    :func:`components`; FETI-DP: :func:`primal_components`).
+    ``parts`` lists dof sets (e.g. one per rank) as ``(dof_node, dof_comp, dof_sub)``: the
+    global node, component and subdomain of each dof; ``x`` holds the coordinates of the dof
+    points numbering the nodes (default: the vertices); ``comp`` the component of every
+    subdomain (default: joined by equality rows, :func:`components`; FETI-DP:
+    :func:`primal_components`).
 
     Returns:
-        The motions at the given (local) dofs, n × m with the same m columns on every rank
-        (zero on fixed dofs), and the bodies of each column.
+        Per part, the motions at its dofs, n × m with the same m columns for every part (zero
+        on fixed dofs), and the bodies of each column.
     """
     x = mesh.x if x is None else x
     comp = components(rows, dec.num_subdomains) if comp is None else comp
-    columns, bodies = [], []
+    columns: list[list[np.ndarray]] = [[] for _ in parts]
+    bodies: list[str] = []
     for c in range(int(comp.max(initial=-1)) + 1):
         subs = np.flatnonzero(comp == c)
         nodes = np.unique(dec.pair_node[np.isin(dec.pair_sub, subs)])
@@ -216,14 +219,16 @@ def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.n
         free = _free_motions(Y[fixed[nodes]])
         if free.shape[1] == 0:
             continue
-        mine = np.flatnonzero(np.isin(dof_sub, subs))
-        Z = np.zeros((dof_node.size, free.shape[1]))
-        Yl = rigid_motions(x[dof_node[mine]], bs, centre, scale).reshape(
-            mine.size, bs, Y.shape[2])[np.arange(mine.size), dof_comp[mine]]
-        Z[mine] = Yl @ free
-        Z[fixed[dof_node, dof_comp]] = 0.0
-        columns.append(Z)
+        for out, (dof_node, dof_comp, dof_sub) in zip(columns, parts, strict=True):
+            mine = np.flatnonzero(np.isin(dof_sub, subs))
+            Z = np.zeros((dof_node.size, free.shape[1]))
+            Yl = rigid_motions(x[dof_node[mine]], bs, centre, scale).reshape(
+                mine.size, bs, Y.shape[2])[np.arange(mine.size), dof_comp[mine]]
+            Z[mine] = Yl @ free
+            Z[fixed[dof_node, dof_comp]] = 0.0
+            out.append(Z)
         names = sorted({mesh.body_names[b] for b in dec.sub_body[subs]})
         bodies += ["+".join(names)] * free.shape[1]
-    Z = np.hstack(columns) if columns else np.zeros((dof_node.size, 0))
+    Z = [np.hstack(cols) if cols else np.zeros((p[0].size, 0))
+         for cols, p in zip(columns, parts, strict=True)]
     return Z, bodies

@@ -7,7 +7,7 @@ so nothing downstream depends on DOLFINx's dof numbering.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -63,20 +63,27 @@ class Subdomain:
 
     def __init__(self, indices: Sequence[int], mesh: MeshData, cells: Sequence[np.ndarray],
                  nodes: Sequence[np.ndarray], facets: Sequence[Mapping[str, np.ndarray]],
-                 points: DofPoints | None = None) -> None:
+                 points: DofPoints | None = None,
+                 check_group: Callable[[str, str], None] | None = None) -> None:
         """Build the serial mesh of the given subdomains and tag it.
 
         Args:
             indices: Subdomain numbers.
-            mesh: The global mesh data.
-            cells: Per subdomain, the global indices of its cells.
-            nodes: Per subdomain, the sorted global dof points of those cells.
-            facets: Per subdomain, boundary group name → the group's facets (global vertices)
+            mesh: The mesh data the subdomains are in (the whole mesh, or a rank's share of
+                it: :mod:`dolfinx_feti.share`).
+            cells: Per subdomain, the indices of its cells in ``mesh``.
+            nodes: Per subdomain, the sorted dof points of those cells (of ``points``).
+            facets: Per subdomain, boundary group name → the group's facets (vertices)
                 there.
-            points: The global dof points (default: the vertices, degree 1).
+            points: The dof points of ``mesh`` (default: the vertices, degree 1).
+            check_group: ``check_group(group, what)`` refuses a boundary group that cannot
+                carry a boundary integral (default: checked on ``mesh`` itself, which must
+                then be the whole mesh).
         """
         self.indices = tuple(int(i) for i in indices)
         self._mesh_data = mesh
+        self._check_group = check_group or (
+            lambda group, what: check_boundary_group(mesh, group, what))
         self._points = dof_points(mesh, 1) if points is None else points
         self.degree = self._points.degree
         self.nodes = np.concatenate(nodes)
@@ -167,7 +174,7 @@ class Subdomain:
     def ds(self, *groups: str) -> ufl.Measure:
         """Exterior facet measure over the named boundary groups (zero if none is here)."""
         for g in groups:  # known, not empty, and no facet between two cells
-            check_boundary_group(self._mesh_data, g, "the boundary integral sub.ds over")
+            self._check_group(g, "the boundary integral sub.ds over")
         ids = tuple(sorted({i for g in groups for i in self._facet_ids.get(g, ())}))
         return compat.measure("ds", self.mesh, self._facet_tags)(ids or (_NO_FACET,))
 

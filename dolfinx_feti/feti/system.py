@@ -144,27 +144,20 @@ class BlockSystem(_Rows):
         self.Kplus: FixingNodesInverse | None = None
 
     @classmethod
-    def from_rows(cls, data, rows: Rows, dec) -> BlockSystem:
+    def from_rows(cls, data, rows) -> BlockSystem:
         """The Total FETI system: every subdomain a block with its rigid modes, all rows in B.
 
         Args:
             data: The :class:`~dolfinx_feti.fem.assembly.SubdomainData` of this rank.
-            rows: All constraint rows (gluing, Dirichlet, contact, friction).
-            dec: The decomposition (its dof map numbers the columns of B).
+            rows: This rank's rows (:class:`~dolfinx_feti.share.RankRows`: gluing,
+                Dirichlet, contact, friction) with the global primal column of each entry.
         """
-        comm, bs = data.comm, data.bs
-        owner = dec.sub_rank[rows.min_subdomain()]
-        counts = np.bincount(owner, minlength=comm.size)
-        start = int(counts[:comm.rank].sum())
-        stop = start + int(counts[comm.rank])
-        mine = (rows.e_row >= start) & (rows.e_row < stop)
-        col = bs * dec.pair_index(rows.e_sub[mine], rows.e_node[mine]) + rows.e_comp[mine]
-        Bloc = sp.csr_matrix((rows.e_coef[mine], (rows.e_row[mine] - start, col)),
-                             shape=(stop - start, data.primal_size[1]))
-        B = petsc_aij(Bloc, (stop - start, rows.size), data.primal_size, comm)
-        return cls(comm, data.K, data.f, B, rows.rhs[start:stop], row_types(rows)[start:stop],
-                   data.offsets, data.kernels, data.labels, data.bodies,
-                   row_blocks(rows)[start:stop])
+        own = rows.own
+        Bloc = sp.csr_matrix((own.e_coef, (own.e_row, rows.cols)),
+                             shape=(own.size, data.primal_size[1]))
+        B = petsc_aij(Bloc, (own.size, rows.size), data.primal_size, data.comm)
+        return cls(data.comm, data.K, data.f, B, own.rhs, row_types(own), data.offsets,
+                   data.kernels, data.labels, data.bodies, row_blocks(own))
 
     # --- the generalized inverse -----------------------------------------------------------
     def factorize(self, factor: str | None = None, site: str = "") -> None:

@@ -106,6 +106,13 @@ class Decomposition:
         """Subdomains owned by ``rank``."""
         return np.flatnonzero(self.sub_rank == rank)
 
+    def rank_pairs(self, rank: int) -> slice:
+        """The (subdomain, node) pairs of the subdomains of ``rank`` (they are contiguous)."""
+        subs = self.local_subdomains(rank)
+        if subs.size == 0:
+            return slice(0, 0)
+        return slice(int(self.sub_ptr[subs[0]]), int(self.sub_ptr[subs[-1] + 1]))
+
     def nodes(self, s: int) -> np.ndarray:
         """Sorted global nodes of subdomain ``s``."""
         return self.pair_node[self.sub_ptr[s]:self.sub_ptr[s + 1]]

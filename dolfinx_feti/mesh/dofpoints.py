@@ -52,6 +52,11 @@ _FACET_LAYOUT = {
 }
 
 
+def facet_weights(cell_type: str, degree: int) -> np.ndarray:
+    """For each dof point of a facet of ``cell_type`` cells, ∫ φ / |facet| (degree 1 or 2)."""
+    return np.array(_FACET_LAYOUT[FACET_TYPE[cell_type]][degree][1])
+
+
 @dataclass
 class DofPoints:
     """The global dof points of a Lagrange space of degree 1 or 2 on a first-order mesh.
@@ -83,7 +88,7 @@ class DofPoints:
     @property
     def facet_weights(self) -> np.ndarray:
         """For each point of a facet (see :meth:`facet_points`), ∫ φ / |facet|."""
-        return np.array(_FACET_LAYOUT[FACET_TYPE[self.cell_type]][self.degree][1])
+        return facet_weights(self.cell_type, self.degree)
 
     def lookup(self, dim: int, vertices: np.ndarray) -> np.ndarray:
         """The point of each entity of dimension ``dim`` given by its global vertices (rows).
@@ -136,6 +141,44 @@ class DofPoints:
                              "cell of the mesh") from None
 
 
+@dataclass
+class RootPoints(DofPoints):
+    """The dof points of a root-only mesh on a rank without its arrays.
+
+    It knows the sizes of the whole mesh's points; :func:`root_lookup` answers its lookups
+    through rank 0.
+    """
+
+    total: int = 0
+
+    @property
+    def num_points(self) -> int:
+        """Number of dof points of the whole mesh."""
+        return self.total
+
+
+class RootLookup:
+    """Dof points of a root-only mesh whose lookups rank 0 answers (collective calls).
+
+    Every rank of the mesh's communicator wraps its points (rank 0 its global ones) and calls
+    :meth:`lookup` the same number of times with the same dimensions.
+    """
+
+    def __init__(self, points: DofPoints, comm) -> None:
+        self.points, self.comm = points, comm
+
+    def __getattr__(self, name):
+        return getattr(self.points, name)
+
+    def lookup(self, dim: int, vertices: np.ndarray) -> np.ndarray:
+        """:meth:`DofPoints.lookup`, answered by rank 0 (collective)."""
+        if dim == 0:
+            return np.asarray(vertices, dtype=np.int64).reshape(-1)
+        asked = self.comm.gather(np.asarray(vertices, dtype=np.int64), root=0)
+        answers = [self.points.lookup(dim, v) for v in asked] if self.comm.rank == 0 else None
+        return self.comm.scatter(answers, root=0)
+
+
 _CACHE: list = []  # (x, cells, degree, DofPoints) of the last meshes, by identity
 
 
@@ -154,6 +197,12 @@ def _build(mesh: MeshData, degree: int) -> DofPoints:
     if degree not in (1, 2):
         raise ValueError(f"Lagrange degree {degree}: only 1 and 2 are supported")
     cells, N = mesh.cells, mesh.num_nodes
+    if not mesh.holds_arrays:
+        total = N if degree == 1 else mesh.counts.get(f"points{degree}", -1)
+        k = cells.shape[1] + (0 if degree == 1 else sum(
+            len(local) for _, local in _DEGREE2_ENTITIES[mesh.cell_type]))
+        return RootPoints(degree, mesh.cell_type, mesh.x, np.zeros((0, k), dtype=np.int64), N,
+                          {}, total=total)
     if degree == 1:
         return DofPoints(1, mesh.cell_type, mesh.x, cells, N, {})
     C = cells.shape[0]
@@ -185,4 +234,4 @@ def _positions(mesh: MeshData, dim: int, vertices: np.ndarray, keys: np.ndarray)
     return pos[order][at]
 
 
-__all__ = ["DofPoints", "dof_points"]
+__all__ = ["DofPoints", "RootLookup", "RootPoints", "dof_points"]

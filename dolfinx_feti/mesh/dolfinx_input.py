@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import compat
-from ..errors import InputError
+from ..errors import InputError, collective
 from .dofpoints import degree2_entities
 from .gmsh_input import MeshData
 from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
@@ -33,20 +33,30 @@ class DolfinxSource:
         mesh: The user's DOLFINx mesh (the solution is returned on it).
         input_nodes: The DOLFINx input index of each global vertex (sorted).
         input_cells: The DOLFINx input index of each global cell (sorted).
+        root_only: For a mesh whose arrays rank 0 holds (``replicate=False``), the
+            communicator: the two tables are on rank 0 only, which answers the lookups.
     """
 
     mesh: object
-    input_nodes: np.ndarray
-    input_cells: np.ndarray
+    input_nodes: np.ndarray | None
+    input_cells: np.ndarray | None
+    root_only: object = None
+
+    def _positions(self, table: np.ndarray | None, asked: np.ndarray) -> np.ndarray:
+        if self.root_only is None:
+            return np.searchsorted(table, asked)
+        comm = self.root_only  # collective: rank 0 holds the table
+        queries = comm.gather(np.asarray(asked, dtype=np.int64), root=0)
+        answers = [np.searchsorted(table, q) for q in queries] if comm.rank == 0 else None
+        return comm.scatter(answers, root=0)
 
     def vertex_ids(self) -> np.ndarray:
         """The global vertex of each local geometry node of the mesh."""
-        gin = compat.node_input_indices(self.mesh)
-        return np.searchsorted(self.input_nodes, gin)
+        return self._positions(self.input_nodes, compat.node_input_indices(self.mesh))
 
     def cell_ids(self) -> np.ndarray:
         """The global cell of each local cell (owned and ghost) of the mesh."""
-        return np.searchsorted(self.input_cells, compat.cell_input_indices(self.mesh))
+        return self._positions(self.input_cells, compat.cell_input_indices(self.mesh))
 
 
 @dataclass
@@ -76,7 +86,8 @@ class LocalPart:
 
 
 def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
-                 names: Mapping[str, int | tuple[int, int]] | None = None) -> MeshData:
+                 names: Mapping[str, int | tuple[int, int]] | None = None,
+                 replicate: bool = True) -> MeshData:
     """A DOLFINx mesh with its tags as the mesh of a :class:`~dolfinx_feti.ContactProblem`.
 
     The cell tags name the bodies, the facet tags the boundary groups (Dirichlet, loads,
@@ -95,6 +106,9 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         facet_tags: MeshTags of facets (boundary groups); None for none.
         names: Group name → tag, or → ``(dim, tag)`` when a tag number is used by cells and
             by facets. Tags without a name are named by their number (``"3"``).
+        replicate: Every rank receives the global arrays (the default), or only rank 0 of the
+            mesh's communicator gathers them and the others keep the names (as
+            :func:`~dolfinx_feti.read_gmsh` with ``replicate=False``).
 
     Returns:
         The mesh data (global arrays on every rank, node order of DOLFINx's input).
@@ -129,7 +143,7 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         if tags is not None and compat.tags_data(tags)[0] != dim:
             raise InputError(f"from_dolfinx: {what} are tags of entities of dimension "
                              f"{compat.tags_data(tags)[0]}, expected {dim}")
-    return gather(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names)
+    return gather(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names, replicate)
 
 
 def local_part(mesh, cell_tags, facet_tags) -> LocalPart:
@@ -159,11 +173,37 @@ def local_part(mesh, cell_tags, facet_tags) -> LocalPart:
 
 
 def gather(part: LocalPart, mesh, cell_type: str,
-           names: Mapping[str, int | tuple[int, int]] | None) -> MeshData:
-    """The global MeshData from every rank's part (collective on the mesh's communicator)."""
+           names: Mapping[str, int | tuple[int, int]] | None,
+           replicate: bool = True) -> MeshData:
+    """The global MeshData from every rank's part (collective on the mesh's communicator).
+
+    With ``replicate=False`` only rank 0 gathers and holds the arrays; the others get
+    :meth:`MeshData.names_only`.
+    """
     comm = mesh.comm
-    parts = comm.allgather(part)
-    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in vars(part)}
+    if replicate or comm.size == 1:
+        return _global(comm.allgather(part), mesh, cell_type, names)
+    parts, data, names_only = comm.gather(part, root=0), None, None
+    with collective(comm, "mesh"):
+        if comm.rank == 0:
+            data = _global(parts, mesh, cell_type, names)
+            names_only = data.names_only()
+    del parts
+    if comm.rank == 0:
+        comm.bcast(names_only, root=0)
+        data.source = DolfinxSource(mesh, data.source.input_nodes, data.source.input_cells,
+                                    comm)
+    else:
+        data = comm.bcast(None, root=0)
+        data.source = DolfinxSource(mesh, None, None, comm)
+    data.root_only = comm
+    return data
+
+
+def _global(parts: list[LocalPart], mesh, cell_type: str,
+            names: Mapping[str, int | tuple[int, int]] | None) -> MeshData:
+    """The global MeshData from all ranks' parts."""
+    cat = {k: np.concatenate([getattr(p, k) for p in parts]) for k in vars(parts[0])}
     order = np.argsort(cat["cell_index"], kind="stable")
     input_cells = cat["cell_index"][order]
     if np.any(np.diff(input_cells) == 0):

@@ -59,6 +59,12 @@ class MeshData:
             entity), the node's coordinates (n, gdim)), one node per edge, and per
             quadrilateral face and cell interior of quadrilaterals and hexahedra; None for a
             first-order mesh.
+        root_only: For a mesh whose arrays only rank 0 of this communicator holds (the
+            other ranks hold empty arrays with the same names: :meth:`names_only`), the
+            communicator; None when every rank holds them.
+        counts: On a rank without the arrays, the sizes of the whole mesh: ``"nodes"``,
+            ``"cells"`` and ``"points<degree>"`` (dof points of a space of that degree, once
+            a problem has needed them).
     """
 
     x: np.ndarray
@@ -71,6 +77,28 @@ class MeshData:
     group_tags: dict[str, int] = field(default_factory=dict)
     source: object = field(default=None, repr=False, compare=False)
     high_order: dict | None = field(default=None, repr=False, compare=False)
+    root_only: MPI.Comm | None = field(default=None, repr=False, compare=False)
+    counts: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def holds_arrays(self) -> bool:
+        """Whether this rank holds the arrays (every rank, unless the mesh is root-only)."""
+        return self.root_only is None or self.root_only.rank == 0
+
+    def names_only(self) -> MeshData:
+        """The same mesh without its arrays: names, types and sizes of the arrays' rows.
+
+        What the ranks other than 0 hold of a root-only mesh (:func:`read_gmsh` with
+        ``replicate=False``).
+        """
+        def empty(a):
+            return np.zeros((0,) + a.shape[1:], dtype=a.dtype)
+        return MeshData(x=empty(self.x), cells=empty(self.cells), cell_type=self.cell_type,
+                        cell_body=empty(self.cell_body), body_names=self.body_names,
+                        facet_groups={n: empty(f) for n, f in self.facet_groups.items()},
+                        node_tags=empty(self.node_tags), group_tags=dict(self.group_tags),
+                        high_order=None if self.high_order is None else {},
+                        counts={"nodes": self.num_nodes, "cells": self.num_cells})
 
     @property
     def geometry_degree(self) -> int:
@@ -89,8 +117,13 @@ class MeshData:
 
     @property
     def num_nodes(self) -> int:
-        """Number of nodes."""
-        return self.x.shape[0]
+        """Number of nodes (of the whole mesh, also on a rank without the arrays)."""
+        return self.counts.get("nodes", self.x.shape[0])
+
+    @property
+    def num_cells(self) -> int:
+        """Number of cells (of the whole mesh, also on a rank without the arrays)."""
+        return self.counts.get("cells", self.cells.shape[0])
 
     def body_index(self, name: str) -> int:
         """The index of a body by name, with an error that lists the known bodies."""
@@ -101,27 +134,36 @@ class MeshData:
                              f"dimension {self.tdim}) are {list(self.body_names)}") from None
 
     def facets(self, name: str) -> np.ndarray:
-        """The facets of a boundary group, with an error that lists the known groups."""
+        """The facets of a boundary group, with an error that lists the known groups.
+
+        On a rank without the arrays (a root-only mesh) only the name is checked.
+        """
         if name not in self.facet_groups:
             raise InputError(f"unknown boundary group {name!r}: the mesh's boundary physical "
                              f"groups (dimension {self.tdim - 1}) are {sorted(self.facet_groups)}")
         f = self.facet_groups[name]
-        if f.shape[0] == 0:
+        if f.shape[0] == 0 and self.holds_arrays:
             raise InputError(f"boundary group {name!r} is empty: it holds no mesh facet")
         return f
 
 
-def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) -> MeshData:
+def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
+              replicate: bool = True) -> MeshData:
     """Read a gmsh model into :class:`MeshData`.
 
     Args:
         source: A path to a ``.msh`` file, or the ``gmsh.model`` module / ``None`` for the model
             that is current in this process's gmsh session (it only needs to exist on rank 0).
-        comm: The ranks that will share the data (all of them receive the same arrays).
+        comm: The ranks that will share the data.
         gdim: Geometric dimension; by default the cells' dimension (a 2D model has z = 0).
+        replicate: Every rank receives the arrays (the default), or only rank 0 keeps them
+            and the others hold the names and types (``root_only``): the solve then hands
+            every rank only its share, so no other rank ever holds the whole mesh. Use it
+            for large meshes under MPI; code of the user's that reads the arrays (``mesh.x``,
+            ``mesh.cells``) then runs on rank 0.
 
     Returns:
-        The mesh data, identical on every rank of ``comm``.
+        The mesh data, identical on every rank of ``comm`` (or on rank 0, see ``replicate``).
 
     Raises:
         InputError: If the file is missing, the model has no physical groups of cells,
@@ -136,6 +178,11 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
             from .checks import check_mesh  # degenerate or inverted cells, empty bodies
 
             check_mesh(data)
+    if not replicate and comm.size > 1:
+        names = comm.bcast(data.names_only() if comm.rank == 0 else None, root=0)
+        data = data if comm.rank == 0 else names
+        data.root_only = comm
+        return data
     data = comm.bcast(data, root=0)
     from .checks import mark_checked  # rank 0 checked it: the received copy needs no re-check
 
@@ -144,7 +191,7 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None) 
 
 
 def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
-               **kwargs) -> MeshData:
+               replicate: bool = True, **kwargs) -> MeshData:
     """Run a gmsh model generator on rank 0 and read the model it leaves current.
 
     Args:
@@ -153,6 +200,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
         *args: Positional arguments of the generator.
         comm: The ranks that receive the mesh.
         gdim: Geometric dimension (default: that of the cells).
+        replicate: Whether every rank receives the arrays (see :func:`read_gmsh`).
         **kwargs: Keyword arguments of the generator.
 
     Returns:
@@ -170,7 +218,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
                 gmsh.finalize()
                 raise
     try:
-        return read_gmsh(None, comm, gdim)
+        return read_gmsh(None, comm, gdim, replicate)
     finally:
         if comm.rank == 0:
             gmsh.finalize()
