@@ -48,8 +48,9 @@ import problems as P  # noqa: E402
 from dolfinx_feti import meshes  # noqa: E402
 
 COMM = MPI.COMM_WORLD
-BEFORE_ITERATIONS = ("problem (checks)", "decomposition", "assembly", "factorization",
-                     "constraints", "dual operators", "coarse problem", "preconditioner")
+BEFORE_ITERATIONS = ("problem (checks)", "decomposition", "distribution", "assembly",
+                     "factorization", "constraints", "dual operators", "coarse problem",
+                     "preconditioner")
 
 
 def code_state() -> str:

@@ -188,8 +188,9 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         comm: The ranks to spread the subdomains over.
         factor: Sparse Cholesky package for K⁺ (see :class:`.SolverOptions`).
         norm_rtol: Relative tolerance of the Lanczos estimate of ``||P F P||``.
-        timer: Records the phases ``decomposition``, ``assembly``, ``constraints``,
-            ``factorization``, ``dual operators`` and ``coarse problem``; a new one if None.
+        timer: Records the phases ``decomposition``, ``constraints``, ``distribution`` (the
+            shares handed out), ``assembly``, ``factorization``, ``dual operators`` and
+            ``coarse problem``; a new one if None.
         method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"`` (see the module docstring).
 
     Returns:
@@ -209,11 +210,10 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     dec = rows = extra = common = None
     # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
     # arrays; every rank then keeps only its share (:mod:`.share`).
-    with timer.phase("decomposition"):
-        with collective(comm, "decomposition"):
-            if comm.rank == 0:
-                dec = decompose(problem.mesh, problem.decomposition, comm.size,
-                                problem.dof_points)
+    with timer.phase("decomposition"), collective(comm, "decomposition"):
+        if comm.rank == 0:
+            dec = decompose(problem.mesh, problem.decomposition, comm.size, problem.dof_points)
+    with timer.phase("constraints"):
         with collective(comm, "constraints"):
             if comm.rank == 0:
                 mortar: list = []
@@ -229,6 +229,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
                 fdata = friction_data(problem, rows)
         method, mortar = comm.bcast(common, root=0)
         fdata = comm.bcast(fdata, root=0)
+    with timer.phase("distribution"):
         share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
                           rows, bs, comm, extra)
         del dec, rows

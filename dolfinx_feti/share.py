@@ -29,7 +29,7 @@ from .mesh.checks import check_boundary_group
 from .mesh.decompose import Decomposition
 from .mesh.dofpoints import DofPoints, degree2_entities
 from .mesh.gmsh_input import MeshData
-from .mesh.topology import _row_keys, locate_facets
+from .mesh.topology import REFERENCE, _row_keys, locate_facets
 
 
 @dataclass
@@ -213,32 +213,37 @@ def _subdomain_facets(mesh: MeshData, dec: Decomposition) -> dict[int, dict[str,
 
 def _piece(mesh: MeshData, points: DofPoints, dec: Decomposition, rows: Rows,
            facets: dict, multiplicity: np.ndarray, bs: int, rank: int,
-           cell_order: np.ndarray, row_bounds: np.ndarray) -> dict:
+           cell_order: np.ndarray, row_bounds: np.ndarray, index: np.ndarray) -> dict:
     """Rank ``rank``'s share of the global objects (computed on rank 0).
 
-    ``cell_order`` lists the cells by subdomain, ``row_bounds`` the ranks' row ranges.
+    ``cell_order`` lists the cells by subdomain, ``row_bounds`` the ranks' row ranges;
+    ``index`` is scratch space of one entry per global dof point (global → local number).
     """
     subs = dec.local_subdomains(rank)
     s0, s1 = (int(subs[0]), int(subs[-1]) + 1) if subs.size else (0, 0)
     a, b = np.searchsorted(dec.cell_sub[cell_order], [s0, s1])
     cells = np.sort(cell_order[a:b])
     cp = points.cell_points[cells]
-    ids = np.unique(cp)
+    used = np.zeros(index.size, dtype=bool)
+    used[cp] = True
+    ids = np.flatnonzero(used)
+    del used
+    index[ids] = np.arange(ids.size)
     nv = int(np.searchsorted(ids, mesh.num_nodes))
     pairs = slice(int(dec.sub_ptr[s0]), int(dec.sub_ptr[s1]))
     start, stop = int(row_bounds[rank]), int(row_bounds[rank + 1])
     own = row_slice(rows, start, stop)
     cols = bs * dec.pair_index(own.e_sub, own.e_node) + own.e_comp if own.e_row.size else \
         np.zeros(0, dtype=np.int64)
+    local_cp = index[cp]
     return {
-        "x": mesh.x[ids[:nv]], "cells": np.searchsorted(ids, mesh.cells[cells]),
-        "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids[:nv]],
-        "point_x": points.x[ids], "cell_points": np.searchsorted(ids, cp), "ids": ids,
-        "cell_ids": cells, "subs": subs, "cell_sub": dec.cell_sub[cells],
-        "pair_node": np.searchsorted(ids, dec.pair_node[pairs]),
+        "x": mesh.x[ids[:nv]], "cell_body": mesh.cell_body[cells],
+        "node_tags": mesh.node_tags[ids[:nv]], "point_x": points.x[ids],
+        "cell_points": local_cp, "ids": ids, "cell_ids": cells, "subs": subs,
+        "cell_sub": dec.cell_sub[cells], "pair_node": index[dec.pair_node[pairs]],
         "pair_ptr": dec.sub_ptr[s0:s1 + 1] - dec.sub_ptr[s0] if subs.size else np.zeros(1, int),
         "multiplicity": multiplicity[dec.pair_node[pairs]],
-        "facets": {int(s): {n: np.searchsorted(ids, f) for n, f in facets.get(int(s), {}).items()}
+        "facets": {int(s): {n: index[f] for n, f in facets.get(int(s), {}).items()}
                    for s in subs},
         "own": own, "cols": cols.astype(np.int64), "start": start,
         "entity_first": {d: int(np.searchsorted(ids, first))
@@ -270,8 +275,10 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                 rows = rows.permuted(np.arange(rows.size))
             cell_order = np.argsort(dec.cell_sub, kind="stable")
             bounds = row_ranges(rows, dec, comm.size)
-            pieces = [_piece(mesh, points, dec, rows, facets, mult, bs, r, cell_order, bounds)
-                      for r in range(comm.size)]
+            index = np.empty(points.num_points, dtype=np.int64)
+            pieces = [_piece(mesh, points, dec, rows, facets, mult, bs, r, cell_order, bounds,
+                             index) for r in range(comm.size)]
+            del index
             if extra is not None:
                 for p, e in zip(pieces, extra, strict=True):
                     p["extra"] = e
@@ -283,7 +290,9 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                       "degree": points.degree, "num_cells": mesh.cells.shape[0]}
     p = comm.scatter(pieces, root=0)
     common = comm.bcast(common, root=0)
-    local_mesh = MeshData(x=p["x"], cells=p["cells"], cell_type=mesh.cell_type,
+    nvc = REFERENCE[mesh.cell_type].num_vertices  # the vertices come first among the points
+    local_mesh = MeshData(x=p["x"], cells=np.ascontiguousarray(p["cell_points"][:, :nvc]),
+                          cell_type=mesh.cell_type,
                           cell_body=p["cell_body"], body_names=mesh.body_names,
                           facet_groups={n: np.zeros((0, f.shape[1]), dtype=np.int64)
                                         for n, f in mesh.facet_groups.items()},
@@ -291,7 +300,7 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                           high_order=None if mesh.high_order is None else {})
     nv = int(p["x"].shape[0])
     local_points = DofPoints(common["degree"], mesh.cell_type, p["point_x"], p["cell_points"],
-                             nv, _local_entities(mesh.cell_type, p["cells"], nv,
+                             nv, _local_entities(mesh.cell_type, local_mesh.cells, nv,
                                                  p["entity_first"]))
     dec_local = LocalDecomposition(
         subs=p["subs"], cell_sub=p["cell_sub"], sub_body=common["sub_body"],
