@@ -21,6 +21,7 @@ the FETI solve and at the end (after the direct solve, which runs on rank 0).
 
     mpirun -n 2 python bench/setup_profile.py               # ~2 min per repeat on 2 cores
     mpirun -n 2 python bench/setup_profile.py --repeat 3 --json output/bench/setup.json
+    mpirun -n 2 python bench/setup_profile.py --root-only   # the mesh on rank 0 only
     PYTHONPATH=/path/to/other/export mpirun -n 2 python bench/setup_profile.py   # A/B
 """
 
@@ -64,7 +65,7 @@ def tmax(t0: float) -> float:
     return COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX)
 
 
-def build_mesh(n: int) -> tuple[df.MeshData, dict[str, float]]:
+def build_mesh(n: int, replicate: bool = True) -> tuple[df.MeshData, dict[str, float]]:
     import gmsh
 
     COMM.Barrier()
@@ -75,7 +76,7 @@ def build_mesh(n: int) -> tuple[df.MeshData, dict[str, float]]:
         meshes.membranes(n)
     t_model = tmax(t0)
     t0 = time.perf_counter()
-    mesh = df.read_gmsh(None, COMM)
+    mesh = df.read_gmsh(None, COMM, replicate=replicate)
     t_read = tmax(t0)
     if COMM.rank == 0:
         gmsh.finalize()
@@ -155,11 +156,13 @@ def main() -> None:
     ap.add_argument("--rtol", type=float, default=1e-6)
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--no-direct", action="store_true")
+    ap.add_argument("--root-only", action="store_true",
+                    help="read_gmsh(replicate=False): the mesh's arrays on rank 0 only")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     runs = []
     for _ in range(args.repeat):
-        mesh, times = build_mesh(args.n)
+        mesh, times = build_mesh(args.n, not args.root_only)
         phases, info = feti(mesh, args.H, args.rtol)
         times.update(phases)
         info["peak MiB after FETI"] = COMM.allgather(vm_hwm_mib())

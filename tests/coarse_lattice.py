@@ -57,7 +57,8 @@ def lattice_gt(ns: int, dim: int, value_size: int | None = None, q: int = 2,
     pair = np.searchsorted(keys, rows.e_sub.astype(np.int64) * num_nodes + rows.e_node)
     B = sp.csr_matrix((rows.e_coef, (rows.e_row, bs * pair + rows.e_comp)),
                       shape=(rows.size, bs * keys.size))
-    R = sp.block_diag([rigid_modes(x[node[s]], bs) for s in range(nsub)], format="csr")
+    R = sp.block_diag([sp.csr_matrix(rigid_modes(x[node[s]], bs)) for s in range(nsub)],
+                     format="csr")
     Gt = (B @ R).tocsr()
     Gt.eliminate_zeros()
     return Gt

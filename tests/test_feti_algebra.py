@@ -99,8 +99,8 @@ class Membranes:
         sizes = np.array([n.size for n in self.sub_nodes])
         self.offset = np.r_[0, np.cumsum(sizes)]
         start = int(self.offset[mine[0]]) if mine.size else int(self.offset[-1])
-        K = sp.block_diag([self.sub_K[s] for s in mine], format="csr") if mine.size else \
-            sp.csr_matrix((0, 0))
+        K = sp.block_diag([sp.csr_matrix(self.sub_K[s]) for s in mine], format="csr") \
+            if mine.size else sp.csr_matrix((0, 0))
         f = np.concatenate([self.sub_f[s] for s in mine]) if mine.size else np.zeros(0)
         row_owner = np.array([owner[min(e[0] for e in r[0])] for r in self.rows])
         my_rows = [r for r, o in zip(self.rows, row_owner, strict=True) if o == comm.rank]
