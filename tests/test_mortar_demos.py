@@ -78,9 +78,9 @@ def test_sphere_on_block_against_hertz(sphere, tmp_path_factory):
 #: the peak nodal pressure, a single multiplier, is the most sensitive figure: measured 1.9e-6
 #: apart between 1 and 2 ranks (the 1-rank value 2.0e-6 and the 2-rank one 1.8e-7 from the
 #: solution at 1e-10; the preconditioner Z is the same on both); at 1e-10, 3.8e-9 apart. The
-#: spread is large because the mortar group of B Δ Bᵀ (579 rows) exceeds the stiffness
-#: scaling's MERGE_MAX and is split: with it inverted whole the runs agree to 1.8e-9 at 1e-8
-#: (docs/robustness.md, finding 14).
+#: spread was large because the mortar group of B Δ Bᵀ (579 rows) exceeded the stiffness
+#: scaling's MERGE_MAX (256 then) and was split: inverted whole, as with the cap of 2 048 now,
+#: the runs agree to 1.8e-9 at 1e-8 (docs/robustness.md, finding 14).
 COMPARE_RTOL = "1e-10"
 
 

@@ -43,8 +43,11 @@ SCALINGS = ("multiplicity", "stiffness")
 
 #: Couplings of B Δ Bᵀ between node blocks merge them into one exactly inverted block while the
 #: result has at most this many rows; larger groups (a contact surface held together by mortar
-#: rows) keep their node blocks and drop the couplings between them.
-MERGE_MAX = 256
+#: rows) keep their node blocks and drop the couplings between them. Dropping them costs
+#: accuracy at a given rtol and iterations (docs/robustness.md finding 14: a 579-row mortar
+#: group split gave 20–200 × rtol errors, whole 1–6 × rtol; a 1 619-row group whole was faster
+#: overall despite its 0.7 s dense inverse); 2 048 rows is a 32 MB dense inverse per rank.
+MERGE_MAX = 2048
 
 
 class _DualScaling:
