@@ -8,8 +8,12 @@ F-multiplications and the total time of ``df.solve`` (setup included: FETI-DP's 
 costs more to build). The rule in :func:`dolfinx_feti.dual.choose_method` and docs/solvers.md
 reads this table.
 
-Run: ``python bench/method_choice.py`` (~4 min). Writes ``output/bench/method_choice.md`` and
-``.json``.
+Run: ``python bench/method_choice.py`` (~1 min on an idle machine). Writes
+``output/bench/method_choice.md`` and ``.json`` (``method_choice_volume.*`` with
+``--balance volume``). ``--balance volume`` cuts the ``Parts`` cases by equal volumes instead of
+equal cell counts (the graded 2D Hertz and sphere meshes change; the others do not);
+``--cases TEXT`` runs only the cases whose name contains TEXT; ``--levels H1,H3`` adds the graded
+meshes of docs/peers.md, each cut into Parts(4) and Parts(16).
 """
 
 from __future__ import annotations
@@ -47,39 +51,72 @@ def b4(n: int, H: float | None, friction=None) -> df.ContactProblem:
         decomposition=df.ByTags() if H is None else fs.grid(H))
 
 
-#: name → (floats?, builder). Sizes that solve in seconds.
+#: name → (floats?, builder(balance)). Sizes that solve in seconds. ``balance`` is what
+#: ``Parts`` makes equal (``"cells"`` or ``"volume"``); the grid and ByTags cases ignore it.
 CASES = {
-    "B1, H = 1/4, H/h = 16": (True, lambda: P.b1(64, 1 / 4)),
-    "B1, H = 1/8, H/h = 16": (True, lambda: P.b1(128, 1 / 8)),
-    "B1 held, H = 1/4, H/h = 16": (False, lambda: P.b1_held(64, 1 / 4)),
-    "B1 held, H = 1/8, H/h = 16": (False, lambda: P.b1_held(128, 1 / 8)),
-    "2D Hertz, Parts(4)": (True, lambda: P.hertz2d(4)),
-    "2D Hertz, Parts(16)": (True, lambda: P.hertz2d(16)),
-    "B4 frictionless, H = 1/4, H/h = 8": (False, lambda: b4(32, 1 / 4)),
-    "B4 Tresca, H = 1/4, H/h = 8": (False, lambda: b4(32, 1 / 4, df.Tresca(0.1))),
-    "3D blocks, Parts(8)": (True, lambda: P.blocks3d(8, 8, sides=True)),
-    "3D blocks, no sides, Parts(8)": (True, lambda: P.blocks3d(8, 8, sides=False)),
-    "3D blocks, ByTags": (True, lambda: P.blocks3d(8, 8, sides=True, decomposition=df.ByTags())),
-    "B1, ByTags": (True, lambda: P.b1(64, None)),
-    "2D Hertz, ByTags": (True, lambda: P.hertz2d(decomposition=df.ByTags())),
-    "B4 Tresca, ByTags": (False, lambda: b4(32, None, df.Tresca(0.1))),
-    "rigid sphere S1, Parts(4)": (False, lambda: C.sphere_problem("S1", 4)),
-    "rigid sphere S1, Parts(16)": (False, lambda: C.sphere_problem("S1", 16)),
+    "B1, H = 1/4, H/h = 16": (True, lambda b: P.b1(64, 1 / 4)),
+    "B1, H = 1/8, H/h = 16": (True, lambda b: P.b1(128, 1 / 8)),
+    "B1 held, H = 1/4, H/h = 16": (False, lambda b: P.b1_held(64, 1 / 4)),
+    "B1 held, H = 1/8, H/h = 16": (False, lambda b: P.b1_held(128, 1 / 8)),
+    "2D Hertz, Parts(4)": (True, lambda b: P.hertz2d(decomposition=df.Parts(4, balance=b))),
+    "2D Hertz, Parts(16)": (True, lambda b: P.hertz2d(decomposition=df.Parts(16, balance=b))),
+    "B4 frictionless, H = 1/4, H/h = 8": (False, lambda b: b4(32, 1 / 4)),
+    "B4 Tresca, H = 1/4, H/h = 8": (False, lambda b: b4(32, 1 / 4, df.Tresca(0.1))),
+    "3D blocks, Parts(8)": (True, lambda b: P.blocks3d(
+        8, sides=True, decomposition=df.Parts(8, balance=b))),
+    "3D blocks, no sides, Parts(8)": (True, lambda b: P.blocks3d(
+        8, sides=False, decomposition=df.Parts(8, balance=b))),
+    "3D blocks, ByTags": (True, lambda b: P.blocks3d(8, 8, sides=True,
+                                                      decomposition=df.ByTags())),
+    "B1, ByTags": (True, lambda b: P.b1(64, None)),
+    "2D Hertz, ByTags": (True, lambda b: P.hertz2d(decomposition=df.ByTags())),
+    "B4 Tresca, ByTags": (False, lambda b: b4(32, None, df.Tresca(0.1))),
+    "rigid sphere S1, Parts(4)": (False, lambda b: C.sphere_problem("S1", 4, balance=b)),
+    "rigid sphere S1, Parts(16)": (False, lambda b: C.sphere_problem("S1", 16, balance=b)),
 }
+
+
+def level_cases(levels: list[str]) -> dict:
+    """Cases on the graded meshes of docs/peers.md: 2D Hertz H1–H3, rigid sphere S1–S4."""
+    cases = {}
+    for level in levels:
+        hertz = level.startswith("H")
+        for parts in (4, 16):
+            name = f"{'2D Hertz' if hertz else 'rigid sphere'} {level}, Parts({parts})"
+            make = C.hertz_problem if hertz else C.sphere_problem
+            cases[name] = (hertz, lambda b, make=make, level=level, parts=parts:
+                           make(level, parts, b))
+    return cases
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--rtol", type=float, default=1e-6)
-    parser.add_argument("--out", type=Path, default=ROOT / "output/bench/method_choice.md")
+    parser.add_argument("--balance", choices=("cells", "volume"), default="cells",
+                        help="what Parts(n) makes equal in the Parts cases")
+    parser.add_argument("--cases", default="",
+                        help="run only the cases whose name contains this text")
+    parser.add_argument("--levels", default="",
+                        help="comma-separated graded meshes of docs/peers.md (H1-H3, S1-S4) "
+                             "to add, each with Parts(4) and Parts(16)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output/bench/method_choice.md (method_choice_volume.md with "
+                             "--balance volume) if not given")
     args = parser.parse_args()
+    if args.out is None:
+        suffix = "" if args.balance == "cells" else "_volume"
+        args.out = ROOT / f"output/bench/method_choice{suffix}.md"
     comm = MPI.COMM_WORLD
     rows = []
-    for name, (floats, build) in CASES.items():
-        row = {"case": name, "floats": floats}
+    cases = {**CASES, **level_cases([x for x in args.levels.split(",") if x])}
+    for name, (floats, build) in cases.items():
+        if args.cases not in name:
+            continue
+        row = {"case": name, "floats": floats, "balance": args.balance}
         for method in METHODS:
+            problem = build(args.balance)  # outside the timer: the first build makes the mesh
             t0 = time.perf_counter()
-            sol = df.solve(build(), comm=comm, rtol=args.rtol, method=method, max_it=20000)
+            sol = df.solve(problem, comm=comm, rtol=args.rtol, method=method, max_it=20000)
             t = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
             r = sol.report
             row["subdomains"] = r.sizes["subdomains"]
@@ -91,7 +128,8 @@ def main() -> None:
             print(json.dumps(row), flush=True)
     if comm.rank != 0:
         return
-    lines = [f"Every method, default options, rtol {args.rtol:g}, {comm.size} rank(s): "
+    lines = [f"Every method, default options, rtol {args.rtol:g}, {comm.size} rank(s), "
+             f"Parts(n, balance={args.balance!r}): "
              "F-mults / total time [s] (setup included); the fewest F-mults in bold", "",
              "| case | floating body | subdomains | primal | TFETI | FETI-1 | FETI-DP |",
              "|---|---|---|---|---|---|---|"]
