@@ -49,17 +49,21 @@ comm = MPI.COMM_WORLD
 # `generate` call: the nodes on the arc and on the block's top do not match. Physical groups
 # name the bodies (`disk`, `block`) and the boundary parts (`disk_contact` = the whole arc,
 # `block_contact` = the whole top of the block, `load`, `symmetry`, `bottom`). `build_mesh`
-# runs the generator on rank 0 and broadcasts the mesh; `--mesh FILE` reads a file instead
-# (`read_gmsh`): gmsh versions mesh the geometry slightly differently, a file is the same mesh.
+# runs the generator on rank 0; `--mesh FILE` reads a file instead (`read_gmsh`): gmsh
+# versions mesh the geometry slightly differently, a file is the same mesh. With
+# `replicate=False` the mesh stays on rank 0 (the other ranks know its names and sizes), and
+# the solve hands every rank only its share: the cells, dof points and rows of its own
+# subdomains. Nothing below reads the mesh's arrays, so no rank needs the whole mesh.
 
 # +
 R, P, E, nu = 8.0, 10.0, 200.0, 0.3
 t0 = time.perf_counter()
 if args.mesh is None:
     mesh = df.build_mesh(meshes_occ.disk_on_block, h_contact_disk=args.h,
-                         h_contact_block=args.h_block or args.h, R=R, comm=comm)
+                         h_contact_block=args.h_block or args.h, R=R, comm=comm,
+                         replicate=False)
 else:
-    mesh = df.read_gmsh(args.mesh, comm=comm)
+    mesh = df.read_gmsh(args.mesh, comm=comm, replicate=False)
 t_mesh = time.perf_counter() - t0
 # -
 

@@ -24,7 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 from .constraints.rows import Rows
-from .errors import InputError, collective
+from .errors import InputError, SolveError, collective
 from .mesh.checks import check_boundary_group
 from .mesh.decompose import Decomposition
 from .mesh.dofpoints import DofPoints, degree2_entities
@@ -265,7 +265,7 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
         comm: The ranks.
         extra: Per rank, something more to hand over (only rank 0's), kept as ``extra``.
     """
-    pieces = common = None
+    common = make = None
     with collective(comm, "decomposition"):
         if comm.rank == 0:
             ptr, _ = dec.node_subdomains()
@@ -276,20 +276,21 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
             cell_order = np.argsort(dec.cell_sub, kind="stable")
             bounds = row_ranges(rows, dec, comm.size)
             index = np.empty(points.num_points, dtype=np.int64)
-            pieces = [_piece(mesh, points, dec, rows, facets, mult, bs, r, cell_order, bounds,
-                             index) for r in range(comm.size)]
-            del index
-            if extra is not None:
-                for p, e in zip(pieces, extra, strict=True):
-                    p["extra"] = e
+
+            def make(r):
+                piece = _piece(mesh, points, dec, rows, facets, mult, bs, r, cell_order,
+                               bounds, index)
+                piece["extra"] = None if extra is None else extra[r]
+                return piece
+
             contact = np.flatnonzero(rows.inequality | rows.tangential)
             common = {"sub_body": dec.sub_body, "sub_rank": dec.sub_rank,
                       "sub_size": np.diff(dec.sub_ptr), "size": rows.size,
                       "contact": row_subset(rows, contact), "contact_index": contact,
                       "group_errors": _group_errors(mesh), "num_points": points.num_points,
                       "degree": points.degree, "num_cells": mesh.cells.shape[0]}
-    p = comm.scatter(pieces, root=0)
     common = comm.bcast(common, root=0)
+    p = _hand_out(comm, make)
     nvc = REFERENCE[mesh.cell_type].num_vertices  # the vertices come first among the points
     local_mesh = MeshData(x=p["x"], cells=np.ascontiguousarray(p["cell_points"][:, :nvc]),
                           cell_type=mesh.cell_type,
@@ -312,7 +313,41 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                      cell_ids=p["cell_ids"], num_points=common["num_points"],
                      num_cells=common["num_cells"], dec=dec_local,
                      facets=p["facets"], group_errors=common["group_errors"], rows=rank_rows,
-                     extra=p.get("extra"))
+                     extra=p["extra"])
+
+
+def _hand_out(comm: MPI.Comm, make) -> dict:
+    """Rank 0 makes the pieces one at a time and sends each to its rank; returns this rank's.
+
+    One piece at a time keeps rank 0's memory at the global data plus two pieces (a scatter
+    would hold every piece and its pickle at once). A failure while making a piece is sent in
+    place of the pieces not yet sent, and every rank then raises it: none is left waiting.
+    """
+    piece = failure = None
+    if comm.rank == 0:
+        for r in [*range(1, comm.size), 0]:
+            msg = failure
+            if failure is None:
+                try:
+                    msg = make(r)
+                except Exception as e:  # every rank must hear of it
+                    failure = msg = SolveError(f"handing out the shares failed on rank 0 "
+                                               f"({type(e).__name__}: {e})")
+            if r == 0:
+                piece = msg
+            else:
+                comm.send(msg, dest=r, tag=_TAG)
+            del msg
+    else:
+        piece = comm.recv(source=0, tag=_TAG)
+    failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        raise failure
+    return piece
+
+
+#: The MPI tag of the shares' messages.
+_TAG = 7214
 
 
 def _local_entities(cell_type: str, cells: np.ndarray, nv: int, first: dict[int, int]

@@ -144,3 +144,22 @@ def test_a_mesh_only_rank_0_holds_needs_its_communicator(root):
         return
     with pytest.raises(df.InputError, match="rank 0 of its communicator"):
         df.solve(problem, comm=MPI.COMM_SELF)
+
+
+def test_a_failure_while_handing_out_ends_every_rank(case, monkeypatch):
+    """Rank 0 makes the pieces one by one; if one fails, every rank raises the same error."""
+    from dolfinx_feti import share
+
+    problem, _ = case
+    made = share._piece
+
+    def broken(*args):
+        if args[7] == COMM.size - 1:  # the last rank's piece
+            raise MemoryError("no room for this piece")
+        return made(*args)
+
+    monkeypatch.setattr(share, "_piece", broken)
+    with pytest.raises(df.SolveError, match="handing out the shares failed on rank 0 "
+                       r"\(MemoryError: no room for this piece\)") as info:
+        df.dual_qp(problem)
+    assert COMM.allgather(str(info.value)) == [str(info.value)] * COMM.size
