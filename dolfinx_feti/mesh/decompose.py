@@ -61,7 +61,8 @@ class ByFunction:
     """Subdomains labelled by a function of the cell midpoints (e.g. a regular H×H grid).
 
     Cells with equal labels form a subdomain; a label whose cells are not connected through
-    facets, or that spans two bodies not glued together, gives one subdomain per piece.
+    facets, or that spans two bodies not glued together, gives one subdomain per piece. The
+    function is called on rank 0, which holds the mesh during the set-up.
 
     Args:
         fn: ``fn(midpoints: (C, gdim) array) -> (C,) integer labels``.
