@@ -222,6 +222,24 @@ def _piece(mesh: MeshData, points: DofPoints, dec: Decomposition, rows: Rows,
     subs = dec.local_subdomains(rank)
     s0, s1 = (int(subs[0]), int(subs[-1]) + 1) if subs.size else (0, 0)
     a, b = np.searchsorted(dec.cell_sub[cell_order], [s0, s1])
+    pairs = slice(int(dec.sub_ptr[s0]), int(dec.sub_ptr[s1]))
+    start, stop = int(row_bounds[rank]), int(row_bounds[rank + 1])
+    own = row_slice(rows, start, stop)
+    cols = bs * dec.pair_index(own.e_sub, own.e_node) + own.e_comp if own.e_row.size else \
+        np.zeros(0, dtype=np.int64)
+    common = {"subs": subs, "multiplicity": multiplicity[dec.pair_node[pairs]],
+              "pair_ptr": dec.sub_ptr[s0:s1 + 1] - dec.sub_ptr[s0] if subs.size else
+              np.zeros(1, int), "own": own, "cols": cols.astype(np.int64), "start": start}
+    if b - a == dec.cell_sub.size and dec.sub_ptr[-1] == dec.pair_node.size and pairs == \
+            slice(0, dec.pair_node.size) and _all_points_used(points):
+        # the whole problem on one rank: the local numbering is the global one, no copies
+        return {**common, "x": mesh.x, "cell_body": mesh.cell_body, "node_tags": mesh.node_tags,
+                "point_x": points.x, "cell_points": points.cell_points,
+                "ids": np.arange(points.num_points), "cell_ids": np.arange(b - a),
+                "cell_sub": dec.cell_sub, "pair_node": dec.pair_node,
+                "facets": {int(s): dict(facets.get(int(s), {})) for s in subs},
+                "entity_first": {d: int(first) for d, (_, first) in points.entities.items()},
+                "entities": points.entities}
     cells = np.sort(cell_order[a:b])
     cp = points.cell_points[cells]
     used = np.zeros(index.size, dtype=bool)
@@ -230,25 +248,23 @@ def _piece(mesh: MeshData, points: DofPoints, dec: Decomposition, rows: Rows,
     del used
     index[ids] = np.arange(ids.size)
     nv = int(np.searchsorted(ids, mesh.num_nodes))
-    pairs = slice(int(dec.sub_ptr[s0]), int(dec.sub_ptr[s1]))
-    start, stop = int(row_bounds[rank]), int(row_bounds[rank + 1])
-    own = row_slice(rows, start, stop)
-    cols = bs * dec.pair_index(own.e_sub, own.e_node) + own.e_comp if own.e_row.size else \
-        np.zeros(0, dtype=np.int64)
-    local_cp = index[cp]
     return {
-        "x": mesh.x[ids[:nv]], "cell_body": mesh.cell_body[cells],
+        **common, "x": mesh.x[ids[:nv]], "cell_body": mesh.cell_body[cells],
         "node_tags": mesh.node_tags[ids[:nv]], "point_x": points.x[ids],
-        "cell_points": local_cp, "ids": ids, "cell_ids": cells, "subs": subs,
+        "cell_points": index[cp], "ids": ids, "cell_ids": cells,
         "cell_sub": dec.cell_sub[cells], "pair_node": index[dec.pair_node[pairs]],
-        "pair_ptr": dec.sub_ptr[s0:s1 + 1] - dec.sub_ptr[s0] if subs.size else np.zeros(1, int),
-        "multiplicity": multiplicity[dec.pair_node[pairs]],
         "facets": {int(s): {n: index[f] for n, f in facets.get(int(s), {}).items()}
                    for s in subs},
-        "own": own, "cols": cols.astype(np.int64), "start": start,
         "entity_first": {d: int(np.searchsorted(ids, first))
                          for d, (_, first) in points.entities.items()},
     }
+
+
+def _all_points_used(points: DofPoints) -> bool:
+    """Whether every dof point is a point of some cell (then the whole mesh needs no map)."""
+    used = np.zeros(points.num_points, dtype=bool)
+    used[points.cell_points] = True
+    return bool(used.all())
 
 
 def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | None,
@@ -300,9 +316,10 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                           node_tags=p["node_tags"], group_tags=mesh.group_tags,
                           high_order=None if mesh.high_order is None else {})
     nv = int(p["x"].shape[0])
+    entities = p["entities"] if "entities" in p else _local_entities(
+        mesh.cell_type, local_mesh.cells, nv, p["entity_first"])
     local_points = DofPoints(common["degree"], mesh.cell_type, p["point_x"], p["cell_points"],
-                             nv, _local_entities(mesh.cell_type, local_mesh.cells, nv,
-                                                 p["entity_first"]))
+                             nv, entities)
     dec_local = LocalDecomposition(
         subs=p["subs"], cell_sub=p["cell_sub"], sub_body=common["sub_body"],
         sub_rank=common["sub_rank"], sub_size=common["sub_size"], pair_node=p["pair_node"],
