@@ -185,16 +185,28 @@ class Solution:
         returned.
         """
         if self._nodal is None:
-            share, bs = self.share, self.problem.value_size
-            acc = np.zeros((share.num_points, bs))
-            cnt = np.zeros(share.num_points)
-            nodes = share.point_ids[share.dec.pair_node]  # in the order of the local dofs
-            np.add.at(acc, nodes, self.u_vec.array_r.reshape(-1, bs))
-            np.add.at(cnt, nodes, 1.0)
-            acc = self.comm.allreduce(acc, op=MPI.SUM)
-            cnt = self.comm.allreduce(cnt, op=MPI.SUM)
-            self._nodal = acc / np.maximum(cnt, 1)[:, None]
+            self._nodal = self.comm.bcast(self.nodal_values_on_root(), root=0)
         return self._nodal
+
+    def nodal_values_on_root(self) -> np.ndarray | None:
+        """:meth:`nodal_values` on rank 0 only (None elsewhere; collective).
+
+        Each rank sends its subdomains' values: no other rank holds an array of the whole
+        mesh.
+        """
+        if self._nodal is not None:
+            return self._nodal if self.comm.rank == 0 else None
+        share, bs = self.share, self.problem.value_size
+        nodes = share.point_ids[share.dec.pair_node]  # in the order of the local dofs
+        parts = self.comm.gather((nodes, self.u_vec.array_r.reshape(-1, bs)), root=0)
+        if self.comm.rank != 0:
+            return None
+        acc = np.zeros((share.num_points, bs))
+        cnt = np.zeros(share.num_points)
+        for n, v in parts:
+            np.add.at(acc, n, v)
+            np.add.at(cnt, n, 1.0)
+        return acc / np.maximum(cnt, 1)[:, None]
 
     def cell_subdomains(self) -> np.ndarray:
         """The subdomain of every cell of the mesh, on every rank (collective, then cached)."""

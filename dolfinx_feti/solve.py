@@ -134,7 +134,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     sol.dual = feti
     sol.check_kkt(rows.own.inequality)
     if qp.mortar:
-        c, nodal, found = sol.contact, sol.nodal_values(), None
+        c, nodal, found = sol.contact, sol.nodal_values_on_root(), None
         if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
             found = mortar_warnings(problem.mesh, qp.mortar, nodal, c.spec, c.node, c.force)
         warn, report.extra["mortar"] = comm.bcast(found, root=0)

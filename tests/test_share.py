@@ -122,7 +122,11 @@ def test_a_mesh_only_rank_0_holds_gives_the_same_solution(root, degree, tmp_path
     a = df.solve(problem(held), rtol=1e-10)
     b = df.solve(problem(whole), rtol=1e-10)
     assert a.report.converged and b.report.sizes == a.report.sizes
+    on_root = a.nodal_values_on_root()  # collective; the whole-mesh array on rank 0 only
+    assert (on_root is None) == (COMM.rank > 0)
     assert ref.rel_max_diff(a.nodal_values(), b.nodal_values()) <= 1e-12
+    if COMM.rank == 0:
+        assert np.array_equal(on_root, a.nodal_values())
     assert np.array_equal(a.contact.node, b.contact.node)
     assert np.allclose(a.contact.pressure, b.contact.pressure, rtol=1e-10, atol=0)
     assert np.allclose(a.contact.x, b.contact.x)
