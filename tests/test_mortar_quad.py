@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_mortar import occ_mesh, patch_problem, uniaxial
+from test_mortar import check_contact_patch, check_tie_patch, occ_mesh, patch_problem
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_quad
@@ -124,27 +124,11 @@ def blocks(request):
 
 
 def test_contact_patch_test(blocks):
-    dim, mesh = blocks
-    E, nu, p = {"lower": 100.0, "upper": 300.0}, 0.3, 1.0
-    sol = df.solve(patch_problem(mesh, dim, E, nu, p,
-                                 contact=[df.Mortar("upper_bottom", "lower_top")]), rtol=1e-12)
-    assert sol.report.converged
-    exact = uniaxial(mesh, dim, p, E, nu)
-    assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
-    assert np.allclose(sol.contact.pressure, p, rtol=1e-10)  # uniform contact pressure
-    info = sol.report.extra["mortar"][0]
-    assert info["uncoupled_slave_nodes"] == 0 and info["rim_rows"] == 0
-    assert not sol.report.warnings
+    check_contact_patch(*blocks, pressure_rtol=1e-10)
 
 
 def test_tie_patch_test(blocks):
-    dim, mesh = blocks
-    E, nu, p = {"lower": 100.0, "upper": 100.0}, 0.3, 1.0
-    sol = df.solve(patch_problem(mesh, dim, E, nu, p,
-                                 ties=[df.Tie("upper_bottom", "lower_top")]), rtol=1e-12)
-    assert sol.report.converged and sol.report.solver == "cg"
-    exact = uniaxial(mesh, dim, p, E, nu)
-    assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
+    check_tie_patch(*blocks)
 
 
 def test_mortar_equals_node_to_node_on_matching_hexahedra():
