@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .gmsh_input import MeshData
+from .gmsh_input import MeshData, answered_by_root
 from .topology import FACET_TYPE, REFERENCE, _row_keys, locate_facets
 
 
@@ -174,9 +174,8 @@ class RootLookup:
         """:meth:`DofPoints.lookup`, answered by rank 0 (collective)."""
         if dim == 0:
             return np.asarray(vertices, dtype=np.int64).reshape(-1)
-        asked = self.comm.gather(np.asarray(vertices, dtype=np.int64), root=0)
-        answers = [self.points.lookup(dim, v) for v in asked] if self.comm.rank == 0 else None
-        return self.comm.scatter(answers, root=0)
+        return answered_by_root(self.comm, np.asarray(vertices, dtype=np.int64),
+                                lambda v: self.points.lookup(dim, v))
 
 
 _CACHE: list = []  # (x, cells, degree, DofPoints) of the last meshes, by identity

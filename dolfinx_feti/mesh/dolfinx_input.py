@@ -21,7 +21,7 @@ import numpy as np
 from .. import compat
 from ..errors import InputError, collective
 from .dofpoints import degree2_entities
-from .gmsh_input import MeshData
+from .gmsh_input import MeshData, answered_by_root
 from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
 
 
@@ -45,10 +45,8 @@ class DolfinxSource:
     def _positions(self, table: np.ndarray | None, asked: np.ndarray) -> np.ndarray:
         if self.root_only is None:
             return np.searchsorted(table, asked)
-        comm = self.root_only  # collective: rank 0 holds the table
-        queries = comm.gather(np.asarray(asked, dtype=np.int64), root=0)
-        answers = [np.searchsorted(table, q) for q in queries] if comm.rank == 0 else None
-        return comm.scatter(answers, root=0)
+        return answered_by_root(self.root_only, np.asarray(asked, dtype=np.int64),
+                                lambda q: np.searchsorted(table, q))
 
     def vertex_ids(self) -> np.ndarray:
         """The global vertex of each local geometry node of the mesh."""

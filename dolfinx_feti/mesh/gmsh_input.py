@@ -147,6 +147,15 @@ class MeshData:
         return f
 
 
+def answered_by_root(comm: MPI.Comm, query: np.ndarray, answer) -> np.ndarray:
+    """``answer(query)`` of every rank's query, computed on rank 0 (collective).
+
+    For lookups in tables of a root-only mesh, which only rank 0 holds.
+    """
+    asked = comm.gather(query, root=0)
+    return comm.scatter([answer(q) for q in asked] if comm.rank == 0 else None, root=0)
+
+
 def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
               replicate: bool = True) -> MeshData:
     """Read a gmsh model into :class:`MeshData`.
