@@ -18,7 +18,7 @@ Nothing of the size of the whole mesh, or of all rows, is kept on a rank other t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 from mpi4py import MPI
@@ -308,13 +308,10 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
     common = comm.bcast(common, root=0)
     p = _hand_out(comm, make)
     nvc = REFERENCE[mesh.cell_type].num_vertices  # the vertices come first among the points
-    local_mesh = MeshData(x=p["x"], cells=np.ascontiguousarray(p["cell_points"][:, :nvc]),
-                          cell_type=mesh.cell_type,
-                          cell_body=p["cell_body"], body_names=mesh.body_names,
-                          facet_groups={n: np.zeros((0, f.shape[1]), dtype=np.int64)
-                                        for n, f in mesh.facet_groups.items()},
-                          node_tags=p["node_tags"], group_tags=mesh.group_tags,
-                          high_order=None if mesh.high_order is None else {})
+    # the names and types of the whole mesh, the arrays of this rank's cells
+    local_mesh = replace(mesh.names_only(), x=p["x"],
+                         cells=np.ascontiguousarray(p["cell_points"][:, :nvc]),
+                         cell_body=p["cell_body"], node_tags=p["node_tags"], counts={})
     nv = int(p["x"].shape[0])
     entities = p["entities"] if "entities" in p else _local_entities(
         mesh.cell_type, local_mesh.cells, nv, p["entity_first"])
