@@ -20,14 +20,18 @@ from dolfinx_feti.mesh.decompose import decompose
 COMM = MPI.COMM_WORLD
 
 
-@pytest.fixture(scope="module", params=[1, 2], ids=["P1", "P2"])
-def case(root, request):
-    mesh = df.read_gmsh(root / "meshes/membranes_8.msh")
-    problem = df.ContactProblem(
-        mesh, df.Poisson(source=ref.membrane_source, degree=request.param),
+def membranes(mesh, degree):
+    """B1's two membranes in contact, Parts(8) per membrane."""
+    return df.ContactProblem(
+        mesh, df.Poisson(source=ref.membrane_source, degree=degree),
         dirichlet=[df.Dirichlet("dirichlet")],
         contact=[df.NodeToNode("contact_left", "contact_right")],
         decomposition=df.Parts(8))
+
+
+@pytest.fixture(scope="module", params=[1, 2], ids=["P1", "P2"])
+def case(root, request):
+    problem = membranes(df.read_gmsh(root / "meshes/membranes_8.msh"), request.param)
     return problem, df.dual_qp(problem)
 
 
@@ -106,21 +110,13 @@ def test_solution_from_shares_matches_one_rank(case, root):
 def test_a_mesh_only_rank_0_holds_gives_the_same_solution(root, degree, tmp_path_factory):
     """read_gmsh(replicate=False): no other rank holds the mesh; solution and output unchanged."""
     path = root / "meshes/membranes_8.msh"
-
-    def problem(mesh):
-        return df.ContactProblem(
-            mesh, df.Poisson(source=ref.membrane_source, degree=degree),
-            dirichlet=[df.Dirichlet("dirichlet")],
-            contact=[df.NodeToNode("contact_left", "contact_right")],
-            decomposition=df.Parts(8))
-
     held = df.read_gmsh(path, replicate=False)
     whole = df.read_gmsh(path)
     if COMM.rank > 0:
         assert held.x.shape[0] == held.cells.shape[0] == 0
         assert held.num_cells == whole.cells.shape[0] and held.num_nodes == whole.num_nodes
-    a = df.solve(problem(held), rtol=1e-10)
-    b = df.solve(problem(whole), rtol=1e-10)
+    a = df.solve(membranes(held, degree), rtol=1e-10)
+    b = df.solve(membranes(whole, degree), rtol=1e-10)
     assert a.report.converged and b.report.sizes == a.report.sizes
     on_root = a.nodal_values_on_root()  # collective; the whole-mesh array on rank 0 only
     assert (on_root is None) == (COMM.rank > 0)
