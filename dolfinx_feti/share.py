@@ -125,6 +125,8 @@ class RankShare:
         group_errors: Boundary group → why it cannot carry a boundary integral (rank 0's
             check on the whole mesh), for the groups that cannot.
         rows: The rank's rows of B.
+        extra: What the method needs besides (FETI-DP: the corners and floating motions of
+            this rank's dofs), or None.
     """
 
     mesh: MeshData
@@ -139,9 +141,10 @@ class RankShare:
     rows: RankRows
     extra: object = field(default=None, repr=False)
 
-    def global_points(self, local: np.ndarray) -> np.ndarray:
-        """Global numbers of local dof points."""
-        return self.point_ids[local]
+    @property
+    def pair_points(self) -> np.ndarray:
+        """Global dof point of each local (subdomain, point) pair, in the order of the dofs."""
+        return self.point_ids[self.dec.pair_node]
 
     def check_group(self, group: str, what: str) -> None:
         """Refuse a boundary group the whole mesh does not have, or that has inner facets."""

@@ -197,8 +197,7 @@ class Solution:
         if self._nodal is not None:
             return self._nodal if self.comm.rank == 0 else None
         share, bs = self.share, self.problem.value_size
-        nodes = share.point_ids[share.dec.pair_node]  # in the order of the local dofs
-        parts = self.comm.gather((nodes, self.u_vec.array_r.reshape(-1, bs)), root=0)
+        parts = self.comm.gather((share.pair_points, self.u_vec.array_r.reshape(-1, bs)), root=0)
         if self.comm.rank != 0:
             return None
         acc = np.zeros((share.num_points, bs))
@@ -241,8 +240,7 @@ class Solution:
         """A Function from this rank's subdomain values (in the pairs' order), exchanged."""
         from .output import distributed_function
         msh = None if self._function is None else self._function.function_space.mesh
-        nodes = self.share.point_ids[self.dec.pair_node]  # in the order of the local dofs
-        return distributed_function(self.problem.mesh, nodes, values, self.comm,
+        return distributed_function(self.problem.mesh, self.share.pair_points, values, self.comm,
                                     name, self.problem.dof_points, degree, msh=msh)
 
     def pressure_function(self, degree: int | None = None):

@@ -66,7 +66,7 @@ def check_against_gathered(solution, degree=None):
         assert compat.space_degree(p1.function_space) == 1
         assert np.array_equal(p1.x.array, full[vertex])
         share = solution.share
-        u1 = distributed_function(solution.problem.mesh, share.point_ids[share.dec.pair_node],
+        u1 = distributed_function(solution.problem.mesh, share.pair_points,
                                   solution.u_vec.array_r.reshape(-1, bs), COMM, "u1", points,
                                   degree=1)
         assert np.allclose(u1.x.array.reshape(-1, bs),

@@ -70,7 +70,7 @@ def test_shares_are_the_global_decomposition_and_rows(case):
     rows = build_rows(problem, dec)
     # the local dof points are the global ones in the same order
     pairs = dec.rank_pairs(COMM.rank)
-    assert np.array_equal(share.point_ids[share.dec.pair_node], dec.pair_node[pairs])
+    assert np.array_equal(share.pair_points, dec.pair_node[pairs])
     assert np.allclose(share.points.x, problem.dof_points.x[share.point_ids])
     # the rows, stacked in rank order, are rank 0's global rows
     own = COMM.allgather(share.rows.own)

@@ -134,4 +134,4 @@ def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Com
         f=np.concatenate(f_parts) if f_parts else np.zeros(0), kernels=kernels, labels=labels,
         bodies=[mesh.body_names[dec.sub_body[s]] for s in local_subs],
         dof_x=x[local_node], dof_comp=np.tile(np.arange(bs), local_node.size // bs),
-        dof_node=share.point_ids[local_node], dof_sub=dof_sub)
+        dof_node=np.repeat(share.pair_points, bs), dof_sub=dof_sub)
