@@ -91,11 +91,6 @@ class RankRows:
     contact: Rows
     contact_index: np.ndarray
 
-    @property
-    def stop(self) -> int:
-        """One past the global index of the last own row."""
-        return self.start + self.own.size
-
     def contact_rows(self, index: np.ndarray) -> np.ndarray:
         """Positions in ``contact`` of rows given by their global indices."""
         pos = np.searchsorted(self.contact_index, index)
@@ -148,10 +143,7 @@ class RankShare:
 
     def check_group(self, group: str, what: str) -> None:
         """Refuse a boundary group the whole mesh does not have, or that has inner facets."""
-        if group not in self.mesh.facet_groups:
-            raise InputError(f"unknown boundary group {group!r}: the mesh's boundary physical "
-                             f"groups (dimension {self.mesh.tdim - 1}) are "
-                             f"{sorted(self.mesh.facet_groups)}")
+        self.mesh.check_group_name(group)  # the local mesh has every group's name
         if group in self.group_errors:
             raise InputError(self.group_errors[group].replace("{what}", what))
 

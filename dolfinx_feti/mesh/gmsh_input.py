@@ -133,14 +133,18 @@ class MeshData:
             raise InputError(f"unknown body {name!r}: the mesh's bodies (physical groups of "
                              f"dimension {self.tdim}) are {list(self.body_names)}") from None
 
+    def check_group_name(self, name: str) -> None:
+        """Refuse the name of a boundary group the mesh does not have, listing those it has."""
+        if name not in self.facet_groups:
+            raise InputError(f"unknown boundary group {name!r}: the mesh's boundary physical "
+                             f"groups (dimension {self.tdim - 1}) are {sorted(self.facet_groups)}")
+
     def facets(self, name: str) -> np.ndarray:
         """The facets of a boundary group, with an error that lists the known groups.
 
         On a rank without the arrays (a root-only mesh) only the name is checked.
         """
-        if name not in self.facet_groups:
-            raise InputError(f"unknown boundary group {name!r}: the mesh's boundary physical "
-                             f"groups (dimension {self.tdim - 1}) are {sorted(self.facet_groups)}")
+        self.check_group_name(name)
         f = self.facet_groups[name]
         if f.shape[0] == 0 and self.holds_arrays:
             raise InputError(f"boundary group {name!r} is empty: it holds no mesh facet")
