@@ -54,8 +54,7 @@ def worker(n: int, parts: int, root_only: int) -> None:
 
     comm = MPI.COMM_WORLD
     base = vm_hwm_mib()
-    mesh = df.build_mesh(meshes.membranes, n, replicate=False) if root_only else \
-        P.membranes_mesh(n)
+    mesh = df.build_mesh(meshes.membranes, n, replicate=not root_only)
     after_mesh = vm_hwm_mib()
     sol = df.solve(df.ContactProblem(
         mesh, df.Poisson(source=P.b1_source), dirichlet=[df.Dirichlet("dirichlet")],
