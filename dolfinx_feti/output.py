@@ -22,6 +22,7 @@ from mpi4py import MPI
 
 from . import compat
 from .errors import collective
+from .exchange import Blocks, answer, exchange
 from .fem.dofmap import dof_points_of_space
 from .mesh.dofpoints import DofPoints, RootLookup, dof_points
 from .mesh.gmsh_input import MeshData
@@ -116,36 +117,6 @@ def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
     return u
 
 
-def _exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
-    """Send row i of each array to rank ``dest[i]``.
-
-    Returns the received arrays, and the send order and counts (to answer in that layout).
-    """
-    order = np.argsort(dest, kind="stable")
-    counts = np.bincount(dest, minlength=comm.size).astype(np.int64)
-    rcounts = np.empty_like(counts)
-    comm.Alltoall(counts, rcounts)
-    out = []
-    for a in arrays:
-        a = np.ascontiguousarray(a[order])
-        width = int(np.prod(a.shape[1:], dtype=np.int64))
-        recv = np.empty((int(rcounts.sum()),) + a.shape[1:], dtype=a.dtype)
-        comm.Alltoallv([a, counts * width], [recv, rcounts * width])
-        out.append(recv)
-    return out, order, counts, rcounts
-
-
-def _answer(comm: MPI.Comm, values: np.ndarray, order: np.ndarray, counts: np.ndarray,
-            rcounts: np.ndarray) -> np.ndarray:
-    """Return to each sender of :func:`_exchange` the rows ``values`` answering its rows."""
-    width = int(np.prod(values.shape[1:], dtype=np.int64))
-    back = np.empty((int(counts.sum()),) + values.shape[1:], dtype=values.dtype)
-    comm.Alltoallv([np.ascontiguousarray(values), rcounts * width], [back, counts * width])
-    out = np.empty_like(back)
-    out[order] = back
-    return out
-
-
 def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_nodes: int,
                 comm: MPI.Comm) -> np.ndarray:
     """The mean of the given (point, value) pairs of all ranks at the ``wanted`` points.
@@ -160,24 +131,19 @@ def node_values(nodes: np.ndarray, values: np.ndarray, wanted: np.ndarray, num_n
     Returns:
         Shape (wanted, bs); zero at a point no rank gave.
     """
-    size = comm.size
-    lo = np.arange(size + 1, dtype=np.int64) * num_nodes // size  # directory blocks
-
-    def home(p):  # the rank whose block [lo[r], lo[r + 1]) holds node p
-        return np.searchsorted(lo, np.asarray(p, dtype=np.int64), side="right") - 1
-
-    (rn, rv), *_ = _exchange(comm, home(nodes), np.asarray(nodes, dtype=np.int64),
-                             np.asarray(values, dtype=np.float64))
+    blocks = Blocks(num_nodes, comm.size)
+    (rn, rv), *_ = exchange(comm, blocks.home(nodes), np.asarray(nodes, dtype=np.int64),
+                            np.asarray(values, dtype=np.float64))
     bs = values.shape[1]
-    n_home = int(lo[comm.rank + 1] - lo[comm.rank])
-    acc = np.zeros((n_home, bs))
-    cnt = np.zeros(n_home)
-    np.add.at(acc, rn - lo[comm.rank], rv)
-    np.add.at(cnt, rn - lo[comm.rank], 1.0)
+    mine = blocks.local(comm.rank)
+    acc = np.zeros((mine.stop - mine.start, bs))
+    cnt = np.zeros(mine.stop - mine.start)
+    np.add.at(acc, rn - mine.start, rv)
+    np.add.at(cnt, rn - mine.start, 1.0)
     mean = acc / np.maximum(cnt, 1.0)[:, None]
-    (asked,), order, counts, rcounts = _exchange(comm, home(wanted),
-                                                 np.asarray(wanted, dtype=np.int64))
-    return _answer(comm, mean[asked - lo[comm.rank]], order, counts, rcounts)
+    (asked,), order, counts, rcounts = exchange(comm, blocks.home(wanted),
+                                                np.asarray(wanted, dtype=np.int64))
+    return answer(comm, mean[asked - mine.start], order, counts, rcounts)
 
 
 def cell_function(mesh: MeshData, values: np.ndarray, name: str, comm: MPI.Comm, msh=None,

@@ -1,0 +1,74 @@
+"""Point-to-point exchanges of array rows between ranks, and directories of global numbers.
+
+The distributed set-up never gathers an array of the size of the whole mesh: a rank that needs
+something about a global number (a vertex, a dof point, a facet key) sends the question to the
+rank that keeps that number in a :class:`Blocks` directory, which answers in the layout of the
+question (:func:`exchange`, then :func:`answer`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+
+def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
+    """Send row i of each array to rank ``dest[i]`` (collective).
+
+    Returns:
+        The received arrays (rows from rank 0 first, then rank 1, …; each sender's rows in
+        their order), and the send order and the send and receive counts (to :func:`answer`).
+    """
+    dest = np.asarray(dest, dtype=np.int64)
+    order = np.argsort(dest, kind="stable")
+    counts = np.bincount(dest, minlength=comm.size).astype(np.int64)
+    rcounts = np.empty_like(counts)
+    comm.Alltoall(counts, rcounts)
+    out = []
+    for a in arrays:
+        a = np.ascontiguousarray(np.asarray(a)[order])
+        width = int(np.prod(a.shape[1:], dtype=np.int64))
+        recv = np.empty((int(rcounts.sum()),) + a.shape[1:], dtype=a.dtype)
+        comm.Alltoallv([a, counts * width], [recv, rcounts * width])
+        out.append(recv)
+    return out, order, counts, rcounts
+
+
+def answer(comm: MPI.Comm, values: np.ndarray, order: np.ndarray, counts: np.ndarray,
+           rcounts: np.ndarray) -> np.ndarray:
+    """Return to each sender of :func:`exchange` the rows ``values`` answering its rows."""
+    values = np.ascontiguousarray(values)
+    width = int(np.prod(values.shape[1:], dtype=np.int64))
+    back = np.empty((int(counts.sum()),) + values.shape[1:], dtype=values.dtype)
+    comm.Alltoallv([values, rcounts * width], [back, counts * width])
+    out = np.empty_like(back)
+    out[order] = back
+    return out
+
+
+class Blocks:
+    """A directory of the numbers 0 … n − 1: rank r keeps the block ``lo[r]:lo[r + 1]``.
+
+    The blocks are of nearly equal size and depend only on n and the number of ranks.
+    """
+
+    def __init__(self, n: int, size: int):
+        self.n = int(n)
+        self.lo = np.arange(size + 1, dtype=np.int64) * self.n // size
+
+    def home(self, index: np.ndarray) -> np.ndarray:
+        """The rank that keeps each number."""
+        return np.searchsorted(self.lo, np.asarray(index, dtype=np.int64), side="right") - 1
+
+    def local(self, rank: int) -> slice:
+        """The numbers rank ``rank`` keeps."""
+        return slice(int(self.lo[rank]), int(self.lo[rank + 1]))
+
+
+def exclusive_scan(comm: MPI.Comm, count: int) -> int:
+    """The sum of ``count`` over the ranks before this one (0 on rank 0)."""
+    start = comm.exscan(int(count))
+    return 0 if comm.rank == 0 or start is None else int(start)
+
+
+__all__ = ["Blocks", "answer", "exchange", "exclusive_scan"]
