@@ -57,10 +57,13 @@ class Verdicts:
         Args:
             name: The group.
             what: Its use as the surface of a boundary integral, named for the message; None
-                for a contact surface.
+                for a contact surface; "" for a use that only needs facets of cells (a
+                Dirichlet condition).
         """
         if name in self.orphans:
             raise InputError(self.orphans[name])
+        if what == "":
+            return
         table = self.contact if what is None else self.boundary
         if name in table:
             raise InputError(table[name].replace("{what}", what or ""))
