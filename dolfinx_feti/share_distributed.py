@@ -207,7 +207,8 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
             group, local vertices.
         names: The boundary groups, by index.
         local_mesh: This rank's cells (local vertices).
-        cell_ids, cell_points: Their global numbers and global dof points.
+        cell_ids: Their global numbers.
+        cell_points: Their global dof points.
         local_points: Their local dof points.
         directory: ``(points, ptr, subs, fixed)``: the local points, the subdomains of each,
             and their Dirichlet mask.
