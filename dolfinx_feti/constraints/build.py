@@ -27,11 +27,32 @@ def build_rows(problem: ContactProblem, dec: Decomposition,
     tangential (friction) rows of a contact node touch the same subdomains, so they stay
     consecutive.
     """
-    mesh, bs, points = problem.mesh, problem.value_size, problem.dof_points
+    mesh, bs = problem.mesh, problem.value_size
     node_ptr, node_subs = dec.node_subdomains()
     fixed, values = dirichlet_mask(problem, mesh)
-    blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
-              dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim)]
+    rows = Rows.concatenate([
+        gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
+        dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim),
+        extra_rows(problem, node_ptr, node_subs, fixed, mortar)])
+    if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
+        raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "
+                         "distance is NaN or Inf)")
+    return rows.permuted(np.argsort(rows.min_subdomain(), kind="stable"))
+
+
+def extra_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.ndarray,
+               fixed: np.ndarray, mortar: list[MortarInfo] | None = None) -> Rows:
+    """The rows after gluing and Dirichlet: ties, then contact (with friction), unsorted.
+
+    Args:
+        problem: The problem.
+        node_ptr: Dof point → subdomains containing it (CSR pointer) ...
+        node_subs: ... and the subdomains, sorted per point.
+        fixed: The Dirichlet mask (N, bs).
+        mortar: Receives what the contact search found (see :func:`build_rows`).
+    """
+    mesh, bs, points = problem.mesh, problem.value_size, problem.dof_points
+    blocks = [Rows.empty(mesh.gdim)]
     found = [] if mortar is None else mortar
     for i, t in enumerate(problem.ties):
         block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs)
@@ -48,8 +69,4 @@ def build_rows(problem: ContactProblem, dec: Decomposition,
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
             blocks[-1] = with_tangential_rows(blocks[-1])
-    rows = Rows.concatenate(blocks)
-    if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
-        raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "
-                         "distance is NaN or Inf)")
-    return rows.permuted(np.argsort(rows.min_subdomain(), kind="stable"))
+    return Rows.concatenate(blocks)
