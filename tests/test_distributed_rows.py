@@ -20,9 +20,12 @@ from dolfinx_feti import meshes
 from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.constraints.build import extra_rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask
-from dolfinx_feti.constraints.distributed_rows import (ConditionPoints,
-                                                       dirichlet_mask_distributed, own_rows,
-                                                       shared_points)
+from dolfinx_feti.constraints.distributed_rows import (
+    ConditionPoints,
+    dirichlet_mask_distributed,
+    own_rows,
+    shared_points,
+)
 from dolfinx_feti.mesh.decompose import decompose
 from dolfinx_feti.mesh.topology import locate_facets
 from dolfinx_feti.share import row_ranges, row_slice
@@ -60,7 +63,10 @@ def _field(x: np.ndarray) -> np.ndarray:
     return np.c_[x[:, 0] + 2.0 * x[:, 1], -x[:, 2]]
 
 
-def _problem_2d(mesh, degree, scheme, vector=True, decomposition=df.ByFunction(_diagonal)):
+DIAGONAL = df.ByFunction(_diagonal)
+
+
+def _problem_2d(mesh, degree, scheme, vector=True, decomposition=DIAGONAL):
     forms = df.Elasticity(1.0, 0.3, degree=degree) if vector else df.Poisson(-1.0, degree=degree)
     dirichlet = [df.Dirichlet("dirichlet", (0.1, -0.2) if vector else 0.3),
                  df.Dirichlet("bottom", _ramp, components=(1,) if vector else None)]
