@@ -13,6 +13,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 import pytest
+from distributed_inputs import RankInputs
 from mpi4py import MPI
 
 import dolfinx_feti as df
@@ -21,13 +22,11 @@ from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.constraints.build import extra_rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask
 from dolfinx_feti.constraints.distributed_rows import (
-    ConditionPoints,
     dirichlet_mask_distributed,
     own_rows,
     shared_points,
 )
 from dolfinx_feti.mesh.decompose import decompose
-from dolfinx_feti.mesh.topology import locate_facets
 from dolfinx_feti.share import row_ranges, row_slice
 
 COMM = MPI.COMM_WORLD
@@ -94,26 +93,6 @@ def _assignments(nsub: int, size: int, balanced: np.ndarray) -> dict[str, np.nda
             "all on last": np.full(nsub, size - 1)}
 
 
-class Inputs:
-    """What the distributed set-up hands rank ``rank``, cut from the serial problem."""
-
-    def __init__(self, problem, dec, sub_rank, rank):
-        mesh, pts = problem.mesh, problem.dof_points
-        self.cells = np.flatnonzero(sub_rank[dec.cell_sub] == rank)
-        self.points = np.unique(pts.cell_points[self.cells])
-        node_ptr, node_subs = dec.node_subdomains()
-        count = np.diff(node_ptr)[self.points]
-        self.ptr = np.r_[0, np.cumsum(count)].astype(np.int64)
-        start = np.repeat(node_ptr[self.points] - self.ptr[:-1], count)
-        self.subs = node_subs[start + np.arange(self.ptr[-1])]
-        self.conditions = []
-        for bc in problem.dirichlet:
-            facets = mesh.facets(bc.group)
-            cell, _ = locate_facets(mesh.cells, facets, mesh.cell_type)
-            on = pts.facet_points(mesh, facets)[np.isin(cell, self.cells)].ravel()
-            self.conditions.append(ConditionPoints(bc, on, pts.x[on]))
-
-
 def _mask(problem, inputs, sub_rank, shared=True):
     bs, n = problem.value_size, problem.dof_points.num_points
     mask = shared_points(inputs.ptr, inputs.subs, sub_rank, COMM.rank) if shared else None
@@ -136,7 +115,7 @@ def _check(problem):
     assert (extra.size > 0) == bool(problem.contact)
     wrong, crossing = [], 0
     for name, sub_rank in _assignments(dec.num_subdomains, COMM.size, dec.sub_rank).items():
-        inputs = Inputs(problem, dec, sub_rank, COMM.rank)
+        inputs = RankInputs(problem, dec, sub_rank, COMM.rank)
         for shared in (True, False):
             fixed, values = _mask(problem, inputs, sub_rank, shared)
             for what, a, b in (("fixed", fixed, fixed_all[inputs.points]),
@@ -210,7 +189,7 @@ def test_a_failing_value_function_fails_on_every_rank(membranes):
 
     problem = _problem_2d(membranes, 1, "orthonormal")
     dec = decompose(membranes, problem.decomposition, COMM.size, problem.dof_points)
-    inputs = Inputs(problem, dec, dec.sub_rank, COMM.rank)
+    inputs = RankInputs(problem, dec, dec.sub_rank, COMM.rank)
     inputs.conditions[1] = inputs.conditions[1]._replace(
         condition=df.Dirichlet("bottom", bad, components=(1,)))
     with pytest.raises(df.InputError, match=r"Dirichlet\('bottom'\)\.value\(x\) raised "
@@ -221,7 +200,7 @@ def test_a_failing_value_function_fails_on_every_rank(membranes):
 def test_non_finite_values_and_rows_are_refused_on_every_rank(membranes):
     problem = _problem_2d(membranes, 1, "orthonormal")
     dec = decompose(membranes, problem.decomposition, COMM.size, problem.dof_points)
-    inputs = Inputs(problem, dec, dec.sub_rank, COMM.rank)
+    inputs = RankInputs(problem, dec, dec.sub_rank, COMM.rank)
     nan_far = df.Dirichlet("bottom", lambda x: np.where(x[:, 0] > 1.5, np.nan, 0.0),
                            components=(1,))
     broken = list(inputs.conditions)

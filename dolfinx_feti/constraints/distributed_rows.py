@@ -182,12 +182,19 @@ def own_rows(points: np.ndarray, ptr: np.ndarray, subs: np.ndarray, fixed: np.nd
     Raises:
         InputError: On every rank, when a row's right-hand side or coefficient is not finite.
     """
-    points = np.asarray(points, dtype=np.int64)
+    # only the points in two subdomains or more, or fixed, have rows: the interfaces and the
+    # Dirichlet boundary, a small part of the points
+    mult = np.diff(ptr)
+    sel = np.flatnonzero((mult >= 2) | np.any(fixed, axis=1))
+    count = mult[sel]
+    sel_ptr = np.r_[0, np.cumsum(count)].astype(np.int64)
+    sel_subs = subs[np.repeat(ptr[sel] - sel_ptr[:-1], count) + np.arange(sel_ptr[-1])]
+    sel_points = np.asarray(points, dtype=np.int64)[sel]
     blocks = []
-    for block in (gluing_rows(ptr, subs, fixed, bs, gdim, scheme),
-                  dirichlet_rows(ptr, subs, fixed, values, bs, gdim)):
-        block.e_node = points[block.e_node]
-        block.node = points[block.node]
+    for block in (gluing_rows(sel_ptr, sel_subs, fixed[sel], bs, gdim, scheme),
+                  dirichlet_rows(sel_ptr, sel_subs, fixed[sel], values[sel], bs, gdim)):
+        block.e_node = sel_points[block.e_node]
+        block.node = sel_points[block.node]
         blocks.append(block)
     blocks.append(Rows.empty(gdim) if extra is None else extra)
     rows = Rows.concatenate(blocks)
