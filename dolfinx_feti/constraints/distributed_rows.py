@@ -50,6 +50,9 @@ def shared_points(ptr: np.ndarray, subs: np.ndarray, sub_rank: np.ndarray,
                   rank: int) -> np.ndarray:
     """Mask of the points that a rank other than ``rank`` holds too.
 
+    When each rank holds the cells of the subdomains it owns: the points of a subdomain that
+    another rank owns.
+
     Args:
         ptr: Point → all subdomains holding it (CSR pointer) ...
         subs: ... and the subdomains.
@@ -162,7 +165,7 @@ def own_rows(points: np.ndarray, ptr: np.ndarray, subs: np.ndarray, fixed: np.nd
     ``row_slice(build_rows(problem, dec), start, start + own.size)``.
 
     Args:
-        points: The sorted global dof points of this rank's cells.
+        points: The sorted global dof points of the cells of the subdomains this rank owns.
         ptr: Point → all subdomains holding it (CSR pointer) ...
         subs: ... and the subdomains (global numbers, sorted per point).
         fixed: The Dirichlet mask (n, bs) of the points ...
