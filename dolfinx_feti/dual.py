@@ -101,6 +101,8 @@ class DualQP:
             copies of its node (None: all ones).
         friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
         share: What this rank holds of the problem (:class:`.share.RankShare`).
+        surface: On a distributed mesh with contact, the cells along the contact surfaces
+            gathered on rank 0 (:class:`.share_distributed.Surface`; None elsewhere).
     """
 
     feti: Dualization
@@ -125,6 +127,7 @@ class DualQP:
     copy_weight: np.ndarray | None = None
     friction: object = None
     share: object = None
+    surface: object = None
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -207,6 +210,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
                          "(read_gmsh(..., replicate=False)): solve on that communicator")
+    if problem.mesh.part is not None:
+        return _dual_qp_distributed(problem, comm, factor, norm_rtol, timer, method)
     dec = rows = extra = common = None
     # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
     # arrays; every rank then keeps only its share (:mod:`.share`).
@@ -249,6 +254,32 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
                   timer=timer, dec=share.dec, rows=share.rows, info=info)
     qp.mortar, qp.friction, qp.share = mortar, fdata, share
     qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, bs)
+    return qp
+
+
+def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
+                         timer: Timer, method: str) -> DualQP:
+    """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
+    from .share_distributed import share_from_parts, unsupported
+
+    why = unsupported(problem, method)
+    if why is not None:
+        raise InputError(why)
+    with timer.phase("decomposition"):
+        share, surface, mortar = share_from_parts(problem, comm)
+    if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
+        glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
+        method = "tfeti" if glued else "feti1"
+    data = assemble_subdomains(problem, share, comm, timer)
+    with timer.phase("constraints"):
+        total = BlockSystem.from_rows(data, share.rows)
+        steps: list = []
+        if method == "feti1":
+            steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
+    qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
+                  timer=timer, dec=share.dec, rows=share.rows, info={})
+    qp.mortar, qp.friction, qp.share, qp.surface = mortar, None, share, surface
+    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 
 

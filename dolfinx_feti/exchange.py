@@ -28,7 +28,9 @@ def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
     comm.Alltoall(counts, rcounts)
     out = []
     for a in arrays:
-        a = np.ascontiguousarray(np.asarray(a)[order])
+        a = np.asarray(a)
+        # MPI knows native types only ('<d' from gmsh's arrays is not 'd' to it)
+        a = np.ascontiguousarray(a[order], dtype=a.dtype.newbyteorder("="))
         width = int(np.prod(a.shape[1:], dtype=np.int64))
         recv = np.empty((int(rcounts.sum()),) + a.shape[1:], dtype=a.dtype)
         comm.Alltoallv([a, counts * width], [recv, rcounts * width])

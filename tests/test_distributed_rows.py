@@ -19,7 +19,7 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti import meshes
 from dolfinx_feti.constraints import Rows, build_rows
-from dolfinx_feti.constraints.build import extra_rows
+from dolfinx_feti.constraints.build import surface_rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask
 from dolfinx_feti.constraints.distributed_rows import (
     dirichlet_mask_distributed,
@@ -93,6 +93,12 @@ def _assignments(nsub: int, size: int, balanced: np.ndarray) -> dict[str, np.nda
             "all on last": np.full(nsub, size - 1)}
 
 
+def _extra(problem, node_ptr, node_subs, fixed) -> Rows:
+    """The tie and contact rows as build_rows concatenates them after gluing and Dirichlet."""
+    blocks = surface_rows(problem, node_ptr, node_subs, fixed)
+    return Rows.concatenate([Rows.empty(problem.mesh.gdim), *blocks])
+
+
 def _mask(problem, inputs, sub_rank, shared=True):
     bs, n = problem.value_size, problem.dof_points.num_points
     mask = shared_points(inputs.ptr, inputs.subs, sub_rank, COMM.rank) if shared else None
@@ -111,7 +117,7 @@ def _check(problem):
     serial = build_rows(problem, dec)
     fixed_all, values_all = dirichlet_mask(problem, mesh)
     node_ptr, node_subs = dec.node_subdomains()
-    extra = extra_rows(problem, node_ptr, node_subs, fixed_all)
+    extra = _extra(problem, node_ptr, node_subs, fixed_all)
     assert (extra.size > 0) == bool(problem.contact)
     wrong, crossing = [], 0
     for name, sub_rank in _assignments(dec.num_subdomains, COMM.size, dec.sub_rank).items():
@@ -211,7 +217,7 @@ def test_non_finite_values_and_rows_are_refused_on_every_rank(membranes):
     inputs.conditions = good
     fixed, values = _mask(problem, inputs, dec.sub_rank)
     node_ptr, node_subs = dec.node_subdomains()
-    extra = extra_rows(problem, node_ptr, node_subs, dirichlet_mask(problem, membranes)[0])
+    extra = _extra(problem, node_ptr, node_subs, dirichlet_mask(problem, membranes)[0])
     extra.rhs[-1] = np.inf  # a gap on one rank's row only
     with pytest.raises(df.InputError, match="non-finite constraint data"):
         own_rows(inputs.points, inputs.ptr, inputs.subs, fixed, values, 2, 2, "orthonormal",

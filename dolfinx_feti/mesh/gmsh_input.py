@@ -454,7 +454,7 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
     new_index = np.full(node_tags.size, -1, dtype=np.int64)
     new_index[used] = np.arange(used.size)
     cells = new_index[cells_g]
-    x = coords[used, :gdim].copy()
+    x = coords[used, :gdim].astype(np.float64)  # native byte order (gmsh gives '<d')
     if gdim < 3 and np.any(np.abs(coords[used, gdim:]) > 1e-12 * max(1.0, np.abs(x).max())):
         raise InputError(f"the mesh is not planar: nodes have non-zero coordinates beyond "
                          f"dimension {gdim}")
