@@ -16,6 +16,7 @@ Best of ``--repeat`` runs. The commands:
 
     python bench/distributed_rows.py
     mpirun -n 2 python bench/distributed_rows.py
+    mpirun -n 2 python bench/distributed_rows.py --all-points   # every point asks the directory
 """
 
 from __future__ import annotations
@@ -78,6 +79,9 @@ def main() -> None:
     parser.add_argument("--n", type=int, default=1000, help="squares per side")
     parser.add_argument("--parts", type=int, default=64)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--all-points", action="store_true",
+                        help="settle every point in the directory (shared=None), not only the "
+                             "points other ranks hold too")
     args = parser.parse_args()
     problem = df.ContactProblem(
         square(args.n), df.Elasticity(1.0, 0.3),
@@ -88,6 +92,7 @@ def main() -> None:
     dec = decompose(mesh, problem.decomposition, COMM.size, problem.dof_points)
     inputs = RankInputs(problem, dec, dec.sub_rank, COMM.rank)
     shared = shared_points(inputs.ptr, inputs.subs, dec.sub_rank, COMM.rank)
+    mask_shared = None if args.all_points else shared
 
     t_serial, serial = best(lambda: build_rows(problem, dec), args.repeat)
     node_ptr, node_subs = dec.node_subdomains()
@@ -102,7 +107,7 @@ def main() -> None:
 
     t_glue, _ = best(serial_rows, args.repeat)
     t_mask, (fixed, values) = best(lambda: dirichlet_mask_distributed(
-        inputs.points, inputs.conditions, bs, N, COMM, shared), args.repeat)
+        inputs.points, inputs.conditions, bs, N, COMM, mask_shared), args.repeat)
     t_rows, (rows, start, size) = best(lambda: own_rows(
         inputs.points, inputs.ptr, inputs.subs, fixed, values, bs, mesh.gdim, problem.gluing,
         dec.sub_rank, COMM), args.repeat)
