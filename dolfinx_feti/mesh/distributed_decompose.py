@@ -297,13 +297,14 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
     ids = np.asarray(cell_ids, dtype=np.int64)
     label = np.asarray(label).astype(np.int64)
     nc = cells.shape[0]
-    nf = len(reference(cells, cell_type).facets)
+    ref = reference(cells, cell_type)
+    nf, nvf = len(ref.facets), len(ref.facets[0])
     bound = np.array([cells.max() + 1 if cells.size else 0, ids.max() + 1 if nc else 0],
                      dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, bound, op=MPI.MAX)
     nv, num = int(bound[0]), int(bound[1] if num_cells is None else num_cells)
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
-    facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, -1), axis=1)
+    facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
     keys = _row_keys(facets, nv)
     order = np.argsort(keys, kind="stable")
     same = keys[order][1:] == keys[order][:-1]
@@ -322,7 +323,6 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
     c = f // nf
     rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c], first[piece[c]]])
     (got,), _, _, _ = exchange(comm, Blocks(nv, comm.size).home(facets[f, 0]), rows)
-    nvf = facets.shape[1]
     _, inv = np.unique(_row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
     inv = np.sort(inv.ravel())
