@@ -180,96 +180,127 @@ def _bisect_level(state, items: _Items, comm: MPI.Comm, weighted: bool):
     """Cut every item of a level in two as the serial rcb does; returns the next level."""
     x, gid, pos, q, start = state
     m, gdim = x.shape
-    ni = items.k.size
-    count = np.diff(start)
-    item = np.repeat(np.arange(ni), count)
-    # the bounding boxes: one reduction for all items
-    box = np.full((ni, 2 * gdim), np.inf)
-    nz = count > 0
-    if m:
+    item = np.repeat(np.arange(items.k.size), np.diff(start))
+    chain = _longest_sides(x, start, items.chain, comm)
+    # the serial stable sort along the axis, inside each item (already in the order above)
+    perm = np.lexsort((x[np.arange(m), chain[item, 0]], item))
+    x, gid, pos = x[perm], gid[perm], pos[perm]
+    q = np.zeros(m, dtype=np.int64) if q is None else q[perm]
+    cut = _Cut(items, weighted, start)
+    _select(cut, x, gid, q, chain, start, comm)
+    k1 = items.k // 2
+    # the children, left then right of each item: their points are contiguous
+    children = _Items(k=np.column_stack([k1, items.k - k1]).ravel(),
+                      first=np.column_stack([items.first, items.first + k1]).ravel(),
+                      size=np.column_stack([cut.c_hi, items.size - cut.c_hi]).ravel(),
+                      total=np.column_stack([cut.w_hi, items.total - cut.w_hi]).ravel(),
+                      chain=np.repeat(chain, 2, axis=0))
+    bounds = np.concatenate([np.column_stack([start[:-1], cut.p_hi]).ravel(), [m]])
+    return (x, gid, pos, q if weighted else None, bounds), children
+
+
+def _longest_sides(x: np.ndarray, start: np.ndarray, chain: np.ndarray, comm: MPI.Comm
+                   ) -> np.ndarray:
+    """The items' axis chains with their longest side first (one reduction of their boxes)."""
+    ni, gdim = chain.shape
+    box = np.full((ni, 2 * gdim), np.inf)  # min, then -max
+    nz = np.diff(start) > 0
+    if x.shape[0]:
         box[nz, :gdim] = np.minimum.reduceat(x, start[:-1][nz], axis=0)
         box[nz, gdim:] = -np.maximum.reduceat(x, start[:-1][nz], axis=0)
     comm.Allreduce(MPI.IN_PLACE, box, op=MPI.MIN)
-    axis = np.argmax(-box[:, gdim:] - box[:, :gdim], axis=1)
-    rest = np.where(items.chain == axis[:, None], -1, items.chain)
+    axis = np.argmax(-box[:, gdim:] - box[:, :gdim], axis=1)  # the first of equal sides
+    rest = np.where(chain == axis[:, None], -1, chain)
     rest = np.take_along_axis(rest, np.argsort(rest < 0, axis=1, kind="stable"), axis=1)
-    chain = np.column_stack([axis, rest[:, :gdim - 1]])
-    # the serial stable sort along the axis, inside each item (already in the order above)
-    perm = np.lexsort((x[np.arange(m), axis[item]], item))
-    x, gid, pos = x[perm], gid[perm], pos[perm]
-    q = None if q is None else q[perm]
-    cw = np.concatenate([[0], np.cumsum(q if weighted else np.zeros(m, dtype=np.int64))])
-    # the cut of item i is after the first point y (in key order) with
-    # (W(<= y) >= target and C(<= y) >= lower) or C(<= y) >= upper
-    k, size, total = items.k, items.size, items.total
-    k1 = k // 2
-    target, lower, upper = np.zeros(ni, dtype=np.int64), k1.copy(), size - (k - k1)
-    fixed = np.ones(ni, dtype=bool) if not weighted else size < k
-    if not weighted:  # Python's round of a true division, as the serial code
-        cut = np.array([int(round(int(s) * int(a) / int(b))) for s, a, b in zip(size, k1, k)],
-                       dtype=np.int64)
-    else:  # fewer points than parts: the serial clamp (and slice) decide alone
-        target = weight_target(total, k1, k)
-        cut = np.where(upper >= 0, upper, np.maximum(size + upper, 0))
-    lower = np.where(fixed, cut, lower)
-    upper = np.where(fixed, cut, upper)
-    target = np.where(fixed, 0, target)
-    c_lo = np.zeros(ni, dtype=np.int64)
-    c_hi, w_hi = size.copy(), total.copy()
-    p_lo, p_hi = start[:-1].copy(), start[1:].copy()
-    done = fixed & ((cut == 0) | (cut == size))
-    empty = done & (cut == 0)
-    c_hi[empty], w_hi[empty], p_hi[empty] = 0, 0, p_lo[empty]
-    while not done.all():  # the selection rounds: two collectives each
-        j = np.flatnonzero(~done)
+    return np.column_stack([axis, rest[:, :gdim - 1]])
+
+
+class _Cut:
+    """The cut of each item and the search for it.
+
+    The cut of an item is after the first point y (in key order) with
+    ``(W(<= y) >= target and C(<= y) >= lower) or C(<= y) >= upper``, C and W the count and
+    weight of the item's points up to y: the serial rule (the cell-count cut, or the
+    weighted one with its clamp). The search keeps y in ``(lo, hi]``: their global counts
+    ``c_lo``, ``c_hi``, the weight ``w_hi`` up to hi, and this rank's positions after them,
+    ``p_lo``, ``p_hi``.
+    """
+
+    def __init__(self, items: _Items, weighted: bool, start: np.ndarray):
+        k, size, total = items.k, items.size, items.total
+        k1 = k // 2
+        if not weighted:  # Python's round of a true division, as the serial code
+            cut = np.array([int(round(int(s) * int(a) / int(b)))
+                            for s, a, b in zip(size, k1, k, strict=True)], dtype=np.int64)
+            fixed = np.ones(k.size, dtype=bool)
+        else:  # with fewer points than parts the serial clamp (and slice) decide alone
+            upper = size - (k - k1)
+            cut = np.where(upper >= 0, upper, np.maximum(size + upper, 0))
+            fixed = size < k
+        self.target = np.where(fixed, 0, weight_target(total, k1, k) if weighted else 0)
+        self.lower = np.where(fixed, cut, k1)
+        self.upper = np.where(fixed, cut, size - (k - k1))
+        self.c_lo = np.zeros(k.size, dtype=np.int64)
+        self.c_hi, self.w_hi = size.copy(), total.copy()
+        self.p_lo, self.p_hi = start[:-1].copy(), start[1:].copy()
+        self.done = fixed & ((cut == 0) | (cut == size))
+        empty = self.done & (cut == 0)
+        self.c_hi[empty], self.w_hi[empty], self.p_hi[empty] = 0, 0, self.p_lo[empty]
+
+    def holds(self, j: np.ndarray, c: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Whether the cut rule holds at count c and weight w of items j (rows)."""
+        return ((w >= self.target[j, None]) & (c >= self.lower[j, None])) | \
+            (c >= self.upper[j, None])
+
+
+def _select(cut: _Cut, x, gid, q, chain, start, comm: MPI.Comm) -> None:
+    """Narrow every item's ``(lo, hi]`` down to its cut: rounds of two collectives.
+
+    Each rank proposes up to ``nq`` of its candidates per item, evenly spaced in key order
+    (all of them when it has no more); the global counts and weights up to every proposal
+    give the new ``(lo, hi]`` between two consecutive proposals, which holds at most about
+    1/(nq + 1) of the candidates (plus one per rank).
+    """
+    gdim = x.shape[1]
+    cw = np.concatenate([[0], np.cumsum(q)])  # weights up to each local position
+    while not cut.done.all():
+        j = np.flatnonzero(~cut.done)
         nq = max(1, min(64, _SAMPLES_PER_ROUND // (j.size * comm.size)))
-        local = p_hi[j] - p_lo[j]
+        local = (cut.p_hi[j] - cut.p_lo[j])[:, None]
         t = np.arange(nq)
-        few = (local <= nq)[:, None]
-        rows = np.where(few, p_lo[j, None] + t, p_lo[j, None] + (t + 1) * local[:, None] // (nq + 1))
-        valid = ~few | (t < local[:, None])
-        prop = np.zeros((j.size, nq, gdim + 3), dtype=np.int64)
-        jj = np.broadcast_to(j[:, None], rows.shape)[valid]
+        few = local <= nq
+        rows = cut.p_lo[j, None] + np.where(few, t, (t + 1) * local // (nq + 1))
+        valid = ~few | (t < local)
+        prop = np.zeros((j.size, nq, gdim + 3), dtype=np.int64)  # valid, key, weight
         prop[valid, 0] = 1
-        prop[valid, 1:gdim + 2] = _keys(x, gid, chain[jj], rows[valid])
-        if weighted:
-            prop[valid, gdim + 2] = q[rows[valid]]
+        prop[valid, 1:gdim + 2] = _keys(x, gid, chain[np.broadcast_to(j[:, None], rows.shape)
+                                                        [valid]], rows[valid])
+        prop[valid, gdim + 2] = q[rows[valid]]
         every = np.empty((comm.size,) + prop.shape, dtype=np.int64)
         comm.Allgather(prop, every)
-        every = every.transpose(1, 0, 2, 3).reshape(j.size, comm.size * nq, gdim + 3)
+        every = every.transpose(1, 0, 2, 3).reshape(-1, gdim + 3)
         qi = np.repeat(j, comm.size * nq)
-        flat = every.reshape(-1, gdim + 3)
-        at = _count_le(x, gid, chain[qi], p_lo[qi], p_hi[qi], flat[:, 1:gdim + 2])
-        cw_at = cw[at] - cw[start[qi]]
-        sums = np.stack([at - start[qi], cw_at]).reshape(2, j.size, -1)
+        at = _count_le(x, gid, chain[qi], cut.p_lo[qi], cut.p_hi[qi], every[:, 1:gdim + 2])
+        sums = np.stack([at - start[qi], cw[at] - cw[start[qi]]]).reshape(2, j.size, -1)
         comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         c, w = sums
+        every = every.reshape(j.size, -1, gdim + 3)
         ok = every[:, :, 0] == 1
-        tj, lj, uj = target[j, None], lower[j, None], upper[j, None]
-        pred = ((w >= tj) & (c >= lj)) | (c >= uj)
-        w_before = w - every[:, :, gdim + 2]
-        before = ((w_before >= tj) & (c - 1 >= lj)) | (c - 1 >= uj)
+        holds = ok & cut.holds(j, c, w)
+        # the point y itself if the rule fails at the point before it
+        found = (holds & ~cut.holds(j, c - 1, w - every[:, :, gdim + 2])).any(axis=1)
         at = at.reshape(j.size, -1)
-        below = np.where(ok & ~pred, c, -1)
-        b = np.argmax(below, axis=1)
         r = np.arange(j.size)
-        move = below[r, b] > c_lo[j]
-        c_lo[j[move]], p_lo[j[move]] = c[r, b][move], at[r, b][move]
-        above = np.where(ok & pred, c, np.iinfo(np.int64).max)
+        below = np.where(ok & ~holds, c, -1)
+        b = np.argmax(below, axis=1)
+        move = below[r, b] > cut.c_lo[j]
+        cut.c_lo[j[move]], cut.p_lo[j[move]] = c[r, b][move], at[r, b][move]
+        above = np.where(holds, c, np.iinfo(np.int64).max)
         a = np.argmin(above, axis=1)
-        move = above[r, a] < c_hi[j]
-        c_hi[j[move]], w_hi[j[move]], p_hi[j[move]] = c[r, a][move], w[r, a][move], \
-            at[r, a][move]
-        found = (ok & pred & ~before).any(axis=1)
-        done[j] = found | (c_hi[j] - c_lo[j] == 1)
-    # the children, left then right of each item: their points are contiguous
-    children = _Items(k=np.column_stack([k1, k - k1]).ravel(),
-                      first=np.column_stack([items.first, items.first + k1]).ravel(),
-                      size=np.column_stack([c_hi, size - c_hi]).ravel(),
-                      total=np.column_stack([w_hi, total - w_hi]).ravel(),
-                      chain=np.repeat(chain, 2, axis=0))
-    bounds = np.concatenate([np.column_stack([start[:-1], p_hi]).ravel(), [m]])
-    return (x, gid, pos, q, bounds), children
+        move = above[r, a] < cut.c_hi[j]
+        cut.c_hi[j[move]], cut.w_hi[j[move]] = c[r, a][move], w[r, a][move]
+        cut.p_hi[j[move]] = at[r, a][move]
+        cut.done[j] = found | (cut.c_hi[j] - cut.c_lo[j] == 1)
 
 
 def split_components_distributed(cells: np.ndarray, cell_ids: np.ndarray, label: np.ndarray,
