@@ -311,6 +311,20 @@ def test_split_components(name, split):
         np.testing.assert_array_equal(got, ref[ids])
 
 
+@pytest.mark.parametrize("name", ["tets", "hexes_two_bodies"])
+def test_split_components_with_large_vertex_numbers(name):
+    """Vertex numbers too large for int64 facet keys (the keys are then the rows' bytes)."""
+    mesh = _mesh(name)
+    cells = mesh.cells * 1_000_003 + 7
+    assert topology._row_keys(cells[:1, :4], int(cells.max()) + 1).dtype.kind == "V"
+    label = np.random.default_rng(0).integers(0, 3, cells.shape[0])
+    ref = _split_components(mesh.cells, label, mesh.cell_type)
+    np.testing.assert_array_equal(_split_components(cells, label, mesh.cell_type), ref)
+    ids = _mine(cells.shape[0], "uneven")
+    got = split_components_distributed(cells[ids], ids, label[ids], mesh.cell_type, COMM)
+    np.testing.assert_array_equal(got, ref[ids])
+
+
 # ------------------------------------------------------------------------------------------
 # The decomposition
 # ------------------------------------------------------------------------------------------
