@@ -294,9 +294,19 @@ def graph_partition(cells: np.ndarray, n: int, cell_type: str | None = None) -> 
 def rcb(points: np.ndarray, n: int, weights: np.ndarray | None = None) -> np.ndarray:
     """Recursive coordinate bisection of points into ``n`` parts of (nearly) equal size.
 
-    With ``weights``, of (nearly) equal total weight; every part keeps at least one point.
+    Every work item is sorted (stably) along the longest side of its bounding box, so points at
+    equal coordinates keep the order of the level above: the order is that of the key
+    (coordinate of this level, of the level above, …, point index), which a distributed
+    selection can reproduce (:mod:`.distributed_decompose`).
+
+    With non-negative ``weights``, the parts are of (nearly) equal total weight and every part
+    keeps at least one point (when there are at least ``n`` points). The weights are turned
+    into integers once (:func:`fixed_point_weights`) so that the cut depends on exact sums,
+    not on the order of a floating-point summation.
     """
     labels = np.zeros(points.shape[0], dtype=np.int64)
+    q = None if weights is None else \
+        fixed_point_weights(weights, float(np.max(weights, initial=0.0)), points.shape[0])
     work = [(np.arange(points.shape[0]), n, 0)]
     while work:
         idx, k, first = work.pop()
@@ -307,12 +317,34 @@ def rcb(points: np.ndarray, n: int, weights: np.ndarray | None = None) -> np.nda
         axis = int(np.argmax(p.max(axis=0) - p.min(axis=0)))
         order = idx[np.argsort(p[:, axis], kind="stable")]
         k1 = k // 2
-        if weights is None:
+        if q is None:
             cut = int(round(idx.size * k1 / k))
         else:
-            cw = np.cumsum(weights[order])
-            cut = int(np.searchsorted(cw, cw[-1] * k1 / k)) + 1
+            cw = np.cumsum(q[order])
+            cut = int(np.searchsorted(cw, weight_target(int(cw[-1]), k1, k))) + 1
             cut = min(max(cut, k1), idx.size - (k - k1))
         work.append((order[:cut], k1, first))
         work.append((order[cut:], k - k1, first + k1))
     return labels
+
+
+def fixed_point_weights(weights: np.ndarray, wmax: float, m: int) -> np.ndarray:
+    """Non-negative weights as int64 fixed-point numbers whose sum cannot overflow.
+
+    ``wmax`` is the largest weight and ``m`` their number, over all ranks (scalars, or arrays
+    of one value per weight for several point sets at once). The scale is the power of two
+    that maps ``wmax`` below ``2**(62 - bits(m))``: each weight keeps about 42 bits relative to
+    the largest for a million points, and every sum of them is exact.
+    """
+    bits = 62 - np.frexp(np.asarray(m, dtype=np.float64))[1]  # 62 - m.bit_length()
+    exponent = np.frexp(np.asarray(wmax, dtype=np.float64))[1]
+    return np.rint(np.ldexp(np.asarray(weights, dtype=np.float64), bits - exponent)
+                   ).astype(np.int64)
+
+
+def weight_target(total, k1, k):
+    """The least integer at least ``total * k1 / k`` (exact, for int64 scalars or arrays).
+
+    The cut of a weighted bisection is at the first point whose prefix sum reaches it.
+    """
+    return total // k * k1 - (-(total % k) * k1 // k)
