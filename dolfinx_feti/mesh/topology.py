@@ -62,7 +62,9 @@ def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
     """One sortable scalar per row of a non-negative integer array, the same for permuted rows.
 
     With ``bound`` (all entries < bound) and bound**width < 2**63 the key is an int64 (fast to
-    sort); otherwise the row's bytes.
+    sort); otherwise the row's bytes. Either way the keys sort as the sorted rows do
+    lexicographically, so a monotone renumbering of the entries keeps their order (a rank's
+    local entities are numbered in the global order: :func:`~dolfinx_feti.share.share_out`).
     """
     a = np.ascontiguousarray(np.sort(a, axis=1), dtype=np.int64)
     width = a.shape[1]
@@ -71,6 +73,8 @@ def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
         for j in range(width):  # over the 2 to 8 vertices of an entity
             key = key * bound + a[:, j]
         return key
+    # big-endian: byte order (memcmp, how NumPy sorts void) is then numeric order
+    a = np.ascontiguousarray(a, dtype=">i8")
     return a.view(np.dtype((np.void, a.dtype.itemsize * width))).ravel()
 
 
