@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import fields
 
+import element_models as em
 import numpy as np
 import pytest
 import reference as ref
@@ -16,6 +17,9 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.mesh.decompose import decompose
+from dolfinx_feti.mesh.dofpoints import degree2_entities
+from dolfinx_feti.mesh.topology import _row_keys
+from dolfinx_feti.share import share_out
 
 COMM = MPI.COMM_WORLD
 
@@ -102,6 +106,71 @@ def test_solution_from_shares_matches_one_rank(case, root):
         p1 = df.ContactProblem(mesh, problem.forms, dirichlet=problem.dirichlet,
                                contact=problem.contact, decomposition=problem.decomposition)
         one = df.solve(p1, comm=MPI.COMM_SELF, rtol=1e-10).nodal_values()
+    one = COMM.bcast(one, root=0)
+    assert ref.rel_max_diff(sol.nodal_values(), one) <= 1e-8
+
+
+def test_entity_keys_sort_as_the_sorted_rows():
+    """Integer and byte keys order entities as their sorted vertex rows, lexicographically.
+
+    A rank numbers its local degree-2 entities by their keys in local vertex numbers and takes
+    that for the global order; it is, because a monotone renumbering keeps lexicographic order.
+    Byte keys of little-endian integers sorted otherwise once a vertex number reached 256.
+    """
+    rng = np.random.default_rng(1)
+    small = rng.permuted(rng.integers(0, 150, (400, 8)), axis=1)  # local vertex numbers
+    rows = 13 * small + 7  # global ones: a monotone renumbering, crossing 256
+    s = np.sort(rows, axis=1)
+    want = np.lexsort(s.T[::-1])
+    keys = _row_keys(rows, int(rows.max()) + 1)
+    assert keys.dtype.kind == "V"  # 1958**8 > 2**62: the rows' bytes
+    assert np.array_equal(np.argsort(keys, kind="stable"), want)
+    assert np.array_equal(np.argsort(_row_keys(rows), kind="stable"), want)
+    local = _row_keys(small, 150)
+    assert local.dtype.kind == "i"  # 150**8 < 2**62: int64 keys, the same order
+    assert np.array_equal(np.argsort(local, kind="stable"), want)
+
+
+def hexahedra_q2(comm=COMM):
+    """Degree-2 elasticity on 6³ hexahedra: 343 vertices, so cell keys are bytes."""
+    mesh = df.build_mesh(em.box, True, 6, comm=comm)
+    return df.ContactProblem(
+        mesh, df.Elasticity(1.0, 0.3, degree=2, tractions={"x1": (0.0, 0.0, -0.1)}),
+        dirichlet=[df.Dirichlet("x0"),
+                   df.Dirichlet("z0", lambda x: 0.01 * x[:, 0], components=[2])],
+        decomposition=df.Parts(4))
+
+
+@pytest.fixture(scope="module")
+def hexahedra():
+    return hexahedra_q2()
+
+
+def test_a_share_looks_up_its_degree2_entities_as_the_whole_mesh(hexahedra):
+    """Every edge, face and interior point of a rank's cells is found by its local vertices."""
+    dec = decompose(hexahedra.mesh, hexahedra.decomposition, COMM.size, hexahedra.dof_points)
+    share = share_out(hexahedra.mesh, hexahedra.dof_points, dec, build_rows(hexahedra, dec), 3,
+                      COMM)
+    points, cells = share.points, share.mesh.cells
+    assert np.array_equal(share.point_ids[points.cell_points],
+                          hexahedra.dof_points.cell_points[share.cell_ids])
+    column = cells.shape[1]
+    for dim, local in degree2_entities("hexahedron"):
+        v = cells[:, np.array(local)]
+        got = points.lookup(dim, v.reshape(-1, v.shape[2])).reshape(v.shape[:2])
+        assert np.array_equal(got, points.cell_points[:, column:column + len(local)]), dim
+        column += len(local)
+
+
+def test_degree2_hexahedra_give_the_one_rank_solution(hexahedra):
+    sol = df.solve(hexahedra, method="tfeti", rtol=1e-10)
+    assert sol.report.converged
+    if COMM.size == 1:
+        return
+    one = None
+    if COMM.rank == 0:
+        p1 = hexahedra_q2(MPI.COMM_SELF)
+        one = df.solve(p1, comm=MPI.COMM_SELF, method="tfeti", rtol=1e-10).nodal_values()
     one = COMM.bcast(one, root=0)
     assert ref.rel_max_diff(sol.nodal_values(), one) <= 1e-8
 
