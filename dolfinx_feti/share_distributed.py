@@ -36,9 +36,6 @@ from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row
 
 def unsupported(problem, method: str) -> str | None:
     """Why ``problem`` on a distributed mesh cannot be solved by ``method`` yet, or None."""
-    if any(getattr(c, "friction", None) is not None for c in problem.contact):
-        return ("friction on a distributed mesh (read_gmsh(..., distribute=True)) is not built "
-                "yet: read the mesh with distribute=False")
     if method == "fetidp":
         return ("method='fetidp' on a distributed mesh (read_gmsh(..., distribute=True)) is not "
                 "built yet: use 'tfeti' or 'feti1', or read the mesh with distribute=False")
@@ -260,6 +257,22 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
             out = (rows, mortar)
     rows, mortar = comm.bcast(out, root=0)
     return surface, rows, mortar
+
+
+def surface_friction(surface: Surface, rows: RankRows):
+    """The friction data of a distributed mesh (rank 0), from the contact rows.
+
+    :func:`~.constraints.friction.friction_data` on the contact rows in their global order,
+    with the points of the surface mesh; its row indices then become global ones.
+    """
+    from .constraints.friction import friction_data
+
+    c = rows.contact
+    found = friction_data(surface.problem, replace(c, node=surface.local(c.node)))
+    if found is None:
+        return None
+    index = rows.contact_index
+    return replace(found, rows=index[found.rows], normal_row=index[found.normal_row])
 
 
 def _ranges(counts: np.ndarray) -> np.ndarray:
