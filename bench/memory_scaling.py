@@ -18,6 +18,7 @@ case:
     python bench/memory_scaling.py --ranks 1 2     # fewer cases
     python bench/memory_scaling.py --fixed 362 32 --weak 128 8   # smaller (docs/benchmarks.md)
     python bench/memory_scaling.py --root-only     # the mesh on rank 0 only
+    python bench/memory_scaling.py --distribute    # no rank holds the whole mesh
 """
 
 from __future__ import annotations
@@ -44,7 +45,7 @@ def vm_hwm_mib() -> float:
     return math.nan
 
 
-def worker(n: int, parts: int, root_only: int) -> None:
+def worker(n: int, parts: int, layout: int) -> None:
     from mpi4py import MPI
 
     sys.path.insert(0, str(ROOT / "bench"))
@@ -54,7 +55,8 @@ def worker(n: int, parts: int, root_only: int) -> None:
 
     comm = MPI.COMM_WORLD
     base = vm_hwm_mib()
-    mesh = df.build_mesh(meshes.membranes, n, replicate=not root_only)
+    # layout 0: replicated, 1: rank 0 only (replicate=False), 2: distribute=True
+    mesh = df.build_mesh(meshes.membranes, n, replicate=layout == 0, distribute=layout == 2)
     after_mesh = vm_hwm_mib()
     sol = df.solve(df.ContactProblem(
         mesh, df.Poisson(source=P.b1_source), dirichlet=[df.Dirichlet("dirichlet")],
@@ -69,9 +71,9 @@ def worker(n: int, parts: int, root_only: int) -> None:
         print("RESULT " + json.dumps(recs), flush=True)
 
 
-def run_case(ranks: int, n: int, parts: int, root_only: bool) -> list[dict]:
+def run_case(ranks: int, n: int, parts: int, layout: int) -> list[dict]:
     cmd = ["mpirun", "-n", str(ranks), "--allow-run-as-root", "--oversubscribe",
-           sys.executable, __file__, "--worker", str(n), str(parts), str(int(root_only))]
+           sys.executable, __file__, "--worker", str(n), str(parts), str(layout)]
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     out = subprocess.run(cmd, capture_output=True, text=True, env=env, check=True).stdout
     line = next(ln for ln in out.splitlines() if ln.startswith("RESULT "))
@@ -101,6 +103,8 @@ def main() -> None:
     ap.add_argument("--worker", nargs=3, type=int, help=argparse.SUPPRESS)
     ap.add_argument("--root-only", action="store_true",
                     help="read the mesh with replicate=False (the arrays on rank 0 only)")
+    ap.add_argument("--distribute", action="store_true",
+                    help="read the mesh with distribute=True (every rank a block of cells)")
     ap.add_argument("--ranks", nargs="*", type=int, default=[1, 2, 4, 8])
     ap.add_argument("--fixed", nargs=2, type=int, default=[512, 64], metavar=("N", "PARTS"))
     ap.add_argument("--weak", nargs=2, type=int, default=[181, 8], metavar=("N0", "PARTS0"))
@@ -109,14 +113,15 @@ def main() -> None:
     if args.worker:
         worker(*args.worker)
         return
+    layout = 2 if args.distribute else 1 if args.root_only else 0
     fixed, weak = [], []
     for r in args.ranks:
         fn, fp = args.fixed
-        fixed.append((r, fn, fp, run_case(r, fn, fp, args.root_only)))
+        fixed.append((r, fn, fp, run_case(r, fn, fp, layout)))
         print(table("fixed", fixed[-1:]).splitlines()[-1], flush=True)
         n0, p0 = args.weak
         n = int(round(n0 * math.sqrt(r)))
-        weak.append((r, n, p0 * r, run_case(r, n, p0 * r, args.root_only)))
+        weak.append((r, n, p0 * r, run_case(r, n, p0 * r, layout)))
         print(table("weak", weak[-1:]).splitlines()[-1], flush=True)
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps({"fixed": fixed, "weak": weak}, indent=1))

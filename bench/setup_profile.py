@@ -22,6 +22,7 @@ the FETI solve and at the end (after the direct solve, which runs on rank 0).
     mpirun -n 2 python bench/setup_profile.py               # ~2 min per repeat on 2 cores
     mpirun -n 2 python bench/setup_profile.py --repeat 3 --json output/bench/setup.json
     mpirun -n 2 python bench/setup_profile.py --root-only   # the mesh on rank 0 only
+    mpirun -n 2 python bench/setup_profile.py --distribute  # no rank holds the whole mesh
     PYTHONPATH=/path/to/other/export mpirun -n 2 python bench/setup_profile.py   # A/B
 """
 
@@ -66,7 +67,8 @@ def tmax(t0: float) -> float:
     return COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX)
 
 
-def build_mesh(n: int, replicate: bool = True) -> tuple[df.MeshData, dict[str, float]]:
+def build_mesh(n: int, replicate: bool = True, distribute: bool = False
+               ) -> tuple[df.MeshData, dict[str, float]]:
     import gmsh
 
     COMM.Barrier()
@@ -77,7 +79,7 @@ def build_mesh(n: int, replicate: bool = True) -> tuple[df.MeshData, dict[str, f
         meshes.membranes(n)
     t_model = tmax(t0)
     t0 = time.perf_counter()
-    mesh = df.read_gmsh(None, COMM, replicate=replicate)
+    mesh = df.read_gmsh(None, COMM, replicate=replicate, distribute=distribute)
     t_read = tmax(t0)
     if COMM.rank == 0:
         gmsh.finalize()
@@ -102,7 +104,10 @@ def feti(mesh: df.MeshData, H: float, rtol: float) -> tuple[dict[str, float], di
     info = {"primal": rep.sizes["primal"], "dual": rep.sizes["dual"],
             "subdomains": rep.sizes["subdomains"], "converged": rep.converged,
             "outer": rep.outer_iterations, "mults": rep.hessian_mults, "wall": wall,
-            "u_max": float(np.abs(sol.nodal_values()).max())}
+            "u_max": COMM.bcast(None if COMM.rank else float(np.abs(
+                sol.nodal_values_on_root()).max()), root=0)}
+    if COMM.rank != 0:
+        sol.nodal_values_on_root()
     del sol
     return phases, info
 
@@ -159,15 +164,21 @@ def main() -> None:
     ap.add_argument("--no-direct", action="store_true")
     ap.add_argument("--root-only", action="store_true",
                     help="read_gmsh(replicate=False): the mesh's arrays on rank 0 only")
+    ap.add_argument("--distribute", action="store_true",
+                    help="read_gmsh(distribute=True): every rank a block of cells (the direct "
+                         "solve then reads its own copy on rank 0, after FETI)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     runs = []
     for _ in range(args.repeat):
-        mesh, times = build_mesh(args.n, not args.root_only)
+        mesh, times = build_mesh(args.n, not args.root_only, args.distribute)
         phases, info = feti(mesh, args.H, args.rtol)
         times.update(phases)
         info["peak MiB after FETI"] = COMM.allgather(vm_hwm_mib())
         if not args.no_direct:
+            if args.distribute:  # the direct solve needs the whole mesh on rank 0
+                del mesh
+                mesh, _ = build_mesh(args.n, replicate=False)
             d = direct(mesh) if COMM.rank == 0 else None
             d = COMM.bcast(d, root=0)
             info.update({k: d.pop(k) for k in ("direct residual", "direct dofs")})

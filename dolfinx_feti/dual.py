@@ -260,7 +260,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
 def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
                          timer: Timer, method: str) -> DualQP:
     """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
-    from .share_distributed import share_from_parts, unsupported
+    from .share_distributed import share_from_parts, surface_friction, unsupported
 
     why = unsupported(problem, method)
     if why is not None:
@@ -278,7 +278,13 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
             steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
     qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
                   timer=timer, dec=share.dec, rows=share.rows, info={})
-    qp.mortar, qp.friction, qp.share, qp.surface = mortar, None, share, surface
+    fdata = None
+    if any(getattr(c, "friction", None) is not None for c in problem.contact):
+        with collective(comm, "friction"):
+            if comm.rank == 0:  # from the contact rows, on the cells along the surfaces
+                fdata = surface_friction(surface, share.rows)
+        fdata = comm.bcast(fdata, root=0)
+    qp.mortar, qp.friction, qp.share, qp.surface = mortar, fdata, share, surface
     qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 

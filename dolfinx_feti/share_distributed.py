@@ -36,9 +36,6 @@ from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row
 
 def unsupported(problem, method: str) -> str | None:
     """Why ``problem`` on a distributed mesh cannot be solved by ``method`` yet, or None."""
-    if any(getattr(c, "friction", None) is not None for c in problem.contact):
-        return ("friction on a distributed mesh (read_gmsh(..., distribute=True)) is not built "
-                "yet: read the mesh with distribute=False")
     if method == "fetidp":
         return ("method='fetidp' on a distributed mesh (read_gmsh(..., distribute=True)) is not "
                 "built yet: use 'tfeti' or 'feti1', or read the mesh with distribute=False")
@@ -57,7 +54,7 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
         contact surfaces gathered on rank 0 (:class:`Surface`; None elsewhere and without
         contact); what the mortar search found (every rank).
     """
-    from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows
+    from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows, shared_points
     from .mesh.distributed_decompose import decompose_distributed
     from .mesh.distributed_points import migrate, number_points, owners, point_subdomains
 
@@ -131,8 +128,11 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
         for g in np.unique(f_group[here]):
             sub_facets.setdefault(int(s), {})[names[g]] = local_f[here & (f_group == g)]
 
-    fixed, values = _dirichlet(problem, local_mesh, points, local_f, f_group, names, pids,
-                               num_points, comm, dirichlet_mask_distributed)
+    conditions = _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids)
+    # a point no other rank holds has all its cells, so all its facets, here: no exchange
+    fixed, values = dirichlet_mask_distributed(
+        pids, conditions, bs, num_points, comm,
+        shared=shared_points(ptr, node_subs, sub_rank, comm.rank))
     surface = None
     extra = Rows.empty(mesh.gdim)
     mortar: list = []
@@ -259,6 +259,22 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
     return surface, rows, mortar
 
 
+def surface_friction(surface: Surface, rows: RankRows):
+    """The friction data of a distributed mesh (rank 0), from the contact rows.
+
+    :func:`~.constraints.friction.friction_data` on the contact rows in their global order,
+    with the points of the surface mesh; its row indices then become global ones.
+    """
+    from .constraints.friction import friction_data
+
+    c = rows.contact
+    found = friction_data(surface.problem, replace(c, node=surface.local(c.node)))
+    if found is None:
+        return None
+    index = rows.contact_index
+    return replace(found, rows=index[found.rows], normal_row=index[found.normal_row])
+
+
 def _ranges(counts: np.ndarray) -> np.ndarray:
     """0 … c − 1 for every count c, concatenated."""
     return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
@@ -312,16 +328,15 @@ def _point_coordinates(local_points: np.ndarray, cell_x: np.ndarray, cell_type: 
     return out
 
 
-def _dirichlet(problem, local_mesh, points, local_f, f_group, names, pids, num_points, comm,
-               mask):
-    """The Dirichlet mask and values of this rank's points (consistent over the ranks)."""
+def _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids) -> list:
+    """Per Dirichlet condition: the global points on this rank's facets of its group."""
     conditions = []
     for bc in problem.dirichlet:
         f = local_f[f_group == names.index(bc.group)]
         on = np.unique(points.facet_points(local_mesh, f)) if f.size else \
             np.zeros(0, dtype=np.int64)
         conditions.append((bc, pids[on], points.x[on]))
-    return mask(pids, conditions, problem.value_size, num_points, comm)
+    return conditions
 
 
 def _columns(own: Rows, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm):

@@ -62,7 +62,9 @@ class ByFunction:
 
     Cells with equal labels form a subdomain; a label whose cells are not connected through
     facets, or that spans two bodies not glued together, gives one subdomain per piece. The
-    function is called on rank 0, which holds the mesh during the set-up.
+    function is called on rank 0, which holds the mesh during the set-up — or, for a mesh read
+    with ``distribute=True``, on every rank with the midpoints of its cells (a label must then
+    depend on each midpoint alone).
 
     Args:
         fn: ``fn(midpoints: (C, gdim) array) -> (C,) integer labels``.
