@@ -198,8 +198,14 @@ class Subdomain:
         key_nodes = np.repeat(np.arange(len(self._node_ptr) - 1), np.diff(self._node_ptr)) \
             * np.int64(self._points.num_points) + self.nodes
         want = self._cell_block[:, None] * np.int64(self._points.num_points) + pts
-        out = np.empty(compat.dof_count(V), dtype=np.int64)
-        out[dofs] = np.searchsorted(key_nodes, want)
+        pos = np.minimum(np.searchsorted(key_nodes, want), key_nodes.size - 1)
+        out = np.full(compat.dof_count(V), -1, dtype=np.int64)
+        out[dofs] = pos
+        # each dof on its own point of this subdomain: else the permutation below has holes
+        if np.any(key_nodes[pos] != want) or np.any(out < 0) or \
+                np.any(np.bincount(out, minlength=out.size) != 1):
+            raise AssertionError(f"subdomain(s) {self._ids}: the space's dofs do not sit one "
+                                 "by one on the subdomain's dof points")
         return out
 
     def _check_space(self, forms, V) -> None:
