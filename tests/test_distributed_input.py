@@ -50,7 +50,7 @@ def tied_blocks(root, distribute):
 
 
 def hexahedra_p2(root, distribute):
-    mesh = df.build_mesh(em.box, True, 5, distribute=distribute)
+    mesh = df.build_mesh(em.box, True, 6, distribute=distribute)
     return df.ContactProblem(
         mesh, df.Elasticity(1.0, 0.3, degree=2, tractions={"x1": (0.0, 0.0, -0.1)}),
         dirichlet=[df.Dirichlet("x0"),
