@@ -73,7 +73,7 @@ def number_points(cells: np.ndarray, cell_type: str, degree: int, num_vertices: 
     local, inverse = [], []
     for _, vertex_lists in entities:
         v = cells[:, np.array(vertex_lists)]  # (C, ne, nve)
-        keys, inv = np.unique(_row_keys(v.reshape(-1, v.shape[2]), N), return_inverse=True)
+        keys, _, inv = _unique(_row_keys(v.reshape(-1, v.shape[2]), N))
         local.append(keys)
         inverse.append(inv.reshape(C, v.shape[1]))
     numbers, totals = _rank_in_union(local, comm)
@@ -105,16 +105,22 @@ def point_coordinates(cell_points: np.ndarray, cells: np.ndarray, cell_x: np.nda
     """
     cells = np.asarray(cells, dtype=np.int64)
     cell_x = np.asarray(cell_x, dtype=float)
-    parts = [cell_x]
-    if degree == 2:
-        for _, vertex_lists in degree2_entities(cell_type):
-            local = np.array(vertex_lists)  # (ne, nve)
-            order = np.argsort(cells[:, local], axis=2, kind="stable")  # by global number
-            at = np.take_along_axis(np.broadcast_to(local, order.shape), order, axis=2)
-            parts.append(cell_x[np.arange(cells.shape[0])[:, None, None], at].mean(axis=2))
-    x = np.concatenate(parts, axis=1)
-    points, first = np.unique(np.asarray(cell_points).ravel(), return_index=True)
-    return points, x.reshape(-1, cell_x.shape[2])[first]
+    k, nvc = np.shape(cell_points)[1], cells.shape[1]
+    points, first, _ = _unique(np.asarray(cell_points, dtype=np.int64).ravel())
+    cell, slot = first // k, first % k  # one cell and position holding each point
+    x = np.empty((points.size, cell_x.shape[2]))
+    vertex = slot < nvc
+    x[vertex] = cell_x[cell[vertex], slot[vertex]]
+    start, entities = nvc, degree2_entities(cell_type) if degree == 2 else ()
+    for _, vertex_lists in entities:
+        local = np.array(vertex_lists)  # (ne, nve): the entities' slots are start … start + ne
+        mine = np.flatnonzero((slot >= start) & (slot < start + local.shape[0]))
+        at = local[slot[mine] - start]  # (n, nve) local vertices of each entity
+        c = cell[mine][:, None]
+        at = np.take_along_axis(at, np.argsort(cells[c, at], axis=1), axis=1)  # by global number
+        x[mine] = cell_x[c, at].mean(axis=1)
+        start += local.shape[0]
+    return points, x
 
 
 def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: int, nsub: int,
@@ -149,20 +155,21 @@ def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: 
                              "pairs beyond 64-bit keys")
     size, nsub = comm.size, int(nsub)
     # The distinct (point, subdomain) pairs of the local cells, to the points' home ranks.
-    key = np.unique(cell_points.astype(np.int64).ravel() * nsub
+    key = _distinct(cell_points.astype(np.int64).ravel() * nsub
                     + np.repeat(cell_sub.astype(np.int64), cell_points.shape[1]))
     pairs = np.column_stack([key // nsub, key % nsub])
     home = Blocks(num_points, size).home(pairs[:, 0])
     (got,), _, _, rcounts = exchange(comm, home, pairs)
     sender = np.repeat(np.arange(size, dtype=np.int64), rcounts)
     # Home: each point's sorted subdomains (pairs sent by several ranks counted once).
-    key = np.unique(got[:, 0] * nsub + got[:, 1])
+    key = _distinct(got[:, 0] * nsub + got[:, 1])
     point, sub = key // nsub, key % nsub
     sub_size = np.bincount(sub, minlength=nsub).astype(np.int64)
     comm.Allreduce(MPI.IN_PLACE, sub_size, op=MPI.SUM)
-    held, start, count = np.unique(point, return_index=True, return_counts=True)
+    held, start = _starts(point)
+    count = np.diff(np.append(start, point.size))
     # Each rank that sent a pair of a point receives the point's whole list.
-    ask = np.unique(got[:, 0] * size + sender)
+    ask = _distinct(got[:, 0] * size + sender)
     ask_point, ask_rank = ask // size, ask % size
     at = np.searchsorted(held, ask_point)
     n = count[at]
@@ -171,7 +178,7 @@ def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: 
                                 np.column_stack([np.repeat(ask_point, n), sub[rows]]))
     # The homes' blocks ascend with their ranks and each sends its rows by point, then
     # subdomain: the rows arrive sorted.
-    points, ptr = np.unique(back[:, 0], return_index=True)
+    points, ptr = _starts(back[:, 0])
     return points, np.append(ptr, back.shape[0]).astype(np.int64), back[:, 1], sub_size
 
 
@@ -246,7 +253,7 @@ def _rank_in_union(key_sets: list[np.ndarray], comm: MPI.Comm
         else:
             dest = np.zeros(keys.size, dtype=np.int64)
         (rows,), order, counts, rcounts = exchange(comm, dest, _as_rows(keys))
-        mine, inv = np.unique(_from_rows(rows, keys.dtype), return_inverse=True)
+        mine, _, inv = _unique(_from_rows(rows, keys.dtype))
         received.append(inv)
         routes.append((order, counts, rcounts))
         distinct.append(mine.size)
@@ -274,6 +281,32 @@ def _from_rows(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # Helpers
 # ------------------------------------------------------------------------------------------------
+
+
+def _unique(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``np.unique(a, return_index=True, return_inverse=True)`` (any index of each value).
+
+    By a stable sort: NumPy's timsort merges the sorted runs that the exchanges deliver (each
+    sender's keys in order) in near-linear time, several times faster than a quicksort.
+    """
+    order = np.argsort(a, kind="stable")
+    values, start = _starts(a[order])
+    inverse = np.empty(a.size, dtype=np.int64)
+    inverse[order] = np.repeat(np.arange(start.size), np.diff(np.append(start, a.size)))
+    return values, order[start], inverse
+
+
+def _distinct(a: np.ndarray) -> np.ndarray:
+    """The sorted distinct values of ``a`` (a stable sort, as in :func:`_unique`)."""
+    return _starts(np.sort(a, kind="stable"))[0]
+
+
+def _starts(sorted_values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct values of a sorted array and the index where each begins."""
+    new = np.ones(sorted_values.size, dtype=bool)
+    new[1:] = sorted_values[1:] != sorted_values[:-1]
+    start = np.flatnonzero(new)
+    return sorted_values[start], start
 
 
 def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
