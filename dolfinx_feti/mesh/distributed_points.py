@@ -106,7 +106,7 @@ def point_coordinates(cell_points: np.ndarray, cells: np.ndarray, cell_x: np.nda
     cells = np.asarray(cells, dtype=np.int64)
     cell_x = np.asarray(cell_x, dtype=float)
     k, nvc = np.shape(cell_points)[1], cells.shape[1]
-    points, first, _ = _unique(np.asarray(cell_points, dtype=np.int64).ravel())
+    points, first, _ = _unique(np.asarray(cell_points, dtype=np.int64).ravel(), False)
     cell, slot = first // k, first % k  # one cell and position holding each point
     x = np.empty((points.size, cell_x.shape[2]))
     vertex = slot < nvc
@@ -283,17 +283,20 @@ def _from_rows(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 
 
-def _unique(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``np.unique(a, return_index=True, return_inverse=True)`` (any index of each value).
+def _unique(a: np.ndarray, inverse: bool = True
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``np.unique(a, return_index=True, return_inverse=inverse)`` (any index of each value).
 
     By a stable sort: NumPy's timsort merges the sorted runs that the exchanges deliver (each
     sender's keys in order) in near-linear time, several times faster than a quicksort.
     """
     order = np.argsort(a, kind="stable")
     values, start = _starts(a[order])
-    inverse = np.empty(a.size, dtype=np.int64)
-    inverse[order] = np.repeat(np.arange(start.size), np.diff(np.append(start, a.size)))
-    return values, order[start], inverse
+    if not inverse:
+        return values, order[start], None
+    where = np.empty(a.size, dtype=np.int64)
+    where[order] = np.repeat(np.arange(start.size), np.diff(np.append(start, a.size)))
+    return values, order[start], where
 
 
 def _distinct(a: np.ndarray) -> np.ndarray:
