@@ -207,6 +207,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
                          "(read_gmsh(..., replicate=False)): solve on that communicator")
+    if problem.mesh.part is not None:
+        return _dual_qp_distributed(problem, comm, factor, norm_rtol, timer, method)
     dec = rows = extra = common = None
     # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
     # arrays; every rank then keeps only its share (:mod:`.share`).
@@ -249,6 +251,32 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
                   timer=timer, dec=share.dec, rows=share.rows, info=info)
     qp.mortar, qp.friction, qp.share = mortar, fdata, share
     qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, bs)
+    return qp
+
+
+def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
+                         timer: Timer, method: str) -> DualQP:
+    """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
+    from .share_distributed import share_from_parts, unsupported
+
+    why = unsupported(problem, method)
+    if why is not None:
+        raise InputError(why)
+    with timer.phase("decomposition"):
+        share = share_from_parts(problem, comm)
+    if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
+        glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
+        method = "tfeti" if glued else "feti1"
+    data = assemble_subdomains(problem, share, comm, timer)
+    with timer.phase("constraints"):
+        total = BlockSystem.from_rows(data, share.rows)
+        steps: list = []
+        if method == "feti1":
+            steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
+    qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
+                  timer=timer, dec=share.dec, rows=share.rows, info={})
+    qp.mortar, qp.friction, qp.share = [], None, share
+    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
+from .errors import SolveError
+
 
 def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
     """Send row i of each array to rank ``dest[i]`` (collective).
@@ -26,7 +28,9 @@ def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
     comm.Alltoall(counts, rcounts)
     out = []
     for a in arrays:
-        a = np.ascontiguousarray(np.asarray(a)[order])
+        a = np.asarray(a)
+        # MPI knows native types only ('<d' from gmsh's arrays is not 'd' to it)
+        a = np.ascontiguousarray(a[order], dtype=a.dtype.newbyteorder("="))
         width = int(np.prod(a.shape[1:], dtype=np.int64))
         recv = np.empty((int(rcounts.sum()),) + a.shape[1:], dtype=a.dtype)
         comm.Alltoallv([a, counts * width], [recv, rcounts * width])
@@ -65,10 +69,49 @@ class Blocks:
         return slice(int(self.lo[rank]), int(self.lo[rank + 1]))
 
 
+def hand_out(comm: MPI.Comm, make, what: str) -> object:
+    """Rank 0 makes the pieces one at a time and sends each to its rank; returns this rank's.
+
+    One piece at a time keeps rank 0's memory at the whole data plus two pieces (a scatter
+    would hold every piece and its pickle at once). A failure while making a piece is sent in
+    place of the pieces not yet sent, and every rank then raises it: none is left waiting.
+
+    Args:
+        comm: The ranks.
+        make: ``make(rank)`` → the piece of that rank (called on rank 0 only).
+        what: What is handed out, for the error message.
+    """
+    piece = failure = None
+    if comm.rank == 0:
+        for r in [*range(1, comm.size), 0]:
+            msg = failure
+            if failure is None:
+                try:
+                    msg = make(r)
+                except Exception as e:  # every rank must hear of it
+                    failure = msg = SolveError(f"{what} failed on rank 0 "
+                                               f"({type(e).__name__}: {e})")
+            if r == 0:
+                piece = msg
+            else:
+                comm.send(msg, dest=r, tag=_TAG)
+            del msg
+    else:
+        piece = comm.recv(source=0, tag=_TAG)
+    failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        raise failure
+    return piece
+
+
+#: The MPI tag of the pieces :func:`hand_out` sends.
+_TAG = 7214
+
+
 def exclusive_scan(comm: MPI.Comm, count: int) -> int:
     """The sum of ``count`` over the ranks before this one (0 on rank 0)."""
     start = comm.exscan(int(count))
     return 0 if comm.rank == 0 or start is None else int(start)
 
 
-__all__ = ["Blocks", "answer", "exchange", "exclusive_scan"]
+__all__ = ["Blocks", "answer", "exchange", "exclusive_scan", "hand_out"]

@@ -42,10 +42,13 @@ def parent_mesh(mesh: MeshData, comm: MPI.Comm):
     global _PARENT
     if _PARENT is None or _PARENT[0] is not mesh or _PARENT[1] != comm.py2f():
         degree = mesh.geometry_degree
-        points = dof_points(mesh, degree)  # rank 0 holds the arrays (the others: sizes)
-        cells, x = points.cell_points, points.x
-        if comm.rank != 0:
-            cells, x = cells[:0], x[:0]
+        if mesh.part is not None:
+            cells, x = _part_input(mesh, comm)
+        else:
+            points = dof_points(mesh, degree)  # rank 0 holds the arrays (the others: sizes)
+            cells, x = points.cell_points, points.x
+            if comm.rank != 0:
+                cells, x = cells[:0], x[:0]
         _PARENT = None  # keep at most one parent mesh alive
         _PARENT = (mesh, comm.py2f(), compat.create_mesh(comm, cells, x, mesh.cell_type, degree))
     return _PARENT[2]
@@ -69,6 +72,21 @@ def output_mesh(mesh: MeshData, comm: MPI.Comm, msh=None) -> tuple[object, np.nd
         return mesh.source.mesh, mesh.source.vertex_ids(), mesh.source.cell_ids()
     msh = parent_mesh(mesh, comm) if msh is None else msh
     return msh, compat.node_input_indices(msh), compat.cell_input_indices(msh)
+
+
+def _part_input(mesh: MeshData, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+    """A distributed mesh's input to DOLFINx: each rank's cells, and its block of the nodes.
+
+    DOLFINx numbers the input nodes by rank (rank r gives the nodes after those of the ranks
+    before it), so rank r gives the coordinates of the vertices ``Blocks(N).local(r)``.
+    """
+    part = mesh.part
+    blocks = Blocks(mesh.num_nodes, comm.size)
+    (ids, x), *_ = exchange(comm, blocks.home(part.vertex_ids), part.vertex_ids, mesh.x)
+    mine = blocks.local(comm.rank)
+    out = np.zeros((mine.stop - mine.start, mesh.gdim))
+    out[ids - mine.start] = x
+    return part.vertex_ids[mesh.cells], out
 
 
 def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
@@ -96,7 +114,9 @@ def distributed_function(mesh: MeshData, nodes: np.ndarray, values: np.ndarray,
     values = np.asarray(values, dtype=np.float64)
     if degree != points.degree:  # the vertices are the first dof points of every degree
         keep = nodes < mesh.num_nodes
-        points, nodes, values = dof_points(mesh, degree), nodes[keep], values[keep]
+        points = points.with_degree(degree) if mesh.part is not None else \
+            dof_points(mesh, degree)
+        nodes, values = nodes[keep], values[keep]
     if mesh.root_only is not None:  # only rank 0 knows the points of edges and faces
         points = RootLookup(points, mesh.root_only)
     msh, vertex, _ = output_mesh(mesh, comm, msh)

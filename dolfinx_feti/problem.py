@@ -398,7 +398,9 @@ class ContactProblem:
         check_dimensions(self)
         contact_groups = [g for c in [*self.contact, *self.ties] for g in
                           ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
-        if self.mesh.root_only is None:
+        if self.mesh.part is not None:  # rank 0 checked the whole mesh at input
+            _check_verdicts(self.mesh.part.verdicts, self, contact_groups)
+        elif self.mesh.root_only is None:
             _check_mesh(self.mesh, contact_groups, self.forms)
         else:  # collective on the mesh's ranks: rank 0 holds the arrays
             comm, points = self.mesh.root_only, None
@@ -476,6 +478,19 @@ def check_dimensions(problem: ContactProblem) -> None:
                                  f"coordinates, the mesh is {gdim}D"
                                  + (" (a Cylinder is 3D only; use a Sphere, a disc, in 2D)"
                                     if kind == "Cylinder" else ""))
+
+
+def _check_verdicts(verdicts, problem: ContactProblem, contact_groups: list[str]) -> None:
+    """:func:`_check_mesh` of a distributed mesh, from the verdicts of its check at input."""
+    for bc in problem.dirichlet:
+        verdicts.check_group(bc.group, "")
+    for group in contact_groups:
+        verdicts.check_group(group)
+    for what in ("tractions", "flux"):
+        groups = getattr(problem.forms, what, None)
+        for group in groups if isinstance(groups, dict) else ():
+            verdicts.check_group(group, f"{what} on the group")
+    verdicts.check_conforming(contact_groups)
 
 
 def _check_mesh(mesh: MeshData, contact_groups: list[str], forms) -> None:

@@ -24,7 +24,8 @@ import numpy as np
 from mpi4py import MPI
 
 from .constraints.rows import Rows
-from .errors import InputError, SolveError, collective
+from .errors import InputError, collective
+from .exchange import hand_out
 from .mesh.checks import check_boundary_group
 from .mesh.decompose import Decomposition
 from .mesh.dofpoints import DofPoints, degree2_entities
@@ -301,7 +302,7 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                       "group_errors": _group_errors(mesh), "num_points": points.num_points,
                       "degree": points.degree, "num_cells": mesh.cells.shape[0]}
     common = comm.bcast(common, root=0)
-    p = _hand_out(comm, make)
+    p = hand_out(comm, make, "handing out the shares")
     nvc = REFERENCE[mesh.cell_type].num_vertices  # the vertices come first among the points
     # the names and types of the whole mesh, the arrays of this rank's cells
     local_mesh = replace(mesh.names_only(), x=p["x"],
@@ -323,40 +324,6 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                      num_cells=common["num_cells"], dec=dec_local,
                      facets=p["facets"], group_errors=common["group_errors"], rows=rank_rows,
                      extra=p["extra"])
-
-
-def _hand_out(comm: MPI.Comm, make) -> dict:
-    """Rank 0 makes the pieces one at a time and sends each to its rank; returns this rank's.
-
-    One piece at a time keeps rank 0's memory at the global data plus two pieces (a scatter
-    would hold every piece and its pickle at once). A failure while making a piece is sent in
-    place of the pieces not yet sent, and every rank then raises it: none is left waiting.
-    """
-    piece = failure = None
-    if comm.rank == 0:
-        for r in [*range(1, comm.size), 0]:
-            msg = failure
-            if failure is None:
-                try:
-                    msg = make(r)
-                except Exception as e:  # every rank must hear of it
-                    failure = msg = SolveError(f"handing out the shares failed on rank 0 "
-                                               f"({type(e).__name__}: {e})")
-            if r == 0:
-                piece = msg
-            else:
-                comm.send(msg, dest=r, tag=_TAG)
-            del msg
-    else:
-        piece = comm.recv(source=0, tag=_TAG)
-    failure = comm.bcast(failure, root=0)
-    if failure is not None:
-        raise failure
-    return piece
-
-
-#: The MPI tag of the shares' messages.
-_TAG = 7214
 
 
 def _local_entities(cell_type: str, cells: np.ndarray, nv: int, first: dict[int, int]

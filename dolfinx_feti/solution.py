@@ -104,6 +104,7 @@ class Solution:
         self._nodal = None
         self._cell_sub = None
         self._function = None
+        self._directory = None
         self.contact = self._contact_data()
 
     # --- residuals -------------------------------------------------------------------------
@@ -241,7 +242,17 @@ class Solution:
         from .output import distributed_function
         msh = None if self._function is None else self._function.function_space.mesh
         return distributed_function(self.problem.mesh, self.share.pair_points, values, self.comm,
-                                    name, self.problem.dof_points, degree, msh=msh)
+                                    name, self._points(), degree, msh=msh)
+
+    def _points(self):
+        """The dof points of the output: the problem's, or on a distributed mesh a directory."""
+        if self.problem.mesh.part is None:
+            return self.problem.dof_points
+        if self._directory is None:
+            from .mesh.point_directory import PointDirectory
+            self._directory = PointDirectory(self.share, self.problem.degree,
+                                             self.problem.mesh.num_nodes, self.comm)
+        return self._directory
 
     def pressure_function(self, degree: int | None = None):
         """The contact pressure as a scalar Lagrange Function on the whole mesh.
@@ -252,7 +263,7 @@ class Solution:
         from .output import distributed_function
         c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
         return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
-                                    "contact_pressure", self.problem.dof_points, degree,
+                                    "contact_pressure", self._points(), degree,
                                     local=True, msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:

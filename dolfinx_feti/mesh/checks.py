@@ -317,18 +317,21 @@ def nonconforming_nodes(mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
     return result
 
 
-def check_conforming(mesh: MeshData, exempt_groups: Iterable[str] = ()) -> None:
+def check_conforming(mesh: MeshData, exempt_groups: Iterable[str] = (),
+                     found: tuple[np.ndarray, np.ndarray] | None = None) -> None:
     """Refuse two pieces of one body that touch without sharing nodes (a hidden crack).
 
     Args:
         mesh: The mesh.
         exempt_groups: Boundary groups (the contact surfaces) whose nodes may lie on the body's
             other boundary facets.
+        found: The result of :func:`nonconforming_nodes`, if already known (a distributed
+            mesh keeps it from the check of the whole mesh at input).
 
     Raises:
         InputError: Naming the body, the number of such nodes and an example.
     """
-    node, facet = nonconforming_nodes(mesh)
+    node, facet = nonconforming_nodes(mesh) if found is None else found
     exempt = [np.unique(mesh.facet_groups[g]) for g in exempt_groups if g in mesh.facet_groups]
     if exempt and node.size:
         keep = ~np.isin(node, np.concatenate(exempt))

@@ -65,6 +65,9 @@ class MeshData:
         counts: On a rank without the arrays, the sizes of the whole mesh: ``"nodes"``,
             ``"cells"`` and ``"points<degree>"`` (dof points of a space of that degree, once
             a problem has needed them).
+        part: For a mesh spread over the ranks in blocks of cells (:func:`read_gmsh` with
+            ``distribute=True``), what this rank holds besides its arrays
+            (:class:`~.distributed.MeshPart`); None otherwise.
     """
 
     x: np.ndarray
@@ -79,11 +82,16 @@ class MeshData:
     high_order: dict | None = field(default=None, repr=False, compare=False)
     root_only: MPI.Comm | None = field(default=None, repr=False, compare=False)
     counts: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
+    part: object = field(default=None, repr=False, compare=False)
 
     @property
     def holds_arrays(self) -> bool:
-        """Whether this rank holds the arrays (every rank, unless the mesh is root-only)."""
-        return self.root_only is None or self.root_only.rank == 0
+        """Whether this rank holds the whole arrays.
+
+        Every rank does, except the ranks other than 0 of a root-only mesh, and every rank of
+        a distributed mesh (each holds its block).
+        """
+        return self.part is None and (self.root_only is None or self.root_only.rank == 0)
 
     def names_only(self) -> MeshData:
         """The same mesh without its arrays: names, types and sizes of the arrays' rows.
@@ -142,11 +150,14 @@ class MeshData:
     def facets(self, name: str) -> np.ndarray:
         """The facets of a boundary group, with an error that lists the known groups.
 
-        On a rank without the arrays (a root-only mesh) only the name is checked.
+        On a rank without the arrays (a root-only mesh) only the name is checked; on a
+        distributed mesh, the rank's facets of the group.
         """
         self.check_group_name(name)
         f = self.facet_groups[name]
-        if f.shape[0] == 0 and self.holds_arrays:
+        empty = self.part.group_sizes[name] == 0 if self.part is not None else \
+            f.shape[0] == 0 and self.holds_arrays
+        if empty:
             raise InputError(f"boundary group {name!r} is empty: it holds no mesh facet")
         return f
 
@@ -161,7 +172,7 @@ def answered_by_root(comm: MPI.Comm, query: np.ndarray, answer) -> np.ndarray:
 
 
 def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
-              replicate: bool = True) -> MeshData:
+              replicate: bool = True, distribute: bool = False) -> MeshData:
     """Read a gmsh model into :class:`MeshData`.
 
     Args:
@@ -174,9 +185,17 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
             every rank only its share, so no other rank ever holds the whole mesh. Use it
             for large meshes under MPI; code of the user's that reads the arrays (``mesh.x``,
             ``mesh.cells``) then runs on rank 0.
+        distribute: Spread the mesh over the ranks instead (``replicate`` is then not used):
+            rank 0 reads and checks the model, hands every rank a contiguous block of the
+            cells (in the file's order) with their vertices and boundary facets, and keeps
+            only its own block; the arrays of each rank are its block, numbered locally
+            (``mesh.part``: :class:`~.distributed.MeshPart`). No rank holds the whole mesh
+            after the input; the decomposition and the rows are then computed on the
+            distributed data.
 
     Returns:
-        The mesh data, identical on every rank of ``comm`` (or on rank 0, see ``replicate``).
+        The mesh data, identical on every rank of ``comm`` (or on rank 0, see ``replicate``;
+        or each rank's block, see ``distribute``).
 
     Raises:
         InputError: If the file is missing, the model has no physical groups of cells,
@@ -191,6 +210,14 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
             from .checks import check_mesh  # degenerate or inverted cells, empty bodies
 
             check_mesh(data)
+    if distribute:
+        from .distributed import scatter_mesh
+
+        with collective(comm, "mesh"):
+            if comm.rank == 0 and data.high_order is not None:
+                raise InputError("a curved (second-order) mesh cannot be distributed yet: "
+                                 "read it with distribute=False")
+        return scatter_mesh(data, comm)
     if not replicate and comm.size > 1:
         names = comm.bcast(data.names_only() if comm.rank == 0 else None, root=0)
         data = data if comm.rank == 0 else names
@@ -204,7 +231,7 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
 
 
 def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
-               replicate: bool = True, **kwargs) -> MeshData:
+               replicate: bool = True, distribute: bool = False, **kwargs) -> MeshData:
     """Run a gmsh model generator on rank 0 and read the model it leaves current.
 
     Args:
@@ -214,6 +241,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
         comm: The ranks that receive the mesh.
         gdim: Geometric dimension (default: that of the cells).
         replicate: Whether every rank receives the arrays (see :func:`read_gmsh`).
+        distribute: Whether the mesh is spread over the ranks (see :func:`read_gmsh`).
         **kwargs: Keyword arguments of the generator.
 
     Returns:
@@ -231,7 +259,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
                 gmsh.finalize()
                 raise
     try:
-        return read_gmsh(None, comm, gdim, replicate)
+        return read_gmsh(None, comm, gdim, replicate, distribute)
     finally:
         if comm.rank == 0:
             gmsh.finalize()
@@ -426,7 +454,7 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
     new_index = np.full(node_tags.size, -1, dtype=np.int64)
     new_index[used] = np.arange(used.size)
     cells = new_index[cells_g]
-    x = coords[used, :gdim].copy()
+    x = coords[used, :gdim].astype(np.float64)  # native byte order (gmsh gives '<d')
     if gdim < 3 and np.any(np.abs(coords[used, gdim:]) > 1e-12 * max(1.0, np.abs(x).max())):
         raise InputError(f"the mesh is not planar: nodes have non-zero coordinates beyond "
                          f"dimension {gdim}")

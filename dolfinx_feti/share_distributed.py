@@ -1,0 +1,181 @@
+"""The ranks' shares of a distributed mesh, built without any rank holding the whole problem.
+
+The counterpart of :func:`~dolfinx_feti.share.share_out` for a mesh read with
+``distribute=True`` (:mod:`.mesh.distributed`): every rank starts from its block of cells and
+ends with the same :class:`~dolfinx_feti.share.RankShare` that rank 0 would have handed it,
+field for field:
+
+1. the decomposition of the distributed mesh (:mod:`.mesh.distributed_decompose`: the serial
+   subdomains, computed in parallel);
+2. the global dof points of the local cells and the number of points of every subdomain
+   (:mod:`.mesh.distributed_points`), hence the owner of every subdomain;
+3. the cells, with their points and boundary facets, move to the owners of their subdomains;
+4. the node directory gives every point the subdomains holding it; the Dirichlet mask and the
+   rows each rank owns follow from it (:mod:`.constraints.distributed_rows`), in the serial
+   order.
+
+Only arrays of one entry per subdomain (owners, sizes, bodies) are global.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from mpi4py import MPI
+
+from .constraints.rows import Rows
+from .errors import InputError
+from .exchange import answer, exchange
+from .mesh.dofpoints import DofPoints, degree2_entities
+from .mesh.topology import REFERENCE, locate_facets
+from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
+
+
+def unsupported(problem, method: str) -> str | None:
+    """Why ``problem`` on a distributed mesh cannot be solved by ``method`` yet, or None."""
+    if problem.contact or problem.ties:
+        return ("contact and ties on a distributed mesh (read_gmsh(..., distribute=True)) are "
+                "not built yet: read the mesh with distribute=False")
+    if method == "fetidp":
+        return ("method='fetidp' on a distributed mesh (read_gmsh(..., distribute=True)) is not "
+                "built yet: use 'tfeti' or 'feti1', or read the mesh with distribute=False")
+    return None
+
+
+def share_from_parts(problem, comm: MPI.Comm) -> RankShare:
+    """This rank's share of ``problem``, whose mesh is distributed (collective).
+
+    Args:
+        problem: The contact problem (``problem.mesh.part`` is set).
+        comm: The mesh's ranks.
+    """
+    from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows
+    from .mesh.distributed_decompose import decompose_distributed
+    from .mesh.distributed_points import migrate, number_points, owners, point_subdomains
+
+    mesh, part, bs = problem.mesh, problem.mesh.part, problem.value_size
+    if MPI.Comm.Compare(part.comm, comm) not in (MPI.IDENT, MPI.CONGRUENT):
+        raise InputError("the mesh is distributed over another communicator "
+                         "(read_gmsh(..., distribute=True)): solve on that communicator")
+    cells = part.vertex_ids[mesh.cells]
+    cell_x = mesh.x[mesh.cells]
+    cell_sub, sub_body = decompose_distributed(
+        cells, cell_x, part.cell_ids, mesh.cell_body, mesh.cell_type, mesh.body_names,
+        mesh.num_cells, problem.decomposition, comm)
+    cell_points, num_points, first = number_points(cells, mesh.cell_type, problem.degree,
+                                                   mesh.num_nodes, comm)
+    nsub = sub_body.size
+    sub_size = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)[3]
+    sub_rank = owners(sub_size, comm.size)
+
+    # the boundary facets travel with the cell they bound
+    names = list(mesh.facet_groups)
+    facets = [mesh.facet_groups[n] for n in names]
+    nvf = len(REFERENCE[mesh.cell_type].facets[0])
+    all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
+    group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
+    f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
+    dest = sub_rank[cell_sub]
+    (f_vert, f_group, f_sub), *_ = exchange(comm, dest[f_cell], part.vertex_ids[all_f], group,
+                                            cell_sub[f_cell])
+    tags = mesh.node_tags[mesh.cells]
+    cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
+        dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
+        comm=comm)
+
+    # local numbering: vertices and points in the order of their global numbers
+    vids, local_cells = np.unique(cells, return_inverse=True)
+    local_cells = local_cells.reshape(cells.shape)
+    nv = vids.size
+    x = np.zeros((nv, mesh.gdim))
+    x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
+    node_tags = np.zeros(nv, dtype=mesh.node_tags.dtype)
+    node_tags[local_cells.ravel()] = tags.ravel()
+    pids, local_points = np.unique(cell_points, return_inverse=True)
+    local_points = local_points.reshape(cell_points.shape)
+    point_x = _point_coordinates(local_points, cell_x, mesh.cell_type, pids.size)
+    local_mesh = replace(mesh.names_only(), x=x, cells=np.ascontiguousarray(local_cells),
+                         cell_body=cell_body, node_tags=node_tags, counts={}, part=None)
+    local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
+    entities = _local_entities(mesh.cell_type, local_mesh.cells, nv, local_first)
+    points = DofPoints(problem.degree, mesh.cell_type, point_x, local_points, nv, entities)
+
+    subs = np.flatnonzero(sub_rank == comm.rank)
+    keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
+    pair_sub, pair_node = keys // pids.size, keys % pids.size
+    pair_ptr = np.searchsorted(pair_sub, np.r_[subs, subs[-1] + 1] if subs.size else [0])
+    ids, ptr, node_subs, _ = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)
+    if not np.array_equal(ids, pids):
+        raise AssertionError("the node directory answered for other points")
+    multiplicity = np.diff(ptr)[pair_node]
+    dec = LocalDecomposition(subs=subs, cell_sub=cell_sub, sub_body=sub_body,
+                             sub_rank=sub_rank, sub_size=sub_size, pair_node=pair_node,
+                             pair_ptr=pair_ptr, multiplicity=multiplicity)
+
+    local_f = np.searchsorted(vids, f_vert)
+    sub_facets: dict[int, dict[str, np.ndarray]] = {}
+    for s in np.unique(f_sub):  # over this rank's subdomains
+        here = f_sub == s
+        for g in np.unique(f_group[here]):
+            sub_facets.setdefault(int(s), {})[names[g]] = local_f[here & (f_group == g)]
+
+    fixed, values = _dirichlet(problem, local_mesh, points, local_f, f_group, names, pids,
+                               num_points, comm, dirichlet_mask_distributed)
+    own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
+                                problem.gluing, sub_rank, comm)
+    cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
+    none = np.zeros(0, dtype=np.int64)
+    rows = RankRows(own=own, cols=cols, start=start, size=size,
+                    contact=row_subset(own, none), contact_index=none)
+    return RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
+                     num_points=num_points, num_cells=mesh.num_cells, dec=dec,
+                     facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
+
+
+def _point_coordinates(local_points: np.ndarray, cell_x: np.ndarray, cell_type: str,
+                       n: int) -> np.ndarray:
+    """The coordinates of the local points: the vertices, and the entities' midpoints."""
+    columns = [cell_x]
+    for _, local in degree2_entities(cell_type) if local_points.shape[1] > cell_x.shape[1] \
+            else ():
+        columns.append(cell_x[:, np.array(local)].mean(axis=2))
+    out = np.zeros((n, cell_x.shape[2]))
+    out[local_points.ravel()] = np.concatenate(columns, axis=1).reshape(-1, cell_x.shape[2])
+    return out
+
+
+def _dirichlet(problem, local_mesh, points, local_f, f_group, names, pids, num_points, comm,
+               mask):
+    """The Dirichlet mask and values of this rank's points (consistent over the ranks)."""
+    conditions = []
+    for bc in problem.dirichlet:
+        f = local_f[f_group == names.index(bc.group)]
+        on = np.unique(points.facet_points(local_mesh, f)) if f.size else \
+            np.zeros(0, dtype=np.int64)
+        conditions.append((bc, pids[on], points.x[on]))
+    return mask(pids, conditions, problem.value_size, num_points, comm)
+
+
+def _columns(own: Rows, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm):
+    """The global primal column of every entry of this rank's rows.
+
+    The column of (subdomain s, point p, component c) is bs · (the pairs of the subdomains
+    before s + the position of p among the sorted points of s) + c; the position is asked of
+    the rank that owns s (a gluing row touches subdomains of other ranks).
+    """
+    sub_start = np.r_[0, np.cumsum(sub_size)].astype(np.int64)
+    (s_asked, p_asked), order, counts, rcounts = exchange(
+        comm, sub_rank[own.e_sub], own.e_sub.astype(np.int64), own.e_node.astype(np.int64))
+    pairs = pair_sub * np.int64(num_points) + pids[pair_node]  # sorted: (subdomain, point)
+    want = s_asked * np.int64(num_points) + p_asked
+    pos = np.searchsorted(pairs, want)
+    if want.size and (np.any(pos >= pairs.size) or np.any(pairs[np.minimum(
+            pos, pairs.size - 1)] != want)):
+        raise AssertionError("a row refers to a point outside its subdomain")
+    within = pos - np.searchsorted(pair_sub, s_asked)
+    return bs * (sub_start[own.e_sub] + answer(comm, within, order, counts, rcounts)) \
+        + own.e_comp
+
+
+__all__ = ["share_from_parts", "unsupported"]
