@@ -126,9 +126,9 @@ def test_point_subdomains_are_the_serial_directory(name, degree, split):
 
     sub_rank = dp.owners(sub_size, COMM.size)
     assert np.array_equal(sub_rank, loc.dec.sub_rank)
-    moved = dp.migrate(sub_rank[loc.cell_sub], loc.ids, loc.cells, loc.cell_x,
-                       loc.mesh.cell_body[loc.ids], loc.cell_sub, cell_points, comm=COMM)
-    ids, cells, cell_x, body, cell_sub, moved_points = moved
+    moved = dp.migrate(sub_rank[loc.cell_sub], loc.cells, loc.cell_x, loc.mesh.cell_body[loc.ids],
+                       loc.ids, loc.cell_sub, cell_points, comm=COMM)
+    cells, cell_x, body, ids, cell_sub, moved_points = moved
     want = np.flatnonzero(loc.dec.sub_rank[loc.dec.cell_sub] == COMM.rank)
     assert np.array_equal(ids, want)
     assert np.array_equal(cells, loc.mesh.cells[want])
@@ -140,6 +140,11 @@ def test_point_subdomains_are_the_serial_directory(name, degree, split):
     points, ptr, subs, again = dp.point_subdomains(moved_points, cell_sub, num_points, nsub, COMM)
     check_directory(loc.dec, points, ptr, subs, np.unique(loc.points.cell_points[want]))
     assert np.array_equal(again, sub_size)
+    # from the migrated cells (no longer blocks of ascending ids), dealt out round robin
+    ids, cells = dp.migrate(ids % COMM.size, ids, cells, comm=COMM, key=ids)
+    want = np.flatnonzero(np.arange(loc.mesh.num_cells) % COMM.size == COMM.rank)
+    assert np.array_equal(ids, want)
+    assert np.array_equal(cells, loc.mesh.cells[want])
 
 
 def check_directory(dec, points, ptr, subs, want_points):
@@ -196,5 +201,7 @@ def test_bad_input_raises_on_every_rank():
         dp.point_subdomains(cells[:1], np.array([2 * last]), 4, 1, COMM)
     with pytest.raises(InputError, match="dest"):
         dp.migrate(np.array([COMM.size * last]), np.array([0]), comm=COMM)
-    with pytest.raises(InputError, match="not 1 rows"):
+    with pytest.raises(InputError, match="array 1 has shape"):
         dp.migrate(np.array([0]), np.array([0]), np.zeros(1 + last), comm=COMM)
+    with pytest.raises(InputError, match="key has shape"):
+        dp.migrate(np.array([0]), np.array([0]), comm=COMM, key=np.zeros(1 + last))

@@ -191,35 +191,41 @@ def owners(sub_size: np.ndarray, comm_size: int) -> np.ndarray:
     return _assign_ranks(np.asarray(sub_size, dtype=np.int64), int(comm_size))
 
 
-def migrate(dest: np.ndarray, cell_ids: np.ndarray, *arrays: np.ndarray, comm: MPI.Comm
-            ) -> tuple[np.ndarray, ...]:
-    """Move each local cell, with its rows of per-cell arrays, to rank ``dest`` of the cell.
+def migrate(dest: np.ndarray, *arrays: np.ndarray, comm: MPI.Comm,
+            key: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
+    """Move each local cell's rows of the per-cell arrays to rank ``dest`` of the cell.
 
     Args:
-        dest: (C_local,) the rank each cell goes to.
-        cell_ids: (C_local,) the global numbers of the local cells.
-        *arrays: Per-cell arrays (cells, cell_x, cell_body, cell_sub, cell_points, …), each
-            with C_local rows.
+        dest: (C_local,) the rank each cell goes to (``owners(...)[cell_sub]``).
+        *arrays: Per-cell arrays (cells, cell_x, cell_body, cell_ids, cell_sub, cell_points,
+            …), each with C_local rows.
         comm: The ranks that hold the mesh's cells.
+        key: (C_local,) the global cell ids, to sort the received cells by. Without it the
+            cells come by sending rank, each rank's in its order: the order of the global ids
+            when every rank holds ascending ids after those of the rank before (the blocks of
+            the mesh's scatter), not after a migration.
 
     Returns:
-        ``(cell_ids, *arrays)`` of the cells this rank receives, sorted by global cell id.
+        The arrays of the cells this rank receives, in the order of ``arrays``.
 
     Raises:
         InputError: On every rank, if a rank's destinations or arrays are invalid.
     """
-    dest, cell_ids = np.asarray(dest), np.asarray(cell_ids)
+    dest = np.asarray(dest)
     arrays = tuple(np.asarray(a) for a in arrays)
+    extra = () if key is None else (np.asarray(key),)
     with collective(comm):
         _check_numbers(dest, comm.size, "dest", 1)
-        for name, a in [("cell_ids", cell_ids)] + [(f"array {i}", a) for i, a in
-                                                    enumerate(arrays)]:
+        named = [(f"array {i}", a) for i, a in enumerate(arrays)] + [("key", a) for a in extra]
+        for name, a in named:
             if a.ndim == 0 or a.shape[0] != dest.shape[0]:
                 raise InputError(f"migrate: {name} has shape {a.shape}, not {dest.shape[0]} "
                                  "rows (one per cell)")
-    received, _, _, _ = exchange(comm, dest, cell_ids, *arrays)
-    order = np.argsort(received[0], kind="stable")
-    return tuple(a[order] for a in received)
+    received, _, _, _ = exchange(comm, dest, *arrays, *extra)
+    if key is None:
+        return tuple(received)
+    order = np.argsort(received[-1], kind="stable")
+    return tuple(a[order] for a in received[:-1])
 
 
 # ------------------------------------------------------------------------------------------------
