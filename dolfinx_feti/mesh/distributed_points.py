@@ -105,22 +105,26 @@ def point_coordinates(cell_points: np.ndarray, cells: np.ndarray, cell_x: np.nda
     """
     cells = np.asarray(cells, dtype=np.int64)
     cell_x = np.asarray(cell_x, dtype=float)
-    k, nvc = np.shape(cell_points)[1], cells.shape[1]
-    points, first, _ = _unique(np.asarray(cell_points, dtype=np.int64).ravel(), False)
-    cell, slot = first // k, first % k  # one cell and position holding each point
-    x = np.empty((points.size, cell_x.shape[2]))
-    vertex = slot < nvc
-    x[vertex] = cell_x[cell[vertex], slot[vertex]]
-    start, entities = nvc, degree2_entities(cell_type) if degree == 2 else ()
-    for _, vertex_lists in entities:
-        local = np.array(vertex_lists)  # (ne, nve): the entities' slots are start … start + ne
-        mine = np.flatnonzero((slot >= start) & (slot < start + local.shape[0]))
-        at = local[slot[mine] - start]  # (n, nve) local vertices of each entity
-        c = cell[mine][:, None]
-        at = np.take_along_axis(at, np.argsort(cells[c, at], axis=1), axis=1)  # by global number
-        x[mine] = cell_x[c, at].mean(axis=1)
-        start += local.shape[0]
-    return points, x
+    cell_points = np.asarray(cell_points, dtype=np.int64)
+    C, nvc = cells.shape
+    # the points of one dimension fill a range of numbers after those of the dimension before:
+    # one (smaller) sort per dimension, of the columns one after the other (longer sorted runs)
+    groups = [(nvc, None)] + [(len(local), np.array(local)) for _, local in
+                              (degree2_entities(cell_type) if degree == 2 else ())]
+    points, xs, start = [], [], 0
+    for width, local in groups:
+        values, first, _ = _unique(cell_points[:, start:start + width].T.ravel(), False)
+        cell, slot = first % max(C, 1), first // max(C, 1)  # one cell holding each point
+        if local is None:
+            xs.append(cell_x[cell, slot])
+        else:
+            at = local[slot]  # (n, nve): the local vertices of each entity
+            c = cell[:, None]
+            at = np.take_along_axis(at, np.argsort(cells[c, at], axis=1), axis=1)  # by number
+            xs.append(cell_x[c, at].mean(axis=1))
+        points.append(values)
+        start += width
+    return np.concatenate(points), np.concatenate(xs)
 
 
 def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: int, nsub: int,
