@@ -72,10 +72,10 @@ def number_points(cells: np.ndarray, cell_type: str, degree: int, num_vertices: 
     entities = degree2_entities(cell_type)
     local, inverse = [], []
     for _, vertex_lists in entities:
-        v = cells[:, np.array(vertex_lists)]  # (C, ne, nve)
-        keys, _, inv = _unique(_row_keys(v.reshape(-1, v.shape[2]), N))
+        v = cells.T[np.array(vertex_lists)]  # (ne, nve, C): entity by entity (longer sorted runs)
+        keys, _, inv = _unique(_row_keys(v.transpose(0, 2, 1).reshape(-1, v.shape[1]), N))
         local.append(keys)
-        inverse.append(inv.reshape(C, v.shape[1]))
+        inverse.append(inv.reshape(v.shape[0], C).T)
     numbers, totals = _rank_in_union(local, comm)
     parts, first, offset = [cells], {}, N
     for (dim, _), number, inv, total in zip(entities, numbers, inverse, totals, strict=True):
@@ -159,8 +159,8 @@ def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: 
                              "pairs beyond 64-bit keys")
     size, nsub = comm.size, int(nsub)
     # The distinct (point, subdomain) pairs of the local cells, to the points' home ranks.
-    key = _distinct(cell_points.astype(np.int64).ravel() * nsub
-                    + np.repeat(cell_sub.astype(np.int64), cell_points.shape[1]))
+    key = _distinct(cell_points.astype(np.int64).T.ravel() * nsub  # column by column: runs
+                    + np.tile(cell_sub.astype(np.int64), cell_points.shape[1]))
     pairs = np.column_stack([key // nsub, key % nsub])
     home = Blocks(num_points, size).home(pairs[:, 0])
     (got,), _, _, rcounts = exchange(comm, home, pairs)
