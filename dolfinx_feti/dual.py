@@ -101,6 +101,8 @@ class DualQP:
             copies of its node (None: all ones).
         friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
         share: What this rank holds of the problem (:class:`.share.RankShare`).
+        surface: On a distributed mesh with contact, the cells along the contact surfaces
+            gathered on rank 0 (:class:`.share_distributed.Surface`; None elsewhere).
     """
 
     feti: Dualization
@@ -125,6 +127,7 @@ class DualQP:
     copy_weight: np.ndarray | None = None
     friction: object = None
     share: object = None
+    surface: object = None
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -263,7 +266,7 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
     if why is not None:
         raise InputError(why)
     with timer.phase("decomposition"):
-        share = share_from_parts(problem, comm)
+        share, surface, mortar = share_from_parts(problem, comm)
     if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
         glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
         method = "tfeti" if glued else "feti1"
@@ -275,7 +278,7 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
             steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
     qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
                   timer=timer, dec=share.dec, rows=share.rows, info={})
-    qp.mortar, qp.friction, qp.share = [], None, share
+    qp.mortar, qp.friction, qp.share, qp.surface = mortar, None, share, surface
     qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 

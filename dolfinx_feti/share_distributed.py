@@ -19,36 +19,43 @@ Only arrays of one entry per subdomain (owners, sizes, bodies) are global.
 
 from __future__ import annotations
 
-from dataclasses import replace
+import copy
+from dataclasses import dataclass, replace
 
 import numpy as np
 from mpi4py import MPI
 
 from .constraints.rows import Rows
-from .errors import InputError
+from .errors import InputError, collective
 from .exchange import answer, exchange
 from .mesh.dofpoints import DofPoints, degree2_entities
 from .mesh.topology import REFERENCE, locate_facets
+from .problem import RigidObstacle
 from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
 
 
 def unsupported(problem, method: str) -> str | None:
     """Why ``problem`` on a distributed mesh cannot be solved by ``method`` yet, or None."""
-    if problem.contact or problem.ties:
-        return ("contact and ties on a distributed mesh (read_gmsh(..., distribute=True)) are "
-                "not built yet: read the mesh with distribute=False")
+    if any(getattr(c, "friction", None) is not None for c in problem.contact):
+        return ("friction on a distributed mesh (read_gmsh(..., distribute=True)) is not built "
+                "yet: read the mesh with distribute=False")
     if method == "fetidp":
         return ("method='fetidp' on a distributed mesh (read_gmsh(..., distribute=True)) is not "
                 "built yet: use 'tfeti' or 'feti1', or read the mesh with distribute=False")
     return None
 
 
-def share_from_parts(problem, comm: MPI.Comm) -> RankShare:
+def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None, list]:
     """This rank's share of ``problem``, whose mesh is distributed (collective).
 
     Args:
         problem: The contact problem (``problem.mesh.part`` is set).
         comm: The mesh's ranks.
+
+    Returns:
+        ``(share, surface, mortar)``: the share; with contact or ties, the cells along the
+        contact surfaces gathered on rank 0 (:class:`Surface`; None elsewhere and without
+        contact); what the mortar search found (every rank).
     """
     from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows
     from .mesh.distributed_decompose import decompose_distributed
@@ -75,10 +82,12 @@ def share_from_parts(problem, comm: MPI.Comm) -> RankShare:
     nvf = len(REFERENCE[mesh.cell_type].facets[0])
     all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
     group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
+    index = np.concatenate([part.facet_index[n] for n in names]) if names else \
+        np.zeros(0, dtype=np.int64)
     f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
     dest = sub_rank[cell_sub]
-    (f_vert, f_group, f_sub), *_ = exchange(comm, dest[f_cell], part.vertex_ids[all_f], group,
-                                            cell_sub[f_cell])
+    (f_vert, f_group, f_sub, f_index), *_ = exchange(
+        comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
     tags = mesh.node_tags[mesh.cells]
     cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
         dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
@@ -122,15 +131,171 @@ def share_from_parts(problem, comm: MPI.Comm) -> RankShare:
 
     fixed, values = _dirichlet(problem, local_mesh, points, local_f, f_group, names, pids,
                                num_points, comm, dirichlet_mask_distributed)
+    surface = None
+    extra = Rows.empty(mesh.gdim)
+    mortar: list = []
+    if problem.contact or problem.ties:
+        on = np.isin(f_group, [names.index(g) for g in _contact_groups(problem)])
+        surface, extra, mortar = gather_surface(
+            problem, (f_vert[on], f_group[on], f_index[on], local_f[on]), names, local_mesh,
+            cell_ids, cell_points, local_points, (pids, ptr, node_subs, fixed), comm)
     own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
-                                problem.gluing, sub_rank, comm)
+                                problem.gluing, sub_rank, comm, extra=extra)
     cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
-    none = np.zeros(0, dtype=np.int64)
     rows = RankRows(own=own, cols=cols, start=start, size=size,
-                    contact=row_subset(own, none), contact_index=none)
-    return RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
-                     num_points=num_points, num_cells=mesh.num_cells, dec=dec,
-                     facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
+                    **_contact_rows(own, start, extra, comm))
+    share = RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
+                      num_points=num_points, num_cells=mesh.num_cells, dec=dec,
+                      facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
+    return share, surface, mortar
+
+
+def _contact_groups(problem) -> list[str]:
+    """The boundary groups of the problem's contact conditions and ties."""
+    return sorted({g for c in [*problem.contact, *problem.ties]
+                   for g in ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))})
+
+
+def _contact_rows(own: Rows, start: int, extra: Rows, comm: MPI.Comm) -> dict:
+    """The contact rows of the whole problem (every rank) and their global indices.
+
+    ``extra`` holds them in the order of the serial concatenation; sorted stably by their
+    smallest subdomain they are in the global order. Each rank knows the global index of
+    those it owns.
+    """
+    mine = np.flatnonzero(own.inequality | own.tangential) + start
+    index = np.concatenate(comm.allgather(mine)).astype(np.int64)
+    ordered = extra.permuted(np.argsort(extra.min_subdomain(), kind="stable")) if extra.size \
+        else extra
+    if ordered.size and np.any(np.diff(ordered.e_row) < 0):
+        ordered = ordered.permuted(np.arange(ordered.size))
+    contact = row_subset(ordered, np.flatnonzero(ordered.inequality | ordered.tangential))
+    if contact.size != index.size:
+        raise AssertionError("the ranks' contact rows are not the gathered ones")
+    return {"contact": contact, "contact_index": index}
+
+
+@dataclass
+class Surface:
+    """The cells along the contact surfaces of a distributed mesh, gathered on rank 0.
+
+    Attributes:
+        problem: The problem on the mesh of those cells (its points numbered compactly).
+        point_ids: Global dof point of each of its points (ascending).
+    """
+
+    problem: object
+    point_ids: np.ndarray
+
+    def local(self, points: np.ndarray) -> np.ndarray:
+        """The surface mesh's point of each global point."""
+        return np.searchsorted(self.point_ids, points)
+
+
+def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, local_points,
+                   directory, comm):
+    """The contact and tie rows of a distributed mesh, from its contact surfaces (collective).
+
+    Every rank sends rank 0 the cells of its subdomains that bound a facet of a contact group,
+    with their points' subdomain lists and Dirichlet flags; rank 0 builds the rows on that
+    one layer of cells with the serial builders (:func:`.constraints.build.surface_rows`) and
+    maps its points back to the global ones (a monotone map: every order by point survives).
+
+    Args:
+        problem: The problem (on the distributed mesh).
+        facets: This rank's contact facets: global vertices, group index, index in the
+            group, local vertices.
+        names: The boundary groups, by index.
+        local_mesh: This rank's cells (local vertices).
+        cell_ids: Their global numbers.
+        cell_points: Their global dof points.
+        local_points: Their local dof points.
+        directory: ``(points, ptr, subs, fixed)``: the local points, the subdomains of each,
+            and their Dirichlet mask.
+        comm: The ranks.
+
+    Returns:
+        ``(surface, rows, mortar)``: the :class:`Surface` (rank 0; None elsewhere), the rows
+        (every rank) in global points, what the mortar search found (every rank).
+    """
+    from .constraints.build import surface_rows
+    from .mesh.dofpoints import dof_points
+
+    f_vert, f_group, f_index, local_f = facets
+    pids, ptr, subs, fixed = directory
+    cells, _ = locate_facets(local_mesh.cells, local_f, local_mesh.cell_type)
+    sc = np.unique(cells)
+    sp = np.unique(local_points[sc])
+    counts = np.diff(ptr)[sp]
+    piece = {"ids": cell_ids[sc], "vertices": pids[:local_mesh.x.shape[0]][local_mesh.cells[sc]],
+             "x": local_mesh.x[local_mesh.cells[sc]], "body": local_mesh.cell_body[sc],
+             "tags": local_mesh.node_tags[local_mesh.cells[sc]], "cp": cell_points[sc],
+             "f_vert": f_vert, "f_group": f_group, "f_index": f_index,
+             "points": pids[sp], "counts": counts, "fixed": fixed[sp],
+             "subs": subs[np.repeat(ptr[sp], counts) + _ranges(counts)]}
+    pieces = comm.gather(piece, root=0)
+    surface = out = None
+    with collective(comm, "constraints"):
+        if comm.rank == 0:
+            mesh, gmap, node_ptr, node_subs, fixed_s = _surface_mesh(problem, pieces, names)
+            surf = copy.copy(problem)
+            object.__setattr__(surf, "mesh", mesh)  # the same conditions on the layer of cells
+            if dof_points(mesh, problem.degree).num_points != gmap.size:
+                raise AssertionError("the surface points do not match the gathered ones")
+            mortar: list = []
+            blocks = surface_rows(surf, node_ptr, node_subs, fixed_s, mortar)
+            rows = Rows.concatenate(blocks) if blocks else Rows.empty(mesh.gdim)
+            if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
+                raise InputError("non-finite constraint data (a gap or an obstacle distance "
+                                 "is NaN or Inf)")
+            rows = replace(rows, e_node=gmap[rows.e_node], node=np.where(
+                rows.node >= 0, gmap[np.maximum(rows.node, 0)], -1), partner=np.where(
+                rows.partner >= 0, gmap[np.maximum(rows.partner, 0)], -1))
+            surface = Surface(surf, gmap)
+            out = (rows, mortar)
+    rows, mortar = comm.bcast(out, root=0)
+    return surface, rows, mortar
+
+
+def _ranges(counts: np.ndarray) -> np.ndarray:
+    """0 … c − 1 for every count c, concatenated."""
+    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+
+
+def _surface_mesh(problem, pieces: list[dict], names: list[str]):
+    """Rank 0: the gathered cells as a mesh, its points' global numbers and directory."""
+    from .mesh.dofpoints import dof_points
+
+    def cat(key):
+        return np.concatenate([p[key] for p in pieces])
+
+    order = np.argsort(cat("ids"))
+    vertices = cat("vertices")[order]
+    vids, cells = np.unique(vertices, return_inverse=True)
+    cells = cells.reshape(vertices.shape)
+    whole = problem.mesh
+    x = np.zeros((vids.size, whole.gdim))
+    x[cells.ravel()] = cat("x")[order].reshape(-1, whole.gdim)
+    tags = np.zeros(vids.size, dtype=whole.node_tags.dtype)
+    tags[cells.ravel()] = cat("tags")[order].ravel()
+    f_vert, f_group, f_index = cat("f_vert"), cat("f_group"), cat("f_index")
+    groups = {}
+    for g, name in enumerate(names):
+        sel = np.flatnonzero(f_group == g)
+        sel = sel[np.argsort(f_index[sel], kind="stable")]  # the file's order
+        groups[name] = np.searchsorted(vids, f_vert[sel])
+    mesh = replace(whole.names_only(), x=x, cells=cells, cell_body=cat("body")[order],
+                   node_tags=tags, facet_groups=groups, counts={}, part=None)
+    pts = dof_points(mesh, problem.degree)
+    gmap = np.empty(pts.num_points, dtype=np.int64)
+    gmap[pts.cell_points] = cat("cp")[order]
+    points, counts, subs, fixed = cat("points"), cat("counts"), cat("subs"), cat("fixed")
+    first_sub = np.cumsum(counts) - counts
+    _, first = np.unique(points, return_index=True)  # a point sent by several ranks
+    at = first[np.searchsorted(points[first], gmap)]
+    node_ptr = np.r_[0, np.cumsum(counts[at])].astype(np.int64)
+    node_subs = subs[np.repeat(first_sub[at], counts[at]) + _ranges(counts[at])]
+    return mesh, gmap, node_ptr, node_subs.astype(np.int32), fixed[at]
 
 
 def _point_coordinates(local_points: np.ndarray, cell_x: np.ndarray, cell_type: str,

@@ -87,14 +87,16 @@ class Solution:
 
     def __init__(self, problem: ContactProblem, feti: BlockSystem, share: RankShare,
                  u: PETSc.Vec, lam: PETSc.Vec, alpha: np.ndarray, report: Report,
-                 comm: MPI.Comm, friction=None) -> None:
+                 comm: MPI.Comm, friction=None, surface=None) -> None:
         """Collect results (collective).
 
         ``feti`` is the Total FETI system of the problem (all rows, whatever the method),
         ``share`` what this rank holds of the problem (:mod:`.share`), ``friction`` the
-        solve's FrictionSolve or None.
+        solve's FrictionSolve or None, ``surface`` the cells along the contact surfaces of a
+        distributed mesh (:class:`.share_distributed.Surface`, rank 0) or None.
         """
         self.problem, self.feti, self.share = problem, feti, share
+        self.surface = surface
         self.dec, self.rows = share.dec, share.rows
         self.friction = friction
         self.dual = None
@@ -145,13 +147,16 @@ class Solution:
         sel = rows.inequality
         spec, node = rows.spec[sel], rows.node[sel]
         area = xs = None
-        if self.comm.rank == 0:  # from the whole mesh, which rank 0 holds
+        if self.comm.rank == 0:  # from the whole mesh, or the cells along its surfaces
+            problem, at = self.problem, node
+            if self.surface is not None:  # a distributed mesh: rank 0 has the surfaces
+                problem, at = self.surface.problem, self.surface.local(node)
             area = np.ones(node.size)
-            for i, c in enumerate(self.problem.contact):
-                nodes, _, a = surface(mesh, c.group, self.problem.dof_points)
+            for i, c in enumerate(problem.contact):
+                nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
                 m = spec == i
-                area[m] = a[np.searchsorted(nodes, node[m])]
-            xs = self.problem.dof_points.x[node]
+                area[m] = a[np.searchsorted(nodes, at[m])]
+            xs = problem.dof_points.x[at]
         area, xs = self.comm.bcast((area, xs), root=0)
         extra = {}
         if self.friction is not None:
@@ -207,6 +212,20 @@ class Solution:
             np.add.at(acc, n, v)
             np.add.at(cnt, n, 1.0)
         return acc / np.maximum(cnt, 1)[:, None]
+
+    def surface_values(self) -> np.ndarray | None:
+        """The solution at the points of :attr:`surface` on rank 0 (None elsewhere; collective).
+
+        For the checks after a solve on a distributed mesh: the values come from the ranks
+        that hold those points, through a directory.
+        """
+        from .output import node_values
+        wanted = self.surface.point_ids if self.surface is not None else \
+            np.zeros(0, dtype=np.int64)
+        share, bs = self.share, self.problem.value_size
+        out = node_values(share.pair_points, self.u_vec.array_r.reshape(-1, bs), wanted,
+                          share.num_points, self.comm)
+        return out if self.comm.rank == 0 else None
 
     def cell_subdomains(self) -> np.ndarray:
         """The subdomain of every cell of the mesh, on every rank (collective, then cached)."""

@@ -130,13 +130,18 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         report.extra["friction"] = friction.info
         friction.destroy()
     sol = Solution(problem, system, qp.share, u, lam_all, alpha, report, comm,
-                   friction=friction)
+                   friction=friction, surface=qp.surface)
     sol.dual = feti
     sol.check_kkt(rows.own.inequality)
     if qp.mortar:
-        c, nodal, found = sol.contact, sol.nodal_values_on_root(), None
+        c, found = sol.contact, None
+        surface = sol.surface  # a distributed mesh: the cells along the surfaces (rank 0)
+        nodal = sol.nodal_values_on_root() if problem.mesh.part is None else \
+            sol.surface_values()
         if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
-            found = mortar_warnings(problem.mesh, qp.mortar, nodal, c.spec, c.node, c.force)
+            mesh, node = (problem.mesh, c.node) if surface is None else \
+                (surface.problem.mesh, surface.local(c.node))
+            found = mortar_warnings(mesh, qp.mortar, nodal, c.spec, node, c.force)
         warn, report.extra["mortar"] = comm.bcast(found, root=0)
         report.warnings.extend(warn)
     _warn_loose_stop(report, opts.rtol)

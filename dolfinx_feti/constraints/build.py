@@ -15,23 +15,22 @@ from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
 from .rows import Rows
 
 
-def build_rows(problem: ContactProblem, dec: Decomposition,
-               mortar: list[MortarInfo] | None = None) -> Rows:
-    """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
+def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.ndarray,
+                 fixed: np.ndarray, mortar: list[MortarInfo] | None = None) -> list[Rows]:
+    """The rows of the ties and the contact conditions, in the problem's order.
 
-    ``mortar``, when given, receives what the contact search found for each :class:`Mortar`
-    and :class:`Tie` condition (for the report and the post-solve checks).
+    They read only the contact surfaces, so ``problem`` may be a problem on a mesh of the
+    cells along them (a distributed mesh gathers those on one rank).
 
-    Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
-    are contiguous and the global order does not depend on the number of ranks. The normal and
-    tangential (friction) rows of a contact node touch the same subdomains, so they stay
-    consecutive.
+    Args:
+        problem: The problem.
+        node_ptr: Dof point → subdomains holding it (CSR pointer) ...
+        node_subs: ... and the subdomains.
+        fixed: (points, bs) mask of the Dirichlet-constrained components.
+        mortar: Receives what the search found for each mortar condition, when given.
     """
     mesh, bs, points = problem.mesh, problem.value_size, problem.dof_points
-    node_ptr, node_subs = dec.node_subdomains()
-    fixed, values = dirichlet_mask(problem, mesh)
-    blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
-              dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim)]
+    blocks = []
     found = [] if mortar is None else mortar
     for i, t in enumerate(problem.ties):
         block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs)
@@ -48,6 +47,27 @@ def build_rows(problem: ContactProblem, dec: Decomposition,
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
             blocks[-1] = with_tangential_rows(blocks[-1])
+    return blocks
+
+
+def build_rows(problem: ContactProblem, dec: Decomposition,
+               mortar: list[MortarInfo] | None = None) -> Rows:
+    """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
+
+    ``mortar``, when given, receives what the contact search found for each :class:`Mortar`
+    and :class:`Tie` condition (for the report and the post-solve checks).
+
+    Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
+    are contiguous and the global order does not depend on the number of ranks. The normal and
+    tangential (friction) rows of a contact node touch the same subdomains, so they stay
+    consecutive.
+    """
+    mesh, bs = problem.mesh, problem.value_size
+    node_ptr, node_subs = dec.node_subdomains()
+    fixed, values = dirichlet_mask(problem, mesh)
+    blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
+              dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim),
+              *surface_rows(problem, node_ptr, node_subs, fixed, mortar)]
     rows = Rows.concatenate(blocks)
     if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
         raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "

@@ -88,6 +88,8 @@ class MeshPart:
         cell_ids: Global number of each local cell (ascending).
         group_sizes: Number of facets of every boundary group in the whole mesh.
         verdicts: Rank 0's checks of the whole mesh (:class:`Verdicts`).
+        facet_index: Group → the position of each local facet in the whole group (the
+            file's order, which the contact rows follow).
     """
 
     comm: MPI.Comm
@@ -95,6 +97,7 @@ class MeshPart:
     cell_ids: np.ndarray
     group_sizes: dict[str, int]
     verdicts: Verdicts
+    facet_index: dict[str, np.ndarray]
 
 
 def verdicts(mesh: MeshData) -> Verdicts:
@@ -165,12 +168,15 @@ def scatter_mesh(mesh: MeshData | None, comm: MPI.Comm) -> MeshData:
                     "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids],
                     "facets": {n: index[f[facet_rank[n] == r]]
                                for n, f in mesh.facet_groups.items()},
-                    "vertex_ids": ids, "cell_ids": cells}
+                    "vertex_ids": ids, "cell_ids": cells,
+                    "facet_index": {n: np.flatnonzero(facet_rank[n] == r)
+                                    for n in mesh.facet_groups}}
 
     p = hand_out(comm, make, "handing out the mesh")
     names = common["names"]
     part = MeshPart(comm=comm, vertex_ids=p["vertex_ids"], cell_ids=p["cell_ids"],
-                    group_sizes=common["sizes"], verdicts=common["verdicts"])
+                    group_sizes=common["sizes"], verdicts=common["verdicts"],
+                    facet_index=p["facet_index"])
     return replace(names, x=p["x"], cells=p["cells"], cell_body=p["cell_body"],
                    node_tags=p["node_tags"], facet_groups=p["facets"], part=part,
                    counts=dict(names.counts))
