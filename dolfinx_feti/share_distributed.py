@@ -122,8 +122,10 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
                              sub_rank=sub_rank, sub_size=sub_size, pair_node=pair_node,
                              pair_ptr=pair_ptr, multiplicity=multiplicity)
 
+    order = np.lexsort((f_index, f_group, f_sub))  # by subdomain, group, then the file's order
+    f_vert, f_group, f_sub, f_index = f_vert[order], f_group[order], f_sub[order], f_index[order]
     local_f = np.searchsorted(vids, f_vert)
-    sub_facets: dict[int, dict[str, np.ndarray]] = {}
+    sub_facets: dict[int, dict[str, np.ndarray]] = {int(s): {} for s in subs}
     for s in np.unique(f_sub):  # over this rank's subdomains
         here = f_sub == s
         for g in np.unique(f_group[here]):

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.gmsh_input import MeshData
-from ..problem import ContactProblem
+from ..problem import ContactProblem, Dirichlet
 from ..validation import evaluate
 from .rows import Kind, Rows
 
@@ -23,28 +23,42 @@ def dirichlet_mask(problem: ContactProblem, mesh: MeshData) -> tuple[np.ndarray,
     values = np.zeros((points.num_points, bs))
     for bc in problem.dirichlet:
         nodes = points.group_points(mesh, bc.group)
-        comps = list(range(bs)) if bc.components is None else [int(c) for c in bc.components]
-        if callable(bc.value):
-            n = nodes.size
-            v = evaluate(bc.value, points.x[nodes], f"Dirichlet({bc.group!r}).value",
-                         [(n,), (n, len(comps))]).reshape(n, -1)
-            if v.shape[1] == 1:
-                v = np.repeat(v, len(comps), axis=1)
-        else:
-            v = np.asarray(bc.value, dtype=float).ravel()
-            if v.size not in (1, len(comps)):
-                raise InputError(f"Dirichlet on {bc.group!r}: {v.size} values for "
-                                 f"{len(comps)} components")
-            v = np.broadcast_to(v, (nodes.size, len(comps)))
-        if v.shape[1] != len(comps):
-            raise InputError(f"Dirichlet on {bc.group!r}: {v.shape[1]} values for "
-                             f"{len(comps)} components")
-        if not np.all(np.isfinite(v)):
-            raise InputError(f"Dirichlet on {bc.group!r}: the value is not finite")
+        comps, v = condition_values(bc, points.x[nodes], bs)
         for j, c in enumerate(comps):
             fixed[nodes, c] = True
             values[nodes, c] = v[:, j]
     return fixed, values
+
+
+def condition_values(bc: Dirichlet, x: np.ndarray, bs: int) -> tuple[list[int], np.ndarray]:
+    """The components a condition fixes and its values at the points ``x`` (n, gdim).
+
+    Returns:
+        The components, and the values (n, len(components)).
+
+    Raises:
+        InputError: Naming the condition, for a wrong number of values, a value function that
+            fails or returns another shape, or a value that is not finite.
+    """
+    n = x.shape[0]
+    comps = list(range(bs)) if bc.components is None else [int(c) for c in bc.components]
+    if callable(bc.value):
+        v = evaluate(bc.value, x, f"Dirichlet({bc.group!r}).value",
+                     [(n,), (n, len(comps))]).reshape(n, -1)
+        if v.shape[1] == 1:
+            v = np.repeat(v, len(comps), axis=1)
+    else:
+        v = np.asarray(bc.value, dtype=float).ravel()
+        if v.size not in (1, len(comps)):
+            raise InputError(f"Dirichlet on {bc.group!r}: {v.size} values for "
+                             f"{len(comps)} components")
+        v = np.broadcast_to(v, (n, len(comps)))
+    if v.shape[1] != len(comps):
+        raise InputError(f"Dirichlet on {bc.group!r}: {v.shape[1]} values for "
+                         f"{len(comps)} components")
+    if not np.all(np.isfinite(v)):
+        raise InputError(f"Dirichlet on {bc.group!r}: the value is not finite")
+    return comps, v
 
 
 def dirichlet_rows(node_ptr: np.ndarray, node_subs: np.ndarray, fixed: np.ndarray,

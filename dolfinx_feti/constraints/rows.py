@@ -80,15 +80,21 @@ class Rows:
         return Rows(**out)
 
     def permuted(self, order: np.ndarray) -> Rows:
-        """The same rows in the order ``order`` (new row i is old row order[i])."""
-        new_of_old = np.empty_like(order)
+        """The rows ``order`` in that order (new row i is old row order[i]).
+
+        Rows not in ``order`` are left out. The entries of a row keep their order.
+        """
+        order = np.asarray(order, dtype=np.int64)
+        new_of_old = np.full(self.size, -1, dtype=np.int64)
         new_of_old[order] = np.arange(order.size)
-        e_order = np.argsort(new_of_old[self.e_row], kind="stable")
+        e_new = new_of_old[self.e_row]
+        kept = np.flatnonzero(e_new >= 0)
+        e_order = kept[np.argsort(e_new[kept], kind="stable")]
         out = {}
         for f in fields(Rows):
             v = getattr(self, f.name)
             out[f.name] = v[e_order] if f.name.startswith("e_") else v[order]
-        out["e_row"] = new_of_old[self.e_row][e_order]
+        out["e_row"] = e_new[e_order]
         return Rows(**out)
 
     def min_subdomain(self) -> np.ndarray:
