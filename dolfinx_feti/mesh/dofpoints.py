@@ -219,9 +219,14 @@ def _build(mesh: MeshData, degree: int) -> DofPoints:
 
 
 def _positions(mesh: MeshData, dim: int, vertices: np.ndarray, keys: np.ndarray) -> np.ndarray:
-    """The dof points of entities (sorted by ``keys``): their curved-geometry node, or midpoint."""
+    """The dof points of entities (sorted by ``keys``): their curved-geometry node, or midpoint.
+
+    A midpoint sums the vertices in the order of their global numbers, so that it does not
+    depend on which cell supplies the entity (bit for bit: the distributed set-up computes it
+    from any cell that holds the entity, :mod:`.distributed_points`).
+    """
     if mesh.high_order is None:
-        return mesh.x[vertices].mean(axis=1)
+        return mesh.x[np.sort(vertices, axis=1)].mean(axis=1)
     ent, pos = mesh.high_order.get(dim, (np.zeros((0, vertices.shape[1]), dtype=np.int64),
                                          np.zeros((0, mesh.gdim))))
     k = _row_keys(ent, mesh.num_nodes)
