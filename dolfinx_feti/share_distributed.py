@@ -25,10 +25,21 @@ from dataclasses import dataclass, replace
 import numpy as np
 from mpi4py import MPI
 
+from .constraints.build import surface_rows
+from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows, shared_points
+from .constraints.friction import friction_data
 from .constraints.rows import Rows
 from .errors import InputError, collective
 from .exchange import answer, exchange
-from .mesh.dofpoints import DofPoints, degree2_entities
+from .mesh.distributed_decompose import decompose_distributed
+from .mesh.distributed_points import (
+    migrate,
+    number_points,
+    owners,
+    point_coordinates,
+    point_subdomains,
+)
+from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.topology import REFERENCE, locate_facets
 from .problem import RigidObstacle
 from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
@@ -54,10 +65,6 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
         contact surfaces gathered on rank 0 (:class:`Surface`; None elsewhere and without
         contact); what the mortar search found (every rank).
     """
-    from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows, shared_points
-    from .mesh.distributed_decompose import decompose_distributed
-    from .mesh.distributed_points import migrate, number_points, owners, point_subdomains
-
     mesh, part, bs = problem.mesh, problem.mesh.part, problem.value_size
     if MPI.Comm.Compare(part.comm, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh is distributed over another communicator "
@@ -88,7 +95,7 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
     tags = mesh.node_tags[mesh.cells]
     cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
         dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
-        comm=comm)
+        comm=comm, key=part.cell_ids)
 
     # local numbering: vertices and points in the order of their global numbers
     vids, local_cells = np.unique(cells, return_inverse=True)
@@ -98,9 +105,9 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
     x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
     node_tags = np.zeros(nv, dtype=mesh.node_tags.dtype)
     node_tags[local_cells.ravel()] = tags.ravel()
-    pids, local_points = np.unique(cell_points, return_inverse=True)
-    local_points = local_points.reshape(cell_points.shape)
-    point_x = _point_coordinates(local_points, cell_x, mesh.cell_type, pids.size)
+    pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type,
+                                      problem.degree)
+    local_points = np.searchsorted(pids, cell_points)
     local_mesh = replace(mesh.names_only(), x=x, cells=np.ascontiguousarray(local_cells),
                          cell_body=cell_body, node_tags=node_tags, counts={}, part=None)
     local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
@@ -220,9 +227,6 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
         ``(surface, rows, mortar)``: the :class:`Surface` (rank 0; None elsewhere), the rows
         (every rank) in global points, what the mortar search found (every rank).
     """
-    from .constraints.build import surface_rows
-    from .mesh.dofpoints import dof_points
-
     f_vert, f_group, f_index, local_f = facets
     pids, ptr, subs, fixed = directory
     cells, _ = locate_facets(local_mesh.cells, local_f, local_mesh.cell_type)
@@ -265,8 +269,6 @@ def surface_friction(surface: Surface, rows: RankRows):
     :func:`~.constraints.friction.friction_data` on the contact rows in their global order,
     with the points of the surface mesh; its row indices then become global ones.
     """
-    from .constraints.friction import friction_data
-
     c = rows.contact
     found = friction_data(surface.problem, replace(c, node=surface.local(c.node)))
     if found is None:
@@ -282,8 +284,6 @@ def _ranges(counts: np.ndarray) -> np.ndarray:
 
 def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     """Rank 0: the gathered cells as a mesh, its points' global numbers and directory."""
-    from .mesh.dofpoints import dof_points
-
     def cat(key):
         return np.concatenate([p[key] for p in pieces])
 
@@ -314,18 +314,6 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     node_ptr = np.r_[0, np.cumsum(counts[at])].astype(np.int64)
     node_subs = subs[np.repeat(first_sub[at], counts[at]) + _ranges(counts[at])]
     return mesh, gmap, node_ptr, node_subs.astype(np.int32), fixed[at]
-
-
-def _point_coordinates(local_points: np.ndarray, cell_x: np.ndarray, cell_type: str,
-                       n: int) -> np.ndarray:
-    """The coordinates of the local points: the vertices, and the entities' midpoints."""
-    columns = [cell_x]
-    for _, local in degree2_entities(cell_type) if local_points.shape[1] > cell_x.shape[1] \
-            else ():
-        columns.append(cell_x[:, np.array(local)].mean(axis=2))
-    out = np.zeros((n, cell_x.shape[2]))
-    out[local_points.ravel()] = np.concatenate(columns, axis=1).reshape(-1, cell_x.shape[2])
-    return out
 
 
 def _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids) -> list:
