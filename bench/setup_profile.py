@@ -104,10 +104,10 @@ def feti(mesh: df.MeshData, H: float, rtol: float) -> tuple[dict[str, float], di
     info = {"primal": rep.sizes["primal"], "dual": rep.sizes["dual"],
             "subdomains": rep.sizes["subdomains"], "converged": rep.converged,
             "outer": rep.outer_iterations, "mults": rep.hessian_mults, "wall": wall,
-            "u_max": COMM.bcast(None if COMM.rank else float(np.abs(
-                sol.nodal_values_on_root()).max()), root=0)}
-    if COMM.rank != 0:
-        sol.nodal_values_on_root()
+            "u_max": None}
+    nodal = sol.nodal_values_on_root()  # collective; the whole array on rank 0 only
+    info["u_max"] = COMM.bcast(None if nodal is None else float(np.abs(nodal).max()), root=0)
+    del nodal
     del sol
     return phases, info
 
