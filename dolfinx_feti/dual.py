@@ -265,8 +265,7 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
     why = unsupported(problem, method)
     if why is not None:
         raise InputError(why)
-    with timer.phase("decomposition"):
-        share, surface, mortar = share_from_parts(problem, comm)
+    share, surface, mortar = share_from_parts(problem, comm, timer)
     if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
         glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
         method = "tfeti" if glued else "feti1"

@@ -43,6 +43,7 @@ from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.topology import REFERENCE, locate_facets
 from .problem import RigidObstacle
 from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
+from .timing import Timer
 
 
 def unsupported(problem, method: str) -> str | None:
@@ -53,12 +54,15 @@ def unsupported(problem, method: str) -> str | None:
     return None
 
 
-def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None, list]:
+def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
+                     ) -> tuple[RankShare, Surface | None, list]:
     """This rank's share of ``problem``, whose mesh is distributed (collective).
 
     Args:
         problem: The contact problem (``problem.mesh.part`` is set).
         comm: The mesh's ranks.
+        timer: Records the phases ``decomposition``, ``distribution`` (dof points, the node
+            directory, the cells moved to their owners) and ``constraints`` (rows).
 
     Returns:
         ``(share, surface, mortar)``: the share; with contact or ties, the cells along the
@@ -69,90 +73,95 @@ def share_from_parts(problem, comm: MPI.Comm) -> tuple[RankShare, Surface | None
     if MPI.Comm.Compare(part.comm, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh is distributed over another communicator "
                          "(read_gmsh(..., distribute=True)): solve on that communicator")
+    timer = Timer() if timer is None else timer
     cells = part.vertex_ids[mesh.cells]
     cell_x = mesh.x[mesh.cells]
-    cell_sub, sub_body = decompose_distributed(
-        cells, cell_x, part.cell_ids, mesh.cell_body, mesh.cell_type, mesh.body_names,
-        mesh.num_cells, problem.decomposition, comm)
-    cell_points, num_points, first = number_points(cells, mesh.cell_type, problem.degree,
-                                                   mesh.num_nodes, comm)
-    nsub = sub_body.size
-    sub_size = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)[3]
-    sub_rank = owners(sub_size, comm.size)
+    with timer.phase("decomposition"):
+        cell_sub, sub_body = decompose_distributed(
+            cells, cell_x, part.cell_ids, mesh.cell_body, mesh.cell_type, mesh.body_names,
+            mesh.num_cells, problem.decomposition, comm)
+    with timer.phase("distribution"):
+        cell_points, num_points, first = number_points(cells, mesh.cell_type, problem.degree,
+                                                       mesh.num_nodes, comm)
+        nsub = sub_body.size
+        sub_size = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)[3]
+        sub_rank = owners(sub_size, comm.size)
 
-    # the boundary facets travel with the cell they bound
-    names = list(mesh.facet_groups)
-    facets = [mesh.facet_groups[n] for n in names]
-    nvf = len(REFERENCE[mesh.cell_type].facets[0])
-    all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
-    group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
-    index = np.concatenate([part.facet_index[n] for n in names]) if names else \
-        np.zeros(0, dtype=np.int64)
-    f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
-    dest = sub_rank[cell_sub]
-    (f_vert, f_group, f_sub, f_index), *_ = exchange(
-        comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
-    tags = mesh.node_tags[mesh.cells]
-    cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
-        dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
-        comm=comm, key=part.cell_ids)
+        # the boundary facets travel with the cell they bound
+        names = list(mesh.facet_groups)
+        facets = [mesh.facet_groups[n] for n in names]
+        nvf = len(REFERENCE[mesh.cell_type].facets[0])
+        all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
+        group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
+        index = np.concatenate([part.facet_index[n] for n in names]) if names else \
+            np.zeros(0, dtype=np.int64)
+        f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
+        dest = sub_rank[cell_sub]
+        (f_vert, f_group, f_sub, f_index), *_ = exchange(
+            comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
+        tags = mesh.node_tags[mesh.cells]
+        cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
+            dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
+            comm=comm, key=part.cell_ids)
 
-    # local numbering: vertices and points in the order of their global numbers
-    vids, local_cells = np.unique(cells, return_inverse=True)
-    local_cells = local_cells.reshape(cells.shape)
-    nv = vids.size
-    x = np.zeros((nv, mesh.gdim))
-    x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
-    node_tags = np.zeros(nv, dtype=mesh.node_tags.dtype)
-    node_tags[local_cells.ravel()] = tags.ravel()
-    pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type,
-                                      problem.degree)
-    local_points = np.searchsorted(pids, cell_points)
-    local_mesh = replace(mesh.names_only(), x=x, cells=np.ascontiguousarray(local_cells),
-                         cell_body=cell_body, node_tags=node_tags, counts={}, part=None)
-    local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
-    entities = _local_entities(mesh.cell_type, local_mesh.cells, nv, local_first)
-    points = DofPoints(problem.degree, mesh.cell_type, point_x, local_points, nv, entities)
+        # local numbering: vertices and points in the order of their global numbers
+        vids, local_cells = np.unique(cells, return_inverse=True)
+        local_cells = local_cells.reshape(cells.shape)
+        nv = vids.size
+        x = np.zeros((nv, mesh.gdim))
+        x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
+        node_tags = np.zeros(nv, dtype=mesh.node_tags.dtype)
+        node_tags[local_cells.ravel()] = tags.ravel()
+        pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type,
+                                          problem.degree)
+        local_points = np.searchsorted(pids, cell_points)
+        local_mesh = replace(mesh.names_only(), x=x, cells=np.ascontiguousarray(local_cells),
+                             cell_body=cell_body, node_tags=node_tags, counts={}, part=None)
+        local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
+        entities = _local_entities(mesh.cell_type, local_mesh.cells, nv, local_first)
+        points = DofPoints(problem.degree, mesh.cell_type, point_x, local_points, nv, entities)
 
-    subs = np.flatnonzero(sub_rank == comm.rank)
-    keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
-    pair_sub, pair_node = keys // pids.size, keys % pids.size
-    pair_ptr = np.searchsorted(pair_sub, np.r_[subs, subs[-1] + 1] if subs.size else [0])
-    ids, ptr, node_subs, _ = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)
-    if not np.array_equal(ids, pids):
-        raise AssertionError("the node directory answered for other points")
-    multiplicity = np.diff(ptr)[pair_node]
-    dec = LocalDecomposition(subs=subs, cell_sub=cell_sub, sub_body=sub_body,
-                             sub_rank=sub_rank, sub_size=sub_size, pair_node=pair_node,
-                             pair_ptr=pair_ptr, multiplicity=multiplicity)
+        subs = np.flatnonzero(sub_rank == comm.rank)
+        keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
+        pair_sub, pair_node = keys // pids.size, keys % pids.size
+        pair_ptr = np.searchsorted(pair_sub, np.r_[subs, subs[-1] + 1] if subs.size else [0])
+        ids, ptr, node_subs, _ = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)
+        if not np.array_equal(ids, pids):
+            raise AssertionError("the node directory answered for other points")
+        multiplicity = np.diff(ptr)[pair_node]
+        dec = LocalDecomposition(subs=subs, cell_sub=cell_sub, sub_body=sub_body,
+                                 sub_rank=sub_rank, sub_size=sub_size, pair_node=pair_node,
+                                 pair_ptr=pair_ptr, multiplicity=multiplicity)
 
-    order = np.lexsort((f_index, f_group, f_sub))  # by subdomain, group, then the file's order
-    f_vert, f_group, f_sub, f_index = f_vert[order], f_group[order], f_sub[order], f_index[order]
-    local_f = np.searchsorted(vids, f_vert)
-    sub_facets: dict[int, dict[str, np.ndarray]] = {int(s): {} for s in subs}
-    for s in np.unique(f_sub):  # over this rank's subdomains
-        here = f_sub == s
-        for g in np.unique(f_group[here]):
-            sub_facets.setdefault(int(s), {})[names[g]] = local_f[here & (f_group == g)]
+    with timer.phase("constraints"):
+        # by subdomain, group, then the file's order
+        order = np.lexsort((f_index, f_group, f_sub))
+        f_vert, f_group, f_sub, f_index = (a[order] for a in (f_vert, f_group, f_sub, f_index))
+        local_f = np.searchsorted(vids, f_vert)
+        sub_facets: dict[int, dict[str, np.ndarray]] = {int(s): {} for s in subs}
+        for s in np.unique(f_sub):  # over this rank's subdomains
+            here = f_sub == s
+            for g in np.unique(f_group[here]):
+                sub_facets.setdefault(int(s), {})[names[g]] = local_f[here & (f_group == g)]
 
-    conditions = _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids)
-    # a point no other rank holds has all its cells, so all its facets, here: no exchange
-    fixed, values = dirichlet_mask_distributed(
-        pids, conditions, bs, num_points, comm,
-        shared=shared_points(ptr, node_subs, sub_rank, comm.rank))
-    surface = None
-    extra = Rows.empty(mesh.gdim)
-    mortar: list = []
-    if problem.contact or problem.ties:
-        on = np.isin(f_group, [names.index(g) for g in _contact_groups(problem)])
-        surface, extra, mortar = gather_surface(
-            problem, (f_vert[on], f_group[on], f_index[on], local_f[on]), names, local_mesh,
-            cell_ids, cell_points, local_points, (pids, ptr, node_subs, fixed), comm)
-    own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
-                                problem.gluing, sub_rank, comm, extra=extra)
-    cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
-    rows = RankRows(own=own, cols=cols, start=start, size=size,
-                    **_contact_rows(own, start, extra, comm))
+        conditions = _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids)
+        # a point no other rank holds has all its cells, so all its facets, here: no exchange
+        fixed, values = dirichlet_mask_distributed(
+            pids, conditions, bs, num_points, comm,
+            shared=shared_points(ptr, node_subs, sub_rank, comm.rank))
+        surface = None
+        extra = Rows.empty(mesh.gdim)
+        mortar: list = []
+        if problem.contact or problem.ties:
+            on = np.isin(f_group, [names.index(g) for g in _contact_groups(problem)])
+            surface, extra, mortar = gather_surface(
+                problem, (f_vert[on], f_group[on], f_index[on], local_f[on]), names, local_mesh,
+                cell_ids, cell_points, local_points, (pids, ptr, node_subs, fixed), comm)
+        own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
+                                    problem.gluing, sub_rank, comm, extra=extra)
+        cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
+        rows = RankRows(own=own, cols=cols, start=start, size=size,
+                        **_contact_rows(own, start, extra, comm))
     share = RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
                       num_points=num_points, num_cells=mesh.num_cells, dec=dec,
                       facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
