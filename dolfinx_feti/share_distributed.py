@@ -87,40 +87,14 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
         sub_size = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)[3]
         sub_rank = owners(sub_size, comm.size)
 
-        # the boundary facets travel with the cell they bound
-        names = list(mesh.facet_groups)
-        facets = [mesh.facet_groups[n] for n in names]
-        nvf = len(REFERENCE[mesh.cell_type].facets[0])
-        all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
-        group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
-        index = np.concatenate([part.facet_index[n] for n in names]) if names else \
-            np.zeros(0, dtype=np.int64)
-        f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
         dest = sub_rank[cell_sub]
-        (f_vert, f_group, f_sub, f_index), *_ = exchange(
-            comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
-        tags = mesh.node_tags[mesh.cells]
+        facets = _move_facets(mesh, dest, cell_sub, comm)
         cells, cell_x, cell_body, cell_ids, cell_sub, cell_points, tags = migrate(
-            dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points, tags,
-            comm=comm, key=part.cell_ids)
-
-        # local numbering: vertices and points in the order of their global numbers
-        vids, local_cells = np.unique(cells, return_inverse=True)
-        local_cells = local_cells.reshape(cells.shape)
-        nv = vids.size
-        x = np.zeros((nv, mesh.gdim))
-        x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
-        node_tags = np.zeros(nv, dtype=mesh.node_tags.dtype)
-        node_tags[local_cells.ravel()] = tags.ravel()
-        pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type,
-                                          problem.degree)
-        local_points = np.searchsorted(pids, cell_points)
-        local_mesh = replace(mesh.names_only(), x=x, cells=np.ascontiguousarray(local_cells),
-                             cell_body=cell_body, node_tags=node_tags, counts={}, part=None)
-        local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
-        entities = _local_entities(mesh.cell_type, local_mesh.cells, nv, local_first)
-        points = DofPoints(problem.degree, mesh.cell_type, point_x, local_points, nv, entities)
-
+            dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points,
+            mesh.node_tags[mesh.cells], comm=comm, key=part.cell_ids)
+        local_mesh, points, pids, vids = _local_mesh(
+            mesh, cells, cell_x, cell_body, tags, cell_points, first, problem.degree)
+        local_points = points.cell_points
         subs = np.flatnonzero(sub_rank == comm.rank)
         keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
         pair_sub, pair_node = keys // pids.size, keys % pids.size
@@ -134,9 +108,8 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
                                  pair_ptr=pair_ptr, multiplicity=multiplicity)
 
     with timer.phase("constraints"):
-        # by subdomain, group, then the file's order
-        order = np.lexsort((f_index, f_group, f_sub))
-        f_vert, f_group, f_sub, f_index = (a[order] for a in (f_vert, f_group, f_sub, f_index))
+        names = list(mesh.facet_groups)
+        f_vert, f_group, f_sub, f_index = facets
         local_f = np.searchsorted(vids, f_vert)
         sub_facets: dict[int, dict[str, np.ndarray]] = {int(s): {} for s in subs}
         for s in np.unique(f_sub):  # over this rank's subdomains
@@ -166,6 +139,50 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
                       num_points=num_points, num_cells=mesh.num_cells, dec=dec,
                       facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
     return share, surface, mortar
+
+
+def _move_facets(mesh, dest: np.ndarray, cell_sub: np.ndarray, comm: MPI.Comm):
+    """The boundary facets sent with the cell they bound to its new rank.
+
+    Returns:
+        ``(vertices, group, subdomain, position in the group)`` of the facets this rank
+        receives, ordered by subdomain, group, then the file's order.
+    """
+    part = mesh.part
+    names = list(mesh.facet_groups)
+    facets = [mesh.facet_groups[n] for n in names]
+    nvf = len(REFERENCE[mesh.cell_type].facets[0])
+    all_f = np.concatenate(facets) if facets else np.zeros((0, nvf), dtype=np.int64)
+    group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
+    index = np.concatenate([part.facet_index[n] for n in names]) if names else \
+        np.zeros(0, dtype=np.int64)
+    f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
+    (vertices, group, sub, index), *_ = exchange(
+        comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
+    order = np.lexsort((index, group, sub))
+    return vertices[order], group[order], sub[order], index[order]
+
+
+def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree):
+    """The rank's cells as a mesh and their dof points, numbered in the global order.
+
+    Returns:
+        ``(local mesh, local dof points, global number of each point, of each vertex)``.
+    """
+    vids, local_cells = np.unique(cells, return_inverse=True)
+    local_cells = np.ascontiguousarray(local_cells.reshape(cells.shape))
+    x = np.zeros((vids.size, mesh.gdim))
+    x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
+    node_tags = np.zeros(vids.size, dtype=mesh.node_tags.dtype)
+    node_tags[local_cells.ravel()] = tags.ravel()
+    pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type, degree)
+    local_mesh = replace(mesh.names_only(), x=x, cells=local_cells, cell_body=cell_body,
+                         node_tags=node_tags, counts={}, part=None)
+    local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
+    entities = _local_entities(mesh.cell_type, local_cells, vids.size, local_first)
+    points = DofPoints(degree, mesh.cell_type, point_x, np.searchsorted(pids, cell_points),
+                       vids.size, entities)
+    return local_mesh, points, pids, vids
 
 
 def _contact_groups(problem) -> list[str]:
