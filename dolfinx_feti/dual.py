@@ -238,6 +238,12 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
                           rows, bs, comm, extra)
         del dec, rows
+    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata)
+
+
+def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, factor,
+                 norm_rtol: float, timer: Timer, mortar: list, fdata, surface=None) -> DualQP:
+    """Assemble this rank's subdomains and chain the method's transforms (collective)."""
     data = assemble_subdomains(problem, share, comm, timer)
     info: dict = {}
     with timer.phase("constraints"):
@@ -252,8 +258,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             info = part["info"]
     qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
                   timer=timer, dec=share.dec, rows=share.rows, info=info)
-    qp.mortar, qp.friction, qp.share = mortar, fdata, share
-    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, bs)
+    qp.mortar, qp.friction, qp.share, qp.surface = mortar, fdata, share, surface
+    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 
 
@@ -269,23 +275,14 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
     if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
         glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
         method = "tfeti" if glued else "feti1"
-    data = assemble_subdomains(problem, share, comm, timer)
-    with timer.phase("constraints"):
-        total = BlockSystem.from_rows(data, share.rows)
-        steps: list = []
-        if method == "feti1":
-            steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
-    qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
-                  timer=timer, dec=share.dec, rows=share.rows, info={})
     fdata = None
     if any(getattr(c, "friction", None) is not None for c in problem.contact):
         with collective(comm, "friction"):
             if comm.rank == 0:  # from the contact rows, on the cells along the surfaces
                 fdata = surface_friction(surface, share.rows)
         fdata = comm.bcast(fdata, root=0)
-    qp.mortar, qp.friction, qp.share, qp.surface = mortar, fdata, share, surface
-    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
-    return qp
+    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata,
+                        surface)
 
 
 def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
