@@ -26,7 +26,7 @@ from mpi4py import MPI
 from .constraints.rows import Rows
 from .errors import InputError, collective
 from .exchange import hand_out
-from .mesh.checks import check_boundary_group
+from .mesh.checks import boundary_group_verdicts
 from .mesh.decompose import Decomposition
 from .mesh.dofpoints import DofPoints, degree2_entities
 from .mesh.gmsh_input import MeshData
@@ -179,17 +179,6 @@ def row_subset(rows: Rows, index: np.ndarray) -> Rows:
     return Rows(**out)
 
 
-def _group_errors(mesh: MeshData) -> dict[str, str]:
-    """Rank 0's verdict on each boundary group as the surface of a boundary integral."""
-    errors = {}
-    for name in mesh.facet_groups:
-        try:
-            check_boundary_group(mesh, name, "{what}")
-        except InputError as e:
-            errors[name] = str(e)
-    return errors
-
-
 def _subdomain_facets(mesh: MeshData, dec: Decomposition) -> dict[int, dict[str, np.ndarray]]:
     """Boundary groups split by the subdomain of the cell each facet bounds."""
     out: dict[int, dict[str, np.ndarray]] = {}
@@ -299,8 +288,9 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
             common = {"sub_body": dec.sub_body, "sub_rank": dec.sub_rank,
                       "sub_size": np.diff(dec.sub_ptr), "size": rows.size,
                       "contact": row_subset(rows, contact), "contact_index": contact,
-                      "group_errors": _group_errors(mesh), "num_points": points.num_points,
-                      "degree": points.degree, "num_cells": mesh.cells.shape[0]}
+                      "group_errors": boundary_group_verdicts(mesh),
+                      "num_points": points.num_points, "degree": points.degree,
+                      "num_cells": mesh.cells.shape[0]}
     common = comm.bcast(common, root=0)
     p = hand_out(comm, make, "handing out the shares")
     nvc = REFERENCE[mesh.cell_type].num_vertices  # the vertices come first among the points

@@ -406,5 +406,25 @@ def check_boundary_group(mesh: MeshData, group: str, what: str = "boundary group
            "the decomposition. Use a group of boundary facets"))
 
 
-__all__ = ["boundary_facets", "check_boundary_group", "check_conforming",
-           "check_contact_surface", "check_mesh", "nonconforming_nodes"]
+def unfit_groups(mesh: MeshData, check) -> dict[str, str]:
+    """Group → the message of ``check(mesh, group)``, for the boundary groups it refuses.
+
+    For verdicts made once on the whole mesh and applied later, when a problem says what it
+    uses each group for (a ``{what}`` in a message stands for that use).
+    """
+    errors = {}
+    for name in mesh.facet_groups:
+        try:
+            check(mesh, name)
+        except InputError as e:
+            errors[name] = str(e)
+    return errors
+
+
+def boundary_group_verdicts(mesh: MeshData) -> dict[str, str]:
+    """:func:`unfit_groups` of :func:`check_boundary_group`, the use left as ``{what}``."""
+    return unfit_groups(mesh, lambda m, name: check_boundary_group(m, name, "{what}"))
+
+
+__all__ = ["boundary_facets", "boundary_group_verdicts", "check_boundary_group", "check_conforming",
+           "check_contact_surface", "check_mesh", "nonconforming_nodes", "unfit_groups"]

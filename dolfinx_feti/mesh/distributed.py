@@ -22,10 +22,11 @@ from mpi4py import MPI
 from ..errors import InputError, collective
 from ..exchange import Blocks, hand_out
 from .checks import (
-    check_boundary_group,
+    boundary_group_verdicts,
     check_conforming,
     check_contact_surface,
     nonconforming_nodes,
+    unfit_groups,
 )
 from .gmsh_input import MeshData
 from .topology import locate_facets
@@ -102,16 +103,8 @@ class MeshPart:
 
 def verdicts(mesh: MeshData) -> Verdicts:
     """The group and conformity checks of the whole ``mesh`` (on the rank that holds it)."""
-    boundary, contact = {}, {}
-    for name, f in mesh.facet_groups.items():
-        if f.shape[0] == 0:
-            continue
-        for out, check in ((boundary, lambda n: check_boundary_group(mesh, n, "{what}")),
-                           (contact, lambda n: check_contact_surface(mesh, n))):
-            try:
-                check(name)
-            except InputError as e:
-                out[name] = str(e)
+    boundary = boundary_group_verdicts(mesh)
+    contact = unfit_groups(mesh, check_contact_surface)
     node, facet = nonconforming_nodes(mesh)
     if node.size == 0:
         return Verdicts(boundary, contact, None)
