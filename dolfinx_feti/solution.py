@@ -269,8 +269,8 @@ class Solution:
             return self.problem.dof_points
         if self._directory is None:
             from .mesh.point_directory import PointDirectory
-            self._directory = PointDirectory(self.share, self.problem.degree,
-                                             self.problem.mesh.num_nodes, self.comm)
+            self._directory = PointDirectory(self.problem.mesh.cell_type, self.problem.degree,
+                                             self.problem.mesh.num_nodes, self.comm, self.share)
         return self._directory
 
     def pressure_function(self, degree: int | None = None):

@@ -29,14 +29,17 @@ class PointDirectory:
     :meth:`lookup`, which every rank calls the same number of times with the same dimensions.
 
     Args:
-        share: This rank's share (:class:`~dolfinx_feti.share.RankShare`).
+        cell_type: The cells' type.
         degree: 1 (the vertices) or the share's degree.
         num_vertices: Number of vertices of the whole mesh.
         comm: The ranks.
+        share: This rank's share (:class:`~dolfinx_feti.share.RankShare`), whose entities
+            are registered (needed for degree 2).
     """
 
-    def __init__(self, share, degree: int, num_vertices: int, comm: MPI.Comm) -> None:
-        self.degree, self.cell_type, self.comm = degree, share.points.cell_type, comm
+    def __init__(self, cell_type: str, degree: int, num_vertices: int, comm: MPI.Comm,
+                 share=None) -> None:
+        self.degree, self.cell_type, self.comm = degree, cell_type, comm
         self.num_points = num_vertices if degree == 1 else share.num_points
         self.num_vertices = num_vertices
         self._tables: dict[int, tuple[np.ndarray, np.ndarray]] = {}
@@ -61,11 +64,7 @@ class PointDirectory:
             return self
         if degree != 1:
             raise ValueError(f"a directory of degree {degree} needs the share")
-        out = PointDirectory.__new__(PointDirectory)
-        out.degree, out.cell_type, out.comm = 1, self.cell_type, self.comm
-        out.num_points = out.num_vertices = self.num_vertices
-        out._tables = {}
-        return out
+        return PointDirectory(self.cell_type, 1, self.num_vertices, self.comm)
 
     def lookup(self, dim: int, vertices: np.ndarray) -> np.ndarray:
         """The global point of each entity given by its global vertices (-1: no such entity)."""
