@@ -37,7 +37,7 @@ def _grid(nx: int, ny: int, x0: float = 0.0, y0: float = 0.0, lx: float = 1.0,
 
 
 def _mesh_of(parts: list[tuple[str, np.ndarray, np.ndarray]],
-             facet_groups: dict | None = None) -> df.MeshData:
+             facet_groups: dict | None = None, cell_type: str = "triangle") -> df.MeshData:
     """MeshData of several bodies ``(name, x, cells)``; each body keeps its own nodes."""
     xs, cells, body = [], [], []
     offset = 0
@@ -47,7 +47,7 @@ def _mesh_of(parts: list[tuple[str, np.ndarray, np.ndarray]],
         body.append(np.full(c.shape[0], b, dtype=np.int32))
         offset += x.shape[0]
     x = np.concatenate(xs)
-    return df.MeshData(x=x, cells=np.concatenate(cells), cell_type="triangle",
+    return df.MeshData(x=x, cells=np.concatenate(cells), cell_type=cell_type,
                        cell_body=np.concatenate(body), body_names=tuple(p[0] for p in parts),
                        facet_groups=dict(facet_groups or {}),
                        node_tags=np.arange(1, x.shape[0] + 1))

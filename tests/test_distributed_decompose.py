@@ -13,6 +13,7 @@ from fractions import Fraction
 import numpy as np
 import pytest
 from mpi4py import MPI
+from test_decompose import _mesh_of
 
 import dolfinx_feti as df
 from dolfinx_feti import meshes
@@ -81,20 +82,6 @@ def _structured(cell_type: str, n: tuple[int, ...], origin=(0.0, 0.0, 0.0), body
     return x, boxes[:, kuhn].reshape(-1, 4)
 
 
-def _mesh_of(cell_type: str, bodies) -> df.MeshData:
-    """MeshData of bodies ``(name, x, cells)``, each with its own nodes."""
-    xs, cells, body, offset = [], [], [], 0
-    for b, (_, x, c) in enumerate(bodies):
-        xs.append(x)
-        cells.append(c + offset)
-        body.append(np.full(c.shape[0], b, dtype=np.int32))
-        offset += x.shape[0]
-    x = np.concatenate(xs)
-    return df.MeshData(x=x, cells=np.concatenate(cells), cell_type=cell_type,
-                       cell_body=np.concatenate(body), body_names=tuple(b[0] for b in bodies),
-                       facet_groups={}, node_tags=np.arange(1, x.shape[0] + 1))
-
-
 def _u_shape(cell_type: str, n: int = 9) -> tuple[np.ndarray, np.ndarray]:
     """A U of an n × n grid without its upper middle third: bisections fall apart in pieces."""
     x, cells = _structured(cell_type, (n, n))
@@ -114,16 +101,18 @@ def _scrambled(mesh: df.MeshData, seed: int = 1) -> df.MeshData:
 
 
 MESHES = {
-    "triangles": lambda: _mesh_of("triangle", [("plate", *_structured("triangle", (12, 8)))]),
-    "quads_two_bodies": lambda: _mesh_of("quadrilateral", [
+    "triangles": lambda: _mesh_of([("plate", *_structured("triangle", (12, 8)))]),
+    "quads_two_bodies": lambda: _mesh_of([
         ("a", *_structured("quadrilateral", (10, 6))),
-        ("b", *_structured("quadrilateral", (5, 5), origin=(0.0, 6.0)))]),
-    "tets": lambda: _scrambled(_mesh_of("tetrahedron", [("cube", *_structured("tetrahedron",
-                                                                              (4, 3, 3)))])),
-    "hexes_two_bodies": lambda: _mesh_of("hexahedron", [
+        ("b", *_structured("quadrilateral", (5, 5), origin=(0.0, 6.0)))],
+        cell_type="quadrilateral"),
+    "tets": lambda: _scrambled(_mesh_of([("cube", *_structured("tetrahedron", (4, 3, 3)))],
+                                        cell_type="tetrahedron")),
+    "hexes_two_bodies": lambda: _mesh_of([
         ("lower", *_structured("hexahedron", (5, 4, 2))),
-        ("upper", *_structured("hexahedron", (5, 4, 3), origin=(0.0, 0.0, 2.0)))]),
-    "u_shape": lambda: _mesh_of("triangle", [("u", *_u_shape("triangle"))]),
+        ("upper", *_structured("hexahedron", (5, 4, 3), origin=(0.0, 0.0, 2.0)))],
+        cell_type="hexahedron"),
+    "u_shape": lambda: _mesh_of([("u", *_u_shape("triangle"))]),
 }
 GMSH_MESHES = {
     "gmsh_triangles": lambda: df.build_mesh(_rectangle, quads=False),

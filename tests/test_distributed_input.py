@@ -16,6 +16,7 @@ import reference as ref
 import stress_cases as sc
 import ufl
 from mpi4py import MPI
+from test_share import hexahedra_q2
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import Rows
@@ -49,15 +50,6 @@ def tied_blocks(root, distribute):
         ties=[df.Tie("upper_bottom", "lower_top")], decomposition=df.Parts(4))
 
 
-def hexahedra_p2(root, distribute):
-    mesh = df.build_mesh(em.box, True, 6, distribute=distribute)
-    return df.ContactProblem(
-        mesh, df.Elasticity(1.0, 0.3, degree=2, tractions={"x1": (0.0, 0.0, -0.1)}),
-        dirichlet=[df.Dirichlet("x0"),
-                   df.Dirichlet("z0", lambda x: 0.01 * x[:, 0], components=[2])],
-        decomposition=df.Parts(4))
-
-
 def quads_by_function(root, distribute):
     mesh = df.build_mesh(em.rectangle, True, 0.2, distribute=distribute)
     return df.ContactProblem(
@@ -79,8 +71,8 @@ def hertz_friction(root, distribute):
 CASES = {"membranes_P1": lambda root, d: membranes(root, 1, d),
          "membranes_P2": lambda root, d: membranes(root, 2, d),
          "hertz_mortar": hertz_mortar, "tied_blocks_3d": tied_blocks,
-         "hexahedra_P2": hexahedra_p2, "quads_by_function": quads_by_function,
-         "hertz_tresca": hertz_friction}
+         "hexahedra_P2": lambda root, d: hexahedra_q2(distribute=d),
+         "quads_by_function": quads_by_function, "hertz_tresca": hertz_friction}
 
 
 @pytest.fixture(scope="module", params=list(CASES))

@@ -131,9 +131,9 @@ def test_entity_keys_sort_as_the_sorted_rows():
     assert np.array_equal(np.argsort(local, kind="stable"), want)
 
 
-def hexahedra_q2(comm=COMM):
+def hexahedra_q2(comm=COMM, distribute: bool = False):
     """Degree-2 elasticity on 6³ hexahedra: 343 vertices, so cell keys are bytes."""
-    mesh = df.build_mesh(em.box, True, 6, comm=comm)
+    mesh = df.build_mesh(em.box, True, 6, comm=comm, distribute=distribute)
     return df.ContactProblem(
         mesh, df.Elasticity(1.0, 0.3, degree=2, tractions={"x1": (0.0, 0.0, -0.1)}),
         dirichlet=[df.Dirichlet("x0"),
