@@ -66,7 +66,8 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str
     and hexahedra), then for ``degree`` 2 the edge, face and interior nodes in basix's order.
     On a communicator with several ranks, pass all data on rank 0 and empty arrays elsewhere;
     DOLFINx distributes it. On one rank under DOLFINx 0.5 the partitioner is skipped (every cell
-    stays here): the default one builds the dual graph first, a third of the mesh creation.
+    stays here): the default one builds the dual graph first, a third of the mesh creation;
+    and no ghost layer is asked for (on one rank there is none to build).
     """
     cells = np.ascontiguousarray(cells, dtype=np.int64)
     x = np.ascontiguousarray(x, dtype=np.float64)
@@ -74,7 +75,9 @@ def create_mesh(comm: MPI.Comm, cells: np.ndarray, x: np.ndarray, cell_type: str
     if VERSION >= (0, 10):  # the element moved before the coordinates
         return dolfinx.mesh.create_mesh(comm, cells, domain, x)
     if VERSION < (0, 6) and comm.size == 1:  # 0.5's partitioner signature
-        return dolfinx.mesh.create_mesh(comm, cells, x, domain, partitioner=_all_here)
+        return dolfinx.mesh.create_mesh(comm, dolfinx.cpp.graph.AdjacencyList_int64(cells), x,
+                                        domain, ghost_mode=dolfinx.mesh.GhostMode.none,
+                                        partitioner=_all_here)
     return dolfinx.mesh.create_mesh(comm, cells, x, domain)
 
 

@@ -33,11 +33,12 @@ from .errors import InputError, collective
 from .exchange import answer, exchange
 from .mesh.distributed_decompose import decompose_distributed
 from .mesh.distributed_points import (
+    SubdomainDirectory,
+    _unique,
     migrate,
     number_points,
     owners,
     point_coordinates,
-    point_subdomains,
 )
 from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.topology import REFERENCE, locate_facets
@@ -84,7 +85,9 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
         cell_points, num_points, first = number_points(cells, mesh.cell_type, problem.degree,
                                                        mesh.num_nodes, comm)
         nsub = sub_body.size
-        sub_size = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)[3]
+        # built before the cells move, the directory answers for their points after it
+        directory = SubdomainDirectory(cell_points, cell_sub, num_points, nsub, comm)
+        sub_size = directory.sub_size
         sub_rank = owners(sub_size, comm.size)
 
         dest = sub_rank[cell_sub]
@@ -99,9 +102,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
         keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
         pair_sub, pair_node = keys // pids.size, keys % pids.size
         pair_ptr = np.searchsorted(pair_sub, np.r_[subs, subs[-1] + 1] if subs.size else [0])
-        ids, ptr, node_subs, _ = point_subdomains(cell_points, cell_sub, num_points, nsub, comm)
-        if not np.array_equal(ids, pids):
-            raise AssertionError("the node directory answered for other points")
+        ptr, node_subs = directory.ask(pids)
         multiplicity = np.diff(ptr)[pair_node]
         dec = LocalDecomposition(subs=subs, cell_sub=cell_sub, sub_body=sub_body,
                                  sub_rank=sub_rank, sub_size=sub_size, pair_node=pair_node,
@@ -169,19 +170,22 @@ def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree
     Returns:
         ``(local mesh, local dof points, global number of each point, of each vertex)``.
     """
-    vids, local_cells = np.unique(cells, return_inverse=True)
-    local_cells = np.ascontiguousarray(local_cells.reshape(cells.shape))
+    vids, _, local_cells = _unique(cells.T.ravel())  # column by column: sorted runs
+    local_cells = np.ascontiguousarray(local_cells.reshape(cells.shape[::-1]).T)
     x = np.zeros((vids.size, mesh.gdim))
     x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
     node_tags = np.zeros(vids.size, dtype=mesh.node_tags.dtype)
     node_tags[local_cells.ravel()] = tags.ravel()
-    pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type, degree)
+    if degree == 1:  # the points are the vertices (number_points)
+        pids, point_x, local_points = vids, x, local_cells
+    else:
+        pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type, degree)
+        local_points = np.searchsorted(pids, cell_points)
     local_mesh = replace(mesh.names_only(), x=x, cells=local_cells, cell_body=cell_body,
                          node_tags=node_tags, counts={}, part=None)
     local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
     entities = _local_entities(mesh.cell_type, local_cells, vids.size, local_first)
-    points = DofPoints(degree, mesh.cell_type, point_x, np.searchsorted(pids, cell_points),
-                       vids.size, entities)
+    points = DofPoints(degree, mesh.cell_type, point_x, local_points, vids.size, entities)
     return local_mesh, points, pids, vids
 
 

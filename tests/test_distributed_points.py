@@ -140,6 +140,11 @@ def test_point_subdomains_are_the_serial_directory(name, degree, split):
     points, ptr, subs, again = dp.point_subdomains(moved_points, cell_sub, num_points, nsub, COMM)
     check_directory(loc.dec, points, ptr, subs, np.unique(loc.points.cell_points[want]))
     assert np.array_equal(again, sub_size)
+    # a directory built before the move answers for the moved cells' points
+    before = dp.SubdomainDirectory(cell_points, loc.cell_sub, num_points, nsub, COMM)
+    assert np.array_equal(before.sub_size, sub_size)
+    asked_ptr, asked_subs = before.ask(points)
+    assert np.array_equal(asked_ptr, ptr) and np.array_equal(asked_subs, subs)
     # from the migrated cells (no longer blocks of ascending ids), dealt out round robin
     ids, cells = dp.migrate(ids % COMM.size, ids, cells, comm=COMM, key=ids)
     want = np.flatnonzero(np.arange(loc.mesh.num_cells) % COMM.size == COMM.rank)

@@ -147,43 +147,83 @@ def point_subdomains(cell_points: np.ndarray, cell_sub: np.ndarray, num_points: 
     Raises:
         InputError: On every rank, if a rank's points or subdomains are out of range.
     """
-    cell_points, cell_sub = np.asarray(cell_points), np.asarray(cell_sub)
-    with collective(comm):
-        _check_numbers(cell_points, num_points, "cell_points", 2)
-        _check_numbers(cell_sub, nsub, "cell_sub", 1)
-        if cell_sub.shape[0] != cell_points.shape[0]:
-            raise InputError(f"cell_sub has {cell_sub.shape[0]} entries for "
-                             f"{cell_points.shape[0]} cells")
-        if int(nsub) * int(num_points) >= 2**63:
-            raise InputError(f"{nsub} subdomains × {num_points} points: (subdomain, point) "
-                             "pairs beyond 64-bit keys")
-    size, nsub = comm.size, int(nsub)
-    # The distinct (point, subdomain) pairs of the local cells, to the points' home ranks.
-    key = _distinct(cell_points.astype(np.int64).T.ravel() * nsub  # column by column: runs
-                    + np.tile(cell_sub.astype(np.int64), cell_points.shape[1]))
-    pairs = np.column_stack([key // nsub, key % nsub])
-    home = Blocks(num_points, size).home(pairs[:, 0])
-    (got,), _, _, rcounts = exchange(comm, home, pairs)
-    sender = np.repeat(np.arange(size, dtype=np.int64), rcounts)
-    # Home: each point's sorted subdomains (pairs sent by several ranks counted once).
-    key = _distinct(got[:, 0] * nsub + got[:, 1])
-    point, sub = key // nsub, key % nsub
-    sub_size = np.bincount(sub, minlength=nsub).astype(np.int64)
-    comm.Allreduce(MPI.IN_PLACE, sub_size, op=MPI.SUM)
-    held, start = _starts(point)
-    count = np.diff(np.append(start, point.size))
-    # Each rank that sent a pair of a point receives the point's whole list.
-    ask = _distinct(got[:, 0] * size + sender)
-    ask_point, ask_rank = ask // size, ask % size
-    at = np.searchsorted(held, ask_point)
-    n = count[at]
-    rows = _ranges(start[at], n)
-    (back,), _, _, _ = exchange(comm, np.repeat(ask_rank, n),
-                                np.column_stack([np.repeat(ask_point, n), sub[rows]]))
-    # The homes' blocks ascend with their ranks and each sends its rows by point, then
-    # subdomain: the rows arrive sorted.
-    points, ptr = _starts(back[:, 0])
-    return points, np.append(ptr, back.shape[0]).astype(np.int64), back[:, 1], sub_size
+    directory = SubdomainDirectory(cell_points, cell_sub, num_points, nsub, comm)
+    points = _distinct(np.asarray(cell_points, dtype=np.int64).ravel())
+    ptr, subs = directory.ask(points)
+    return points, ptr, subs, directory.sub_size
+
+
+class SubdomainDirectory:
+    """The sorted subdomains of every point, kept by the points' home ranks (collective).
+
+    Built once from the ranks' cells, it answers for any points afterwards: the set of
+    (point, subdomain) pairs does not change when the cells move (:func:`migrate`), so the
+    directory built before the move answers the ranks' points after it.
+
+    Attributes:
+        sub_size: The number of points of each subdomain (nsub,), the same on every rank (the
+            serial ``diff(sub_ptr)``).
+    """
+
+    def __init__(self, cell_points: np.ndarray, cell_sub: np.ndarray, num_points: int,
+                 nsub: int, comm: MPI.Comm) -> None:
+        """Send the distinct (point, subdomain) pairs of the local cells to the points' homes.
+
+        Args: as :func:`point_subdomains`.
+
+        Raises:
+            InputError: On every rank, if a rank's points or subdomains are out of range.
+        """
+        cell_points, cell_sub = np.asarray(cell_points), np.asarray(cell_sub)
+        with collective(comm):
+            _check_numbers(cell_points, num_points, "cell_points", 2)
+            _check_numbers(cell_sub, nsub, "cell_sub", 1)
+            if cell_sub.shape[0] != cell_points.shape[0]:
+                raise InputError(f"cell_sub has {cell_sub.shape[0]} entries for "
+                                 f"{cell_points.shape[0]} cells")
+            if int(nsub) * int(num_points) >= 2**63:
+                raise InputError(f"{nsub} subdomains × {num_points} points: (subdomain, point) "
+                                 "pairs beyond 64-bit keys")
+        nsub = int(nsub)
+        self.comm = comm
+        self.blocks = Blocks(num_points, comm.size)
+        # The distinct (point, subdomain) pairs of the local cells, to the points' home ranks.
+        key = _distinct(cell_points.astype(np.int64).T.ravel() * nsub  # column by column: runs
+                        + np.tile(cell_sub.astype(np.int64), cell_points.shape[1]))
+        (got,), _, _, _ = exchange(comm, self.blocks.home(key // nsub), key)
+        # Home: each point's sorted subdomains (pairs sent by several ranks counted once).
+        key = _distinct(got)
+        point, self._sub = key // nsub, key % nsub
+        self.sub_size = np.bincount(self._sub, minlength=nsub).astype(np.int64)
+        comm.Allreduce(MPI.IN_PLACE, self.sub_size, op=MPI.SUM)
+        self._held, self._start = _starts(point)
+        self._count = np.diff(np.append(self._start, point.size))
+
+    def ask(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sorted subdomains of each of this rank's sorted distinct points (collective).
+
+        Returns:
+            ``(ptr, subs)``: the subdomains of ``points[i]`` are ``subs[ptr[i]:ptr[i + 1]]``.
+        """
+        comm, size = self.comm, self.comm.size
+        points = np.asarray(points, dtype=np.int64)
+        (asked,), _, _, rcounts = exchange(comm, self.blocks.home(points), points)
+        sender = np.repeat(np.arange(size, dtype=np.int64), rcounts)
+        at = np.minimum(np.searchsorted(self._held, asked), self._held.size - 1)
+        # a point of no cell gets no list (the check below then fails on its rank)
+        n = np.where(self._held[at] == asked, self._count[at], 0) if self._held.size else \
+            np.zeros(asked.size, dtype=np.int64)
+        # Each sender's points arrive in its (ascending) order and go back in it, whole lists
+        # by point, then subdomain; the homes' blocks ascend with their ranks: the rows arrive
+        # sorted.
+        rows = _ranges(self._start[at], n) if self._held.size else np.zeros(0, np.int64)
+        (back,), _, _, _ = exchange(comm, np.repeat(sender, n),
+                                    np.column_stack([np.repeat(asked, n), self._sub[rows]]))
+        held, start = _starts(back[:, 0])
+        if not np.array_equal(held, points):
+            raise AssertionError("the subdomain directory has no list for some points")
+        ptr = np.append(start, back.shape[0]).astype(np.int64)
+        return ptr, back[:, 1]
 
 
 def owners(sub_size: np.ndarray, comm_size: int) -> np.ndarray:
@@ -347,4 +387,5 @@ def _check_numbers(a: np.ndarray, bound: int, name: str, ndim: int) -> None:
         raise InputError(f"{name} has entries outside [0, {bound}): {a.min()} … {a.max()}")
 
 
-__all__ = ["migrate", "number_points", "owners", "point_coordinates", "point_subdomains"]
+__all__ = ["SubdomainDirectory", "migrate", "number_points", "owners", "point_coordinates",
+           "point_subdomains"]
