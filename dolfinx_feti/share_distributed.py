@@ -157,7 +157,13 @@ def _move_facets(mesh, dest: np.ndarray, cell_sub: np.ndarray, comm: MPI.Comm):
     group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
     index = np.concatenate([part.facet_index[n] for n in names]) if names else \
         np.zeros(0, dtype=np.int64)
-    f_cell, _ = locate_facets(mesh.cells, all_f, mesh.cell_type)
+    # only a cell with a whole facet on the groups' vertices can hold one of their facets:
+    # locate them among those cells (not through a facet index of all local cells)
+    on = np.zeros(mesh.x.shape[0], dtype=bool)
+    on[all_f] = True
+    near = np.flatnonzero(np.count_nonzero(on[mesh.cells], axis=1) >= nvf)
+    f_cell, _ = locate_facets(mesh.cells[near], all_f, mesh.cell_type)
+    f_cell = np.where(f_cell >= 0, near[f_cell], -1)
     (vertices, group, sub, index), *_ = exchange(
         comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
     order = np.lexsort((index, group, sub))

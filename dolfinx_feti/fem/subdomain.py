@@ -94,8 +94,14 @@ class Subdomain:
         conn, xg = (self._points.cell_points, self._points.x) if curved else (mesh.cells, mesh.x)
         offsets = np.cumsum([0] + [v.size for v in verts[:-1]])
         self._input_global = np.concatenate(verts)  # mesh input node → global dof point
-        local_cells = np.concatenate([np.searchsorted(v, conn[c]) + o
-                                      for c, v, o in zip(cells, verts, offsets, strict=True)])
+        # the input nodes are the canonical points in their order (no points beyond vertices)
+        self._inputs_are_points = not curved and self._input_global.size == self.nodes.size
+        local = np.empty(xg.shape[0], dtype=np.int64)
+        parts = []
+        for c, v, o in zip(cells, verts, offsets, strict=True):  # over the subdomains
+            local[v] = np.arange(o, o + v.size)  # this subdomain's copy of each node
+            parts.append(local[conn[c]])
+        local_cells = np.concatenate(parts)
         self.mesh = compat.create_mesh(MPI.COMM_SELF, local_cells, xg[self._input_global],
                                        mesh.cell_type, mesh.geometry_degree)
         self._node_of_geom = compat.node_input_indices(self.mesh)  # geometry node → input node
@@ -193,16 +199,23 @@ class Subdomain:
 
     def _canonical_points(self, V) -> np.ndarray:
         """For each (blocked) dof of V, its index in the canonical order of the dof points."""
-        dofs, pts = cell_dof_points(V, self._input_global[self._node_of_geom], self._points)
-        # The block of a cell says which copy of a shared dof point its dofs are.
-        key_nodes = np.repeat(np.arange(len(self._node_ptr) - 1), np.diff(self._node_ptr)) \
-            * np.int64(self._points.num_points) + self.nodes
-        want = self._cell_block[:, None] * np.int64(self._points.num_points) + pts
-        pos = np.minimum(np.searchsorted(key_nodes, want), key_nodes.size - 1)
+        block = self._cell_block[:, None]
+        if self._inputs_are_points:  # a vertex is its own point: its input node is its place
+            dofs, pos = cell_dof_points(V, self._node_of_geom, self._points)
+            wrong = (pos < self._node_ptr[block]) | (pos >= self._node_ptr[block + 1])
+        else:
+            dofs, pts = cell_dof_points(V, self._input_global[self._node_of_geom],
+                                        self._points)
+            # The block of a cell says which copy of a shared dof point its dofs are.
+            key_nodes = np.repeat(np.arange(len(self._node_ptr) - 1), np.diff(self._node_ptr)) \
+                * np.int64(self._points.num_points) + self.nodes
+            want = block * np.int64(self._points.num_points) + pts
+            pos = np.minimum(np.searchsorted(key_nodes, want), key_nodes.size - 1)
+            wrong = key_nodes[pos] != want
         out = np.full(compat.dof_count(V), -1, dtype=np.int64)
         out[dofs] = pos
         # each dof on its own point of this subdomain: else the permutation below has holes
-        if np.any(key_nodes[pos] != want) or np.any(out < 0) or \
+        if np.any(wrong) or np.any(out < 0) or \
                 np.any(np.bincount(out, minlength=out.size) != 1):
             raise AssertionError(f"subdomain(s) {self._ids}: the space's dofs do not sit one "
                                  "by one on the subdomain's dof points")
