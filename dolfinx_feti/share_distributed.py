@@ -176,8 +176,7 @@ def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree
     Returns:
         ``(local mesh, local dof points, global number of each point, of each vertex)``.
     """
-    vids, _, local_cells = _unique(cells.T.ravel())  # column by column: sorted runs
-    local_cells = np.ascontiguousarray(local_cells.reshape(cells.shape[::-1]).T)
+    vids, local_cells = _compact(cells)
     x = np.zeros((vids.size, mesh.gdim))
     x[local_cells.ravel()] = cell_x.reshape(-1, mesh.gdim)
     node_tags = np.zeros(vids.size, dtype=mesh.node_tags.dtype)
@@ -193,6 +192,24 @@ def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree
     entities = _local_entities(mesh.cell_type, local_cells, vids.size, local_first)
     points = DofPoints(degree, mesh.cell_type, point_x, local_points, vids.size, entities)
     return local_mesh, points, pids, vids
+
+
+def _compact(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.unique(cells, return_inverse=True)``, the inverse in the shape of ``cells``.
+
+    By a mask over the range of the numbers when it is not much longer than ``cells`` (a
+    rank's vertices are mostly a few ranges of the global numbering), else by a sort.
+    """
+    lo, hi = (int(cells.min()), int(cells.max())) if cells.size else (0, -1)
+    if hi - lo >= cells.size:
+        vids, _, inverse = _unique(cells.ravel())
+        return vids, inverse.reshape(cells.shape)
+    mark = np.zeros(hi - lo + 1, dtype=bool)
+    mark[cells - lo] = True
+    vids = np.flatnonzero(mark)
+    local = np.empty(mark.size, dtype=np.int64)
+    local[vids] = np.arange(vids.size)
+    return vids + lo, local[cells - lo]
 
 
 def _contact_groups(problem) -> list[str]:

@@ -205,3 +205,19 @@ def test_a_distributed_mesh_needs_its_communicator(root):
     problem = hertz_mortar(root, True)
     with pytest.raises(df.InputError, match="another communicator"):
         df.dual_qp(problem, MPI.COMM_SELF)
+
+
+@pytest.mark.parametrize("spread", [1, 1000], ids=["dense", "sparse"])
+def test_local_vertex_numbers_are_those_of_unique(spread):
+    """The rank's vertices and its cells in local numbers, by a mask over a dense range of
+    global numbers or by a sort over a sparse one: np.unique's values and inverse."""
+    from dolfinx_feti.share_distributed import _compact
+
+    rng = np.random.default_rng(3)
+    cells = 5000 + spread * rng.integers(0, 700, size=(400, 3))
+    vids, local = _compact(cells)
+    want, inverse = np.unique(cells, return_inverse=True)
+    assert np.array_equal(vids, want)
+    assert np.array_equal(local, inverse.reshape(cells.shape))
+    empty = _compact(np.zeros((0, 3), dtype=np.int64))
+    assert empty[0].size == 0 and empty[1].shape == (0, 3)
