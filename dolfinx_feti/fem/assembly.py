@@ -110,6 +110,18 @@ def _runs_of_equal_bodies(mesh, subs, cells_of, limit: int = CELLS_PER_MESH
     return runs
 
 
+def _block_diagonal(parts: list[sp.csr_matrix]) -> sp.csr_matrix:
+    """``sp.block_diag(parts, format="csr")`` of CSR blocks, by concatenating their arrays."""
+    if not parts:
+        return sp.csr_matrix((0, 0))
+    nnz = np.cumsum([0] + [p.nnz for p in parts])
+    cols = np.cumsum([0] + [p.shape[1] for p in parts])
+    indptr = np.concatenate([[0]] + [p.indptr[1:] + o for p, o in zip(parts, nnz, strict=False)])
+    indices = np.concatenate([p.indices + c for p, c in zip(parts, cols, strict=False)])
+    return sp.csr_matrix((np.concatenate([p.data for p in parts]), indices, indptr),
+                         shape=(sum(p.shape[0] for p in parts), int(cols[-1])))
+
+
 def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Comm,
                         timer: Timer) -> SubdomainData:
     """Mesh and assemble the subdomains of this rank (collective on ``comm``).
@@ -132,7 +144,7 @@ def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Com
             K, f = sub.assemble(problem.forms, bs)
             K_parts.append(K)
             f_parts.append(f)
-        K = sp.block_diag(K_parts, format="csr") if K_parts else sp.csr_matrix((0, 0))
+        K = _block_diagonal(K_parts)
         nodes = [dec.nodes(s) for s in local_subs]
         # The rigid motions are linear: their nodal interpolation at the dof points is exact.
         x = share.points.x

@@ -233,8 +233,10 @@ def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int, cell_points: np
 
 
 def midpoints_of(x: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """The mean of each cell's vertices: bit for bit ``x[cells].mean(axis=1)``, without the
-    (cells × vertices × gdim) temporary."""
+    """The mean of each cell's vertices, bit for bit ``x[cells].mean(axis=1)``.
+
+    Without the (cells × vertices × gdim) temporary of the fancy index.
+    """
     total = x[cells[:, 0]]
     for j in range(1, cells.shape[1]):  # over the 3 to 8 vertices of a cell
         total += x[cells[:, j]]
