@@ -41,7 +41,7 @@ from .mesh.distributed_points import (
     point_coordinates,
 )
 from .mesh.dofpoints import DofPoints, dof_points
-from .mesh.topology import REFERENCE, locate_facets
+from .mesh.topology import REFERENCE, locate_few_facets
 from .problem import RigidObstacle
 from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
 from .timing import Timer
@@ -157,13 +157,7 @@ def _move_facets(mesh, dest: np.ndarray, cell_sub: np.ndarray, comm: MPI.Comm):
     group = np.repeat(np.arange(len(names)), [f.shape[0] for f in facets])
     index = np.concatenate([part.facet_index[n] for n in names]) if names else \
         np.zeros(0, dtype=np.int64)
-    # only a cell with a whole facet on the groups' vertices can hold one of their facets:
-    # locate them among those cells (not through a facet index of all local cells)
-    on = np.zeros(mesh.x.shape[0], dtype=bool)
-    on[all_f] = True
-    near = np.flatnonzero(np.count_nonzero(on[mesh.cells], axis=1) >= nvf)
-    f_cell, _ = locate_facets(mesh.cells[near], all_f, mesh.cell_type)
-    f_cell = np.where(f_cell >= 0, near[f_cell], -1)
+    f_cell, _ = locate_few_facets(mesh.cells, all_f, mesh.cell_type)
     (vertices, group, sub, index), *_ = exchange(
         comm, dest[f_cell], part.vertex_ids[all_f], group, cell_sub[f_cell], index)
     order = np.lexsort((index, group, sub))
@@ -282,7 +276,7 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
     """
     f_vert, f_group, f_index, local_f = facets
     pids, ptr, subs, fixed = directory
-    cells, _ = locate_facets(local_mesh.cells, local_f, local_mesh.cell_type)
+    cells, _ = locate_few_facets(local_mesh.cells, local_f, local_mesh.cell_type)
     sc = np.unique(cells)
     sp = np.unique(local_points[sc])
     counts = np.diff(ptr)[sp]

@@ -343,6 +343,22 @@ def test_facet_neighbours_and_locate():
     assert cell[2] == -1 and local[2] == -1
 
 
+def test_locate_few_facets_finds_what_locate_facets_finds():
+    """Among the cells on the facets' vertices: the same (first) cell and local facet, -1 for
+    a facet of no cell, interior facets included."""
+    x, cells = _grid(6, 5)
+    pairs = topology.facet_neighbours(cells)
+    interior = np.sort(cells[pairs[:3, 0]][:, :2], axis=1)  # some edges, maybe interior
+    facets = np.concatenate([_boundary_facets(cells)[::3], cells[[4, 9, 17]][:, 1:],
+                             interior, [[0, 41], [2, 99]]])
+    want = topology.locate_facets(cells, facets)
+    got = topology.locate_few_facets(cells, facets)
+    assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert np.all(got[0][-2:] == -1) and np.all(got[0][:-2] >= 0)
+    empty = topology.locate_few_facets(cells, np.zeros((0, 2), dtype=np.int64))
+    assert empty[0].size == 0 and empty[1].size == 0
+
+
 def test_facet_normals_outward_unit_square():
     x, cells = _grid(4, 4)
     facets = _boundary_facets(cells)

@@ -119,6 +119,23 @@ def facet_neighbours(cells: np.ndarray, cell_type: str | None = None) -> np.ndar
     return np.stack([owner[:-1][same], owner[1:][same]], axis=1)
 
 
+def locate_few_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`locate_facets` for facets that are few against the cells, without their index.
+
+    Only a cell with a whole facet on the facets' vertices can hold one: the facets are
+    located among those cells (the same cell as :func:`locate_facets` finds: the first),
+    without the sort of all the cells' facets.
+    """
+    facets = np.asarray(facets)
+    nvf = len(reference(cells, cell_type).facets[0])
+    on = np.zeros(int(max(cells.max(initial=-1), facets.max(initial=-1))) + 1, dtype=bool)
+    on[facets] = True
+    near = np.flatnonzero(np.count_nonzero(on[cells], axis=1) >= nvf)
+    cell, local = locate_facets(cells[near], facets, cell_type)
+    return np.where(cell >= 0, near[np.maximum(cell, 0)] if near.size else -1, -1), local
+
+
 def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None
                   ) -> tuple[np.ndarray, np.ndarray]:
     """For each given facet, one cell containing it and the local index of the facet in that cell.
