@@ -28,6 +28,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
+from ..distributed_graph import component_minima
 from ..errors import InputError, collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
@@ -322,8 +323,12 @@ def split_components_distributed(cells: np.ndarray, cell_ids: np.ndarray, label:
     return _split(cells, cell_ids, label, cell_type, comm)[0]
 
 
-def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
-    """:func:`split_components_distributed`, and the first cell of each local cell's piece."""
+def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
+    """:func:`split_components_distributed`, and the first cell of each local cell's piece.
+
+    ``stats``, if given, receives the rounds of the search across ranks
+    (:func:`.distributed_graph.component_minima`).
+    """
     cells = np.asarray(cells, dtype=np.int64)
     ids = np.asarray(cell_ids, dtype=np.int64)
     label = np.asarray(label).astype(np.int64)
@@ -352,35 +357,15 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     c = f // nf
-    rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c], first[piece[c]]])
+    rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
     (got,), _, _, _ = exchange(comm, Blocks(nv, comm.size).home(facets[f, 0]), rows)
     _, inv = np.unique(_row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
     inv = np.sort(inv.ravel())
     link = (inv[1:] == inv[:-1]) & (got[1:, nvf] == got[:-1, nvf])
-    edges = np.column_stack([got[:-1][link][:, nvf + 2:], got[1:][link][:, nvf + 2:]])
-    # join the pieces on the interfaces on rank 0 (edges: piece, its first cell, piece, first)
-    gathered = comm.gather((edges, npiece), root=0)
-    send_piece = send_first = np.zeros(0, dtype=np.int64)
-    dest = np.zeros(0, dtype=np.int64)
-    if comm.rank == 0:
-        e = np.concatenate([g[0] for g in gathered]).reshape(-1, 4)
-        ends = np.concatenate([e[:, [0, 1]], e[:, [2, 3]]])
-        send_piece, at = np.unique(ends[:, 0], return_inverse=True)
-        at = at.ravel()
-        half = e.shape[0]
-        n = send_piece.size
-        g = sp.coo_matrix((np.ones(half), (at[:half], at[half:])), shape=(n, n))
-        _, comp = connected_components(g, directed=False) if n else (0, np.zeros(0, int))
-        low = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(low, at, ends[:, 1])
-        root = np.full(comp.max() + 1 if n else 0, np.iinfo(np.int64).max)
-        np.minimum.at(root, comp, low)
-        send_first = root[comp]
-        starts = np.cumsum([0] + [g[1] for g in gathered])
-        dest = np.searchsorted(starts, send_piece, side="right") - 1
-    (back_piece, back_first), _, _, _ = exchange(comm, dest, send_piece, send_first)
-    first[back_piece - offset] = back_first
+    edges = np.column_stack([got[:-1, nvf + 2][link], got[1:, nvf + 2][link]])
+    # the pieces joined across ranks: each takes the smallest first cell of its component
+    first = component_minima(comm, first, edges, stats)
     # number the pieces by their first cell: a directory of the cell ids
     firsts = np.unique(first)
     (asked,), order, counts, rcounts = exchange(comm, Blocks(num, comm.size).home(firsts),

@@ -1,0 +1,96 @@
+"""The connected-pieces step of the distributed decomposition: memory per rank and time.
+
+B1 (two membranes, ``meshes.membranes(n)``) read with ``read_gmsh(..., distribute=True)``:
+every rank holds a contiguous block of the gmsh file's cells (not spatially compact, so most
+pieces of a label touch other ranks' cells). Labels as ``Parts(parts)`` per membrane
+(coordinate bisection), then the connected pieces of equal label
+(``distributed_decompose._split``). Printed per rank: its cells, the peak of the memory the
+pieces step allocates (tracemalloc, started just before the step and stopped after it: the
+arrays of the step alone, not those the rank held before), and, once for all ranks, the wall
+time of ``decompose_distributed`` and of the pieces step inside it (the slowest rank, the best
+of ``--repeat`` runs without tracemalloc) and the rounds of the distributed
+connected-components search (when the code records them)::
+
+    mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py
+    mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py \
+        --n 362 --parts 32 --repeat 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import time
+import tracemalloc
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx_feti as df
+from dolfinx_feti import meshes
+from dolfinx_feti.mesh import distributed_decompose as dd
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=256, help="squares per membrane side")
+    ap.add_argument("--parts", type=int, default=32, help="Parts(parts) per membrane")
+    ap.add_argument("--repeat", type=int, default=3, help="timed runs (the best is printed)")
+    args = ap.parse_args()
+    comm = MPI.COMM_WORLD
+    mesh = df.build_mesh(meshes.membranes, args.n, distribute=True)
+    part = mesh.part
+    cells = part.vertex_ids[mesh.cells]
+    cell_x = mesh.x[mesh.cells]
+    how = df.Parts(args.parts)
+
+    def run():
+        return dd.decompose_distributed(cells, cell_x, part.cell_ids, mesh.cell_body,
+                                        mesh.cell_type, mesh.body_names, mesh.num_cells, how,
+                                        comm)
+
+    split = dd._split
+    record = {"seconds": 0.0, "peak": 0.0}
+    stats: dict = {}
+    counts = "stats" in inspect.signature(split).parameters  # the code records its rounds
+
+    def measured(*a, **k):
+        t = time.perf_counter()
+        if record.get("trace"):
+            tracemalloc.start()
+        try:
+            return split(*a, **k, **({"stats": stats} if counts else {}))
+        finally:
+            if record.get("trace"):
+                record["peak"] = tracemalloc.get_traced_memory()[1] / 2**20
+                tracemalloc.stop()
+            record["seconds"] = time.perf_counter() - t
+
+    dd._split = measured
+    try:
+        record["trace"] = True
+        cell_sub, _ = run()
+        record["trace"] = False
+        best = best_split = np.inf
+        for _ in range(args.repeat):
+            comm.Barrier()
+            t = time.perf_counter()
+            run()
+            best = min(best, comm.allreduce(time.perf_counter() - t, op=MPI.MAX))
+            best_split = min(best_split, comm.allreduce(record["seconds"], op=MPI.MAX))
+    finally:
+        dd._split = split
+    nsub = comm.allreduce(int(cell_sub.max()) + 1 if cell_sub.size else 0, op=MPI.MAX)
+    rounds = stats.get("rounds", "not recorded")
+    rows = comm.gather((comm.rank, cells.shape[0], record["peak"]), root=0)
+    if comm.rank == 0:
+        print(f"B1 n={args.n}, Parts({args.parts}) per membrane, {mesh.num_cells} cells, "
+              f"{nsub} subdomains, {comm.size} rank(s)")
+        for rank, nc, peak in rows:
+            print(f"rank {rank}: {nc} cells, pieces step peak {peak:.1f} MiB (tracemalloc)")
+        print(f"decompose_distributed {best:.3f} s, pieces step {best_split:.3f} s "
+              f"(slowest rank, best of {args.repeat}); rounds {rounds}")
+
+
+if __name__ == "__main__":
+    main()
