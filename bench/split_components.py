@@ -1,8 +1,10 @@
 """The connected-pieces step of the distributed decomposition: memory per rank and time.
 
 B1 (two membranes, ``meshes.membranes(n)``) read with ``read_gmsh(..., distribute=True)``:
-every rank holds a contiguous block of the gmsh file's cells (not spatially compact, so most
-pieces of a label touch other ranks' cells). Labels as ``Parts(parts)`` per membrane
+every rank holds a contiguous block of the gmsh file's cells, not spatially compact (on 3
+ranks at n = 362 the pieces of a rank have one or two cells, nearly all touching other ranks'
+cells); or (``--deal round-robin``) cell i on rank i mod ranks, which makes every cell a piece
+on any number of ranks. Labels as ``Parts(parts)`` per membrane
 (coordinate bisection), then the connected pieces of equal label
 (``distributed_decompose._split``). Printed per rank: its cells, the peak of the memory the
 pieces step allocates (tracemalloc, started just before the step and stopped after it: the
@@ -12,8 +14,10 @@ of ``--repeat`` runs without tracemalloc) and the rounds of the distributed
 connected-components search (when the code records them)::
 
     mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py
-    mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py \
+    mpirun -n 3 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py \
         --n 362 --parts 32 --repeat 3
+    mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py \
+        --n 256 --deal round-robin
 """
 
 from __future__ import annotations
@@ -36,18 +40,25 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=256, help="squares per membrane side")
     ap.add_argument("--parts", type=int, default=32, help="Parts(parts) per membrane")
     ap.add_argument("--repeat", type=int, default=3, help="timed runs (the best is printed)")
+    ap.add_argument("--deal", choices=["blocks", "round-robin"], default="blocks",
+                    help="blocks: read_gmsh(..., distribute=True); round-robin: cell i on rank "
+                         "i mod ranks (no two neighbours on one rank: every cell a piece)")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
-    mesh = df.build_mesh(meshes.membranes, args.n, distribute=True)
-    part = mesh.part
-    cells = part.vertex_ids[mesh.cells]
-    cell_x = mesh.x[mesh.cells]
+    if args.deal == "blocks":
+        mesh = df.build_mesh(meshes.membranes, args.n, distribute=True)
+        cells, ids = mesh.part.vertex_ids[mesh.cells], mesh.part.cell_ids
+        cell_x, body = mesh.x[mesh.cells], mesh.cell_body
+    else:  # the whole mesh read on every rank, then every size-th cell kept
+        mesh = df.build_mesh(meshes.membranes, args.n)
+        ids = np.arange(comm.rank, mesh.num_cells, comm.size)
+        cells = mesh.cells[ids]
+        cell_x, body = mesh.x[cells], mesh.cell_body[ids]
     how = df.Parts(args.parts)
 
     def run():
-        return dd.decompose_distributed(cells, cell_x, part.cell_ids, mesh.cell_body,
-                                        mesh.cell_type, mesh.body_names, mesh.num_cells, how,
-                                        comm)
+        return dd.decompose_distributed(cells, cell_x, ids, body, mesh.cell_type,
+                                        mesh.body_names, mesh.num_cells, how, comm)
 
     split = dd._split
     record = {"seconds": 0.0, "peak": 0.0}
@@ -84,8 +95,8 @@ def main() -> None:
     rounds = stats.get("rounds", "not recorded")
     rows = comm.gather((comm.rank, cells.shape[0], record["peak"]), root=0)
     if comm.rank == 0:
-        print(f"B1 n={args.n}, Parts({args.parts}) per membrane, {mesh.num_cells} cells, "
-              f"{nsub} subdomains, {comm.size} rank(s)")
+        print(f"B1 n={args.n}, Parts({args.parts}) per membrane, {mesh.num_cells} cells "
+              f"dealt as {args.deal}, {nsub} subdomains, {comm.size} rank(s)")
         for rank, nc, peak in rows:
             print(f"rank {rank}: {nc} cells, pieces step peak {peak:.1f} MiB (tracemalloc)")
         print(f"decompose_distributed {best:.3f} s, pieces step {best_split:.3f} s "

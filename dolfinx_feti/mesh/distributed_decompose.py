@@ -333,12 +333,36 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
     ids = np.asarray(cell_ids, dtype=np.int64)
     label = np.asarray(label).astype(np.int64)
     nc = cells.shape[0]
-    ref = reference(cells, cell_type)
-    nf, nvf = len(ref.facets), len(ref.facets[0])
     bound = np.array([cells.max() + 1 if cells.size else 0, ids.max() + 1 if nc else 0],
                      dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, bound, op=MPI.MAX)
     nv, num = int(bound[0]), int(bound[1] if num_cells is None else num_cells)
+    piece, first, edges = _pieces_and_links(cells, ids, label, cell_type, nv, comm)
+    # the pieces joined across ranks: each takes the smallest first cell of its component
+    first = component_minima(comm, first, edges, stats)
+    # number the pieces by their first cell: a directory of the cell ids
+    firsts = np.unique(first)
+    (asked,), order, counts, rcounts = exchange(comm, Blocks(num, comm.size).home(firsts),
+                                                firsts)
+    mine = np.unique(asked)
+    number = exclusive_scan(comm, mine.size) + np.searchsorted(mine, asked)
+    number = answer(comm, number, order, counts, rcounts)
+    sub = number[np.searchsorted(firsts, first)]
+    return sub[piece].astype(np.int32), first[piece]
+
+
+def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
+    """The pieces of equal label of this rank's cells and the links between pieces of ranks.
+
+    Returns:
+        ``(piece, first, edges)``: the local piece of each cell, the first (smallest id) cell
+        of each piece, and pairs of pieces (numbered globally, rank by rank) that two cells of
+        equal label on two ranks join through a facet. Only the rank that keeps a facet in
+        the facet directory (by its smallest vertex) holds its link.
+    """
+    nc = cells.shape[0]
+    ref = reference(cells, cell_type)
+    nf, nvf = len(ref.facets), len(ref.facets[0])
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
     facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
     keys = _row_keys(facets, nv)
@@ -364,17 +388,7 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
     inv = np.sort(inv.ravel())
     link = (inv[1:] == inv[:-1]) & (got[1:, nvf] == got[:-1, nvf])
     edges = np.column_stack([got[:-1, nvf + 2][link], got[1:, nvf + 2][link]])
-    # the pieces joined across ranks: each takes the smallest first cell of its component
-    first = component_minima(comm, first, edges, stats)
-    # number the pieces by their first cell: a directory of the cell ids
-    firsts = np.unique(first)
-    (asked,), order, counts, rcounts = exchange(comm, Blocks(num, comm.size).home(firsts),
-                                                firsts)
-    mine = np.unique(asked)
-    number = exclusive_scan(comm, mine.size) + np.searchsorted(mine, asked)
-    number = answer(comm, number, order, counts, rcounts)
-    sub = number[np.searchsorted(firsts, first)]
-    return sub[piece].astype(np.int32), first[piece]
+    return piece, first, edges
 
 
 def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.ndarray,
