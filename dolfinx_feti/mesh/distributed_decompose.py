@@ -358,7 +358,7 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
         ``(piece, first, edges)``: the local piece of each cell, the first (smallest id) cell
         of each piece, and pairs of pieces (numbered globally, rank by rank) that two cells of
         equal label on two ranks join through a facet. Only the rank that keeps a facet in
-        the facet directory (by its smallest vertex) holds its link.
+        the facet directory holds its link.
     """
     nc = cells.shape[0]
     ref = reference(cells, cell_type)
@@ -376,13 +376,15 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
     np.minimum.at(first, piece, ids)
     offset = exclusive_scan(comm, npiece)
     # facets of one local cell: the other cell, if any, is on another rank; meet at the rank
-    # that keeps their smallest vertex
+    # that keeps the sum of their vertices modulo nv in a directory (their smallest vertex
+    # would send most facets to the first ranks: the least of a few numbers is small)
     single = np.ones(nc * nf, dtype=bool)
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     c = f // nf
     rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
-    (got,), _, _, _ = exchange(comm, Blocks(nv, comm.size).home(facets[f, 0]), rows)
+    home = Blocks(nv, comm.size).home(facets[f].sum(axis=1) % max(nv, 1))
+    (got,), _, _, _ = exchange(comm, home, rows)
     _, inv = np.unique(_row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
     inv = np.sort(inv.ravel())
