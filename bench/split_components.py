@@ -12,8 +12,8 @@ Printed per rank: its cells, the peak of the memory the pieces step allocates (t
 started just before the step and stopped after it: the arrays of the step alone, not those
 the rank held before), and, once for all ranks, the wall time of ``decompose_distributed``
 and of the pieces step inside it (the slowest rank, the best of ``--repeat`` runs without
-tracemalloc) and the rounds of the distributed connected-components search (when the code
-records them)::
+tracemalloc), the rounds of the distributed connected-components search (when the code
+records them) and the collective calls of the pieces step (every rank makes the same)::
 
     mpirun -n 2 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py
     mpirun -n 3 --allow-run-as-root --oversubscribe .venv/bin/python bench/split_components.py \
@@ -28,8 +28,10 @@ from __future__ import annotations
 
 import argparse
 import inspect
+import sys
 import time
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -37,6 +39,9 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti import meshes
 from dolfinx_feti.mesh import distributed_decompose as dd
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from rcb_distributed import Counting  # noqa: E402
 
 
 def strip(n: int, comm: MPI.Comm):
@@ -98,13 +103,15 @@ def main() -> None:
         t = time.perf_counter()
         if record.get("trace"):
             tracemalloc.start()
+        counting = Counting(a[4])  # (cells, ids, label, cell_type, comm, ...)
         try:
-            return split(*a, **k, **({"stats": stats} if counts else {}))
+            return split(*a[:4], counting, *a[5:], **k, **({"stats": stats} if counts else {}))
         finally:
             if record.get("trace"):
                 record["peak"] = tracemalloc.get_traced_memory()[1] / 2**20
                 tracemalloc.stop()
             record["seconds"] = time.perf_counter() - t
+            record["calls"] = counting.calls
 
     dd._split = measured
     try:
@@ -128,7 +135,8 @@ def main() -> None:
         for rank, nc, peak in rows:
             print(f"rank {rank}: {nc} cells, pieces step peak {peak:.1f} MiB (tracemalloc)")
         print(f"decompose_distributed {best:.3f} s, pieces step {best_split:.3f} s "
-              f"(slowest rank, best of {args.repeat}); rounds {rounds}")
+              f"(slowest rank, best of {args.repeat}); rounds {rounds}, collective calls "
+              f"{record['calls']}")
 
 
 if __name__ == "__main__":
