@@ -12,10 +12,12 @@ split of the cells, and no rank ever holds an array of the size of the whole mes
   down by a factor of about the number of samples per round, so a level takes a few
   collective rounds of small data, never a gather of the points.
 - :func:`split_components_distributed`: the connected pieces of equal label of
-  :func:`.decompose._split_components`: pieces of the local cells, joined through the facets
-  that two ranks share (matched at the rank of a directory of facets) on rank 0, which only
-  sees the pieces on the interfaces; the pieces are numbered by their first cell through a
-  directory of the cell ids.
+  :func:`.decompose._split_components`: pieces of the local cells, linked through the facets
+  that two ranks share (matched at the rank of a directory of facets), joined by the
+  distributed connected components of the piece graph
+  (:func:`.distributed_graph.component_minima`: O(log pieces) rounds of hooking and
+  shortcutting, every rank holding only its own pieces and links); the pieces are numbered
+  by their first cell through a directory of the cell ids.
 - :func:`decompose_distributed`: the labels of ByTags / Parts / ByFunction, then the pieces.
 """
 
