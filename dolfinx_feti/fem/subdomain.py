@@ -49,8 +49,9 @@ class Subdomain:
 
     One or several subdomains of a rank are meshed together as a disjoint union: each keeps its
     own copy of the nodes it shares with others, so the assembled matrix is block diagonal,
-    one block per subdomain, in the canonical order. Assembling a rank's subdomains at once
-    costs one mesh construction and one assembly instead of one per subdomain.
+    one block per subdomain, in the canonical order. Assembling several subdomains at once
+    costs one mesh construction and one assembly instead of one per subdomain (a rank's
+    subdomains are grouped into meshes of about ``fem.assembly.CELLS_PER_MESH`` cells).
 
     Attributes:
         indices: Subdomain numbers (global), in the order of their blocks.
