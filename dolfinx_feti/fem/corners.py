@@ -91,8 +91,11 @@ def scaled_motions(x: np.ndarray, bs: int) -> np.ndarray:
 
 def glob_keys(ptr: np.ndarray, subs: np.ndarray, points: np.ndarray, on_boundary: np.ndarray,
               width: int) -> np.ndarray:
-    """The glob of each point: its sorted subdomains padded with −1 to ``width``, then whether
-    it lies on the outer boundary (``subs[ptr[p]:ptr[p + 1]]`` are the subdomains of p)."""
+    """The glob key of each of ``points``.
+
+    The key is the point's sorted subdomains (``subs[ptr[p]:ptr[p + 1]]``) padded with −1 to
+    ``width``, then whether it lies on the outer boundary (``on_boundary``, one per point).
+    """
     mult = np.diff(ptr)[points]
     key = np.full((points.size, width + 1), -1, dtype=np.int64)
     pos = ptr[points][:, None] + np.arange(width)
@@ -103,9 +106,11 @@ def glob_keys(ptr: np.ndarray, subs: np.ndarray, points: np.ndarray, on_boundary
 
 
 def primal_globs(key: np.ndarray, edges: bool) -> np.ndarray:
-    """Which points are primal, from the :func:`glob_keys` of all interface points (one row
-    each): the vertices (a glob of one point), and with ``edges`` every point of three or more
-    subdomains or on the outer boundary."""
+    """Which points are primal, from the :func:`glob_keys` of all interface points.
+
+    ``key`` holds one row per point. The vertices (a glob of one point) are primal, and with
+    ``edges`` every point of three or more subdomains or on the outer boundary.
+    """
     _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     primal = count[inverse.ravel()] == 1
     if edges:
@@ -151,8 +156,10 @@ def join_pair(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray,
 
 
 def held_alone(x: np.ndarray, fixed: np.ndarray, bs: int) -> bool:
-    """Whether a subdomain with points ``x`` and Dirichlet mask ``fixed`` (n, bs) is held
-    rigidly by its Dirichlet conditions alone."""
+    """Whether a subdomain is held rigidly by its Dirichlet conditions alone.
+
+    ``x`` holds its points, ``fixed`` (n, bs) their Dirichlet mask.
+    """
     if not fixed.any():
         return False
     return _free_motions(scaled_motions(x, bs)[fixed]).shape[1] == 0
@@ -297,8 +304,10 @@ def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.n
 
 def motions_at(x: np.ndarray, comp: np.ndarray, bs: int, centre: np.ndarray, scale: float,
                free: np.ndarray) -> np.ndarray:
-    """The free motions (columns of ``free``, k × m) at dofs: points ``x``, components
-    ``comp``; the rigid motions scaled by ``centre`` and ``scale``."""
+    """The free motions (columns of ``free``, k × m) at the dofs (points ``x``, ``comp``).
+
+    The rigid motions are scaled by ``centre`` and ``scale`` (those of the component).
+    """
     Y = rigid_motions(x, bs, centre, scale).reshape(x.shape[0], bs, free.shape[0])
     return Y[np.arange(x.shape[0]), comp] @ free
 

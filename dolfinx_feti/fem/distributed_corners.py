@@ -94,8 +94,12 @@ def _pair_subs(dec) -> np.ndarray:
 
 
 def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
-    """The pairs (s < t) of subdomains sharing a facet (sorted, every rank) and the mask of the
-    local points that are vertices of a facet of the outer boundary (step 1)."""
+    """The pairs of subdomains that share a facet, and the points on the outer boundary.
+
+    Returns:
+        The pairs (s < t), sorted (every rank), and the mask of the local points that are
+        vertices of a facet of the outer boundary (step 1 of the module docstring).
+    """
     mesh, pids = share.mesh, share.point_ids
     cells, ct = mesh.cells, mesh.cell_type
     nc, nv = cells.shape[0], mesh.x.shape[0]
@@ -130,8 +134,11 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
 
 
 def _globs(share, outer: np.ndarray, edges: bool, comm: MPI.Comm) -> tuple[np.ndarray, int]:
-    """The primal mask of the local points before the pairs are joined, and the number of
-    primal points of the whole mesh (step 2)."""
+    """The primal mask of the local points before the pairs are joined (step 2).
+
+    Returns:
+        The mask and the number of primal points of the whole mesh.
+    """
     d, pids = share.directory, share.point_ids
     mult = np.diff(d.ptr)
     width = comm.allreduce(int(mult.max(initial=0)), op=MPI.MAX)
@@ -198,8 +205,12 @@ def _replay(loose: list, bs: int) -> np.ndarray:
 
 
 def _numbered(share, corner: np.ndarray, comm: MPI.Comm) -> tuple[np.ndarray, int, int]:
-    """The corner unknown of each local (point, component), the number of corner unknowns
-    and of corner points of the whole mesh (step 4)."""
+    """The corner unknowns of the local points (step 4).
+
+    Returns:
+        The corner unknown of each local (point, component) (−1: none), the number of corner
+        unknowns and of corner points of the whole mesh.
+    """
     pids, fixed = share.point_ids, share.directory.fixed
     unknown = corner[:, None] & ~fixed
     at = np.flatnonzero(corner)
