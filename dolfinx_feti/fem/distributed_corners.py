@@ -161,8 +161,11 @@ def _globs(share, outer: np.ndarray, edges: bool, comm: MPI.Comm) -> tuple[np.nd
 def _join_pairs(share, pairs: np.ndarray, corner: np.ndarray, bs: int, comm: MPI.Comm) -> None:
     """Add to ``corner`` the points the serial loop adds to join every pair rigidly (step 3)."""
     dec, d, x, pids = share.dec, share.directory, share.points.x, share.point_ids
-    held_mine = np.array([held_alone(x[dec.nodes(s)], d.fixed[dec.nodes(s)], bs)
-                          for s in dec.subs], dtype=bool)
+    held_mine = np.zeros(dec.subs.size, dtype=bool)
+    loose = []
+    with collective(comm, "constraints"):  # rank-local work: a failure must reach every rank
+        held_mine[:] = [held_alone(x[dec.nodes(s)], d.fixed[dec.nodes(s)], bs)
+                        for s in dec.subs]
     held = np.zeros(dec.num_subdomains, dtype=bool)
     for subs, h in comm.allgather((dec.subs, held_mine)):
         held[subs] = h
@@ -170,15 +173,16 @@ def _join_pairs(share, pairs: np.ndarray, corner: np.ndarray, bs: int, comm: MPI
     e_point = np.repeat(np.arange(pids.size), np.diff(d.ptr))
     e_order = np.lexsort((e_point, d.subs))
     e_sub, e_point = d.subs[e_order], e_point[e_order]
-    loose = []
-    for s, t in pairs[dec.sub_rank[pairs[:, 0]] == comm.rank]:
-        if held[s] and held[t]:
-            continue
-        lo, hi = np.searchsorted(e_sub, [t, t + 1])
-        both = np.intersect1d(dec.nodes(int(s)), e_point[lo:hi], assume_unique=True)
-        _, rigid = join_pair(scaled_motions(x[both], bs), corner[both], d.fixed[both])
-        if not rigid:
-            loose.append((int(s), int(t), pids[both], x[both], corner[both], d.fixed[both]))
+    with collective(comm, "constraints"):
+        for s, t in pairs[dec.sub_rank[pairs[:, 0]] == comm.rank]:
+            if held[s] and held[t]:
+                continue
+            lo, hi = np.searchsorted(e_sub, [t, t + 1])
+            both = np.intersect1d(dec.nodes(int(s)), e_point[lo:hi], assume_unique=True)
+            _, rigid = join_pair(scaled_motions(x[both], bs), corner[both], d.fixed[both])
+            if not rigid:  # the serial loop may add points here: rank 0 replays it
+                loose.append((int(s), int(t), pids[both], x[both], corner[both],
+                              d.fixed[both]))
     gathered = comm.gather(loose, root=0)
     added = None
     with collective(comm, "constraints"):
@@ -264,22 +268,25 @@ def _floating_motions(share, comp: np.ndarray, bs: int, body_names, comm: MPI.Co
     ntotal = np.zeros_like(nrows) if comm.rank == 0 else None
     comm.Reduce(gram, total, op=MPI.SUM, root=0)
     comm.Reduce(nrows, ntotal, op=MPI.SUM, root=0)
-    free = comm.bcast([free_of_gram(total[i], int(ntotal[i])) for i in range(ncomp)]
-                      if comm.rank == 0 else None, root=0)
+    free = None
+    with collective(comm, "constraints"):
+        if comm.rank == 0:
+            free = [free_of_gram(total[i], int(ntotal[i])) for i in range(ncomp)]
+    free = comm.bcast(free, root=0)
     node = np.repeat(dec.pair_node, bs)
     dof_comp = np.tile(np.arange(bs), dec.pair_node.size)
     dof_c = np.repeat(pc, bs)
-    columns, bodies = [], []
-    for i in range(ncomp):
-        m = free[i].shape[1]
-        if m == 0:
-            continue
-        Z = np.zeros((node.size, m))
-        mine = np.flatnonzero(dof_c == i)
-        Z[mine] = motions_at(x[node[mine]], dof_comp[mine], bs, centre[i], scale[i], free[i])
-        columns.append(Z)
-        bodies += [body_label(body_names, dec.sub_body[comp == i])] * m
-    Z = np.hstack(columns) if columns else np.zeros((node.size, 0))
+    width = np.array([f.shape[1] for f in free], dtype=np.int64)
+    start = np.cumsum(width) - width
+    Z = np.zeros((node.size, int(width.sum())))
+    by = np.argsort(dof_c, kind="stable")
+    bounds = np.searchsorted(dof_c[by], np.arange(ncomp + 1))
+    for i in np.unique(pc[width[pc] > 0]):  # the floating components with local dofs
+        mine = by[bounds[i]:bounds[i + 1]]
+        Z[mine, start[i]:start[i] + width[i]] = motions_at(
+            x[node[mine]], dof_comp[mine], bs, centre[i], scale[i], free[i])
+    bodies = [body_label(body_names, dec.sub_body[comp == i])
+              for i in np.flatnonzero(width) for _ in range(width[i])]
     Z[d.fixed[node, dof_comp]] = 0.0
     return Z, bodies
 
