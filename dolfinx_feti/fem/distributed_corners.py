@@ -40,7 +40,7 @@ from mpi4py import MPI
 
 from ..errors import collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
-from ..mesh.topology import REFERENCE, _row_keys, cell_facets
+from ..mesh.topology import REFERENCE, _facet_index, _row_keys, cell_facets
 from .corners import (
     body_label,
     box_scale,
@@ -102,12 +102,11 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     """
     mesh, pids = share.mesh, share.point_ids
     cells, ct = mesh.cells, mesh.cell_type
-    nc, nv = cells.shape[0], mesh.x.shape[0]
+    nc = cells.shape[0]
     nf, nvf = len(REFERENCE[ct].facets), len(REFERENCE[ct].facets[0])
     facets = cell_facets(cells, ct).reshape(nc * nf, nvf)
-    keys = _row_keys(facets, nv)
-    order = np.argsort(keys, kind="stable")
-    same = keys[order][1:] == keys[order][:-1]
+    keys, order, _ = _facet_index(cells, ct)
+    same = keys[1:] == keys[:-1]
     sub = share.dec.cell_sub
     local = np.sort(np.stack([sub[order[:-1][same] // nf], sub[order[1:][same] // nf]],
                              axis=1), axis=1)
@@ -118,7 +117,8 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     (got, got_sub), order, counts, rcounts = exchange(
         comm, Blocks(share.num_points, comm.size).home(global_f[:, 0]), global_f,
         sub[f // nf].astype(np.int64))
-    _, inverse, count = np.unique(got, axis=0, return_inverse=True, return_counts=True)
+    _, inverse, count = np.unique(_row_keys(got, share.num_points), return_inverse=True,
+                                  return_counts=True)
     inverse = inverse.ravel()
     is_outer = count[inverse] == 1
     by = np.argsort(inverse, kind="stable")  # the two copies of a shared facet side by side
@@ -241,8 +241,11 @@ def _floating_motions(share, comp: np.ndarray, bs: int, body_names, comm: MPI.Co
     pc = comp[pair_sub]
     lo = np.full((ncomp, gdim), np.inf)
     hi = np.full((ncomp, gdim), -np.inf)
-    np.minimum.at(lo, pc, x[dec.pair_node])
-    np.maximum.at(hi, pc, x[dec.pair_node])
+    by = np.argsort(pc, kind="stable")
+    here, at = np.unique(pc[by], return_index=True)
+    if here.size:  # the box of each component's local points
+        lo[here] = np.minimum.reduceat(x[dec.pair_node[by]], at)
+        hi[here] = np.maximum.reduceat(x[dec.pair_node[by]], at)
     comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
     comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
     boxes = [box_scale(lo[c], hi[c]) for c in range(ncomp)]
