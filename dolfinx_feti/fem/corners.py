@@ -118,8 +118,21 @@ def primal_globs(key: np.ndarray, edges: bool) -> np.ndarray:
     return primal
 
 
+def _pair_rows(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """The rigid-motion rows of the corners' components and of the fixed ones."""
+    return Y[corner[:, None] & np.ones(Y.shape[1], dtype=bool) | fixed]
+
+
+def joined_rigidly(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray) -> bool:
+    """Whether the shared corners and fixed dofs join two subdomains rigidly.
+
+    The arguments are those of :func:`join_pair`.
+    """
+    return _free_motions(_pair_rows(Y, corner, fixed)).shape[1] == 0
+
+
 def join_pair(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray,
-              avoided: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+              avoided: np.ndarray | None = None) -> np.ndarray:
     """The shared points two subdomains need as corners to be joined rigidly (greedily).
 
     Args:
@@ -130,13 +143,11 @@ def join_pair(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray,
         avoided: (n,) points to take only if nothing else helps.
 
     Returns:
-        The positions of the points to add, in the order taken, and whether the pair was rigid
-        with ``corner`` alone.
+        The positions of the points to add, in the order taken.
     """
     corner = corner.copy()
-    rows = Y[corner[:, None] & np.ones(Y.shape[1], dtype=bool) | fixed]
+    rows = _pair_rows(Y, corner, fixed)
     free = _free_motions(rows)
-    rigid = free.shape[1] == 0
     added = []
     while free.shape[1]:
         cand = np.flatnonzero(~corner)
@@ -152,7 +163,7 @@ def join_pair(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray,
         added.append(cand[best])
         rows = np.concatenate([rows, Y[cand[best]]])
         free = _free_motions(rows)
-    return np.array(added, dtype=np.int64), rigid
+    return np.array(added, dtype=np.int64)
 
 
 def held_alone(x: np.ndarray, fixed: np.ndarray, bs: int) -> bool:
@@ -203,8 +214,7 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
         if all(_held(held, dec, x, fixed, bs, int(u)) for u in (s, t)):
             continue
         both = np.intersect1d(dec.nodes(int(s)), dec.nodes(int(t)), assume_unique=True)
-        added, _ = join_pair(scaled_motions(x[both], bs), corner[both], fixed[both],
-                             avoided[both])
+        added = join_pair(scaled_motions(x[both], bs), corner[both], fixed[both], avoided[both])
         corner[both[added]] = True
     return numbered(corner, fixed, vertices)
 

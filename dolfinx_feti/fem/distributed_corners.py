@@ -49,6 +49,7 @@ from .corners import (
     glob_keys,
     held_alone,
     join_pair,
+    joined_rigidly,
     motions_at,
     primal_globs,
     scaled_motions,
@@ -179,8 +180,8 @@ def _join_pairs(share, pairs: np.ndarray, corner: np.ndarray, bs: int, comm: MPI
                 continue
             lo, hi = np.searchsorted(e_sub, [t, t + 1])
             both = np.intersect1d(dec.nodes(int(s)), e_point[lo:hi], assume_unique=True)
-            _, rigid = join_pair(scaled_motions(x[both], bs), corner[both], d.fixed[both])
-            if not rigid:  # the serial loop may add points here: rank 0 replays it
+            # the serial loop may add points to a pair not rigid now: rank 0 replays it
+            if not joined_rigidly(scaled_motions(x[both], bs), corner[both], d.fixed[both]):
                 loose.append((int(s), int(t), pids[both], x[both], corner[both],
                               d.fixed[both]))
     gathered = comm.gather(loose, root=0)
@@ -202,7 +203,7 @@ def _replay(loose: list, bs: int) -> np.ndarray:
     added = []
     for _, _, pid, x, _, fixed in loose:
         at = np.searchsorted(points, pid)
-        new, _ = join_pair(scaled_motions(x, bs), state[at], fixed)
+        new = join_pair(scaled_motions(x, bs), state[at], fixed)
         state[at[new]] = True
         added.append(pid[new])
     return np.unique(np.concatenate(added))
