@@ -119,3 +119,33 @@ def test_corners_off_contact_are_refused(root, monkeypatch):
     monkeypatch.setattr(dual, "CORNERS_ON_CONTACT", False)
     with pytest.raises(df.InputError, match="CORNERS_ON_CONTACT"):
         df.dual_qp(INPUT_CASES["hertz_mortar"](root, True), method="fetidp")
+
+
+@pytest.mark.parametrize("name", ["tied_blocks_3d", "hertz_mortar"])
+def test_each_fixed_point_counts_once_in_the_gram_matrices(root, name, monkeypatch):
+    """The reduced Gram matrices of the components' fixed rows are the serial ones (a point
+    of several subdomains counted once), not only of the same null space."""
+    from dolfinx_feti.constraints.dirichlet import dirichlet_mask
+    from dolfinx_feti.fem import corners, distributed_corners
+    from dolfinx_feti.mesh.decompose import decompose
+
+    whole, spread = CASES[name](root, False), CASES[name](root, True)
+    serial, spread_grams = [], []
+    free_motions, free_of_gram = corners._free_motions, distributed_corners.free_of_gram
+    monkeypatch.setattr(corners, "_free_motions",
+                        lambda Y: serial.append((Y.T @ Y, Y.shape[0])) or free_motions(Y))
+    monkeypatch.setattr(distributed_corners, "free_of_gram",
+                        lambda G, n: spread_grams.append((G, n)) or free_of_gram(G, n))
+    dec = decompose(whole.mesh, whole.decomposition, 1, whole.dof_points)
+    fixed, _ = dirichlet_mask(whole, whole.mesh)
+    none = np.zeros(0, dtype=np.int64)
+    corners.floating_motions(whole.mesh, dec, None, fixed, whole.value_size,
+                             [(none, none, none)], whole.dof_points.x,
+                             corners.primal_components(whole.mesh, dec))
+    monkeypatch.setattr(corners, "_free_motions", free_motions)  # (the pairs use it too)
+    df.dual_qp(spread, method="fetidp")
+    if COMM.rank == 0:  # rank 0 reduces them
+        assert len(serial) == len(spread_grams) > 0
+        for (a, n), (b, m) in zip(serial, spread_grams, strict=True):
+            assert n == m
+            assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(a).max())

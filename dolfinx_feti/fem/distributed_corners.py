@@ -40,7 +40,8 @@ from mpi4py import MPI
 
 from ..errors import collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
-from ..mesh.topology import REFERENCE, _facet_index, _row_keys, cell_facets
+from ..mesh.topology import REFERENCE, _row_keys, cell_facets
+from ..share_distributed import _ranges
 from .corners import (
     body_label,
     box_scale,
@@ -103,21 +104,27 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     """
     mesh, pids = share.mesh, share.point_ids
     cells, ct = mesh.cells, mesh.cell_type
-    nc = cells.shape[0]
     nf, nvf = len(REFERENCE[ct].facets), len(REFERENCE[ct].facets[0])
-    facets = cell_facets(cells, ct).reshape(nc * nf, nvf)
-    keys, order, _ = _facet_index(cells, ct)
-    same = keys[1:] == keys[:-1]
+    # only facets with a vertex on an interface matter (the pairs share all their vertices, the
+    # boundary marks count at interface points only); a facet and its twin are kept alike
+    inter = np.diff(share.directory.ptr)[:mesh.x.shape[0]] >= 2
+    near = np.flatnonzero(inter[cells].any(axis=1))
+    facets = cell_facets(cells[near], ct).reshape(near.size * nf, nvf)
+    keep = np.flatnonzero(inter[facets].any(axis=1))
+    facets, facet_cell = facets[keep], near[keep // nf]
+    keys = _row_keys(facets, mesh.x.shape[0])
+    order = np.argsort(keys, kind="stable")
+    same = keys[order][1:] == keys[order][:-1]
     sub = share.dec.cell_sub
-    local = np.sort(np.stack([sub[order[:-1][same] // nf], sub[order[1:][same] // nf]],
-                             axis=1), axis=1)
-    single = np.ones(nc * nf, dtype=bool)
+    local = np.sort(np.stack([sub[facet_cell[order[:-1][same]]],
+                              sub[facet_cell[order[1:][same]]]], axis=1), axis=1)
+    single = np.ones(keep.size, dtype=bool)
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     global_f = np.sort(pids[facets[f]], axis=1)  # vertices come first among the points
     (got, got_sub), order, counts, rcounts = exchange(
         comm, Blocks(share.num_points, comm.size).home(global_f[:, 0]), global_f,
-        sub[f // nf].astype(np.int64))
+        sub[facet_cell[f]].astype(np.int64))
     _, inverse, count = np.unique(_row_keys(got, share.num_points), return_inverse=True,
                                   return_counts=True)
     inverse = inverse.ravel()
@@ -172,7 +179,7 @@ def _join_pairs(share, pairs: np.ndarray, corner: np.ndarray, bs: int, comm: MPI
         held[subs] = h
     # the local points of every subdomain, by subdomain then point
     e_point = np.repeat(np.arange(pids.size), np.diff(d.ptr))
-    e_order = np.lexsort((e_point, d.subs))
+    e_order = np.argsort(d.subs, kind="stable")  # the points ascend already
     e_sub, e_point = d.subs[e_order], e_point[e_order]
     with collective(comm, "constraints"):
         for s, t in pairs[dec.sub_rank[pairs[:, 0]] == comm.rank]:
@@ -252,14 +259,16 @@ def _floating_motions(share, comp: np.ndarray, bs: int, body_names, comm: MPI.Co
     boxes = [box_scale(lo[c], hi[c]) for c in range(ncomp)]
     centre = np.array([b[0] for b in boxes]).reshape(ncomp, gdim)
     scale = np.array([b[1] for b in boxes])
-    # each (point, component) once: at the pair of its smallest subdomain in the component
-    e_point = np.repeat(np.arange(share.point_ids.size), np.diff(d.ptr))
-    e_key = e_point * ncomp + comp[d.subs]
-    keys, first = np.unique(e_key, return_index=True)  # the subdomains of a point ascend
-    pk = dec.pair_node * ncomp + pc
-    counted = d.subs[first[np.searchsorted(keys, pk)]] == pair_sub
-    sel = np.flatnonzero(counted & d.fixed[dec.pair_node].any(axis=1))
+    # each fixed (point, component) once: at the pair of its smallest subdomain in the component
+    sel = np.flatnonzero(d.fixed[dec.pair_node].any(axis=1))
     p, c = dec.pair_node[sel], pc[sel]
+    n_subs = np.diff(d.ptr)[p]
+    e_pair = np.repeat(np.arange(sel.size), n_subs)
+    e_sub = d.subs[np.repeat(d.ptr[p], n_subs) + _ranges(n_subs)]
+    hit = np.flatnonzero(comp[e_sub] == c[e_pair])  # the subdomains of a point ascend
+    _, first = np.unique(e_pair[hit], return_index=True)  # every pair's own one is a hit
+    counted = e_sub[hit[first]] == pair_sub[sel]
+    sel, p, c = sel[counted], p[counted], c[counted]
     xc = (x[p] - centre[c]) / scale[c][:, None]  # as rigid_motions scales them
     k = rigid_motions(np.zeros((1, gdim)), bs).shape[1]
     Y = rigid_motions(xc, bs, np.zeros(gdim), 1.0).reshape(sel.size, bs, k)
