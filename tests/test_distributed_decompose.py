@@ -28,6 +28,7 @@ from dolfinx_feti.mesh.decompose import (
     rcb,
 )
 from dolfinx_feti.mesh.distributed_decompose import (
+    _split,
     decompose_distributed,
     rcb_distributed,
     split_components_distributed,
@@ -312,6 +313,33 @@ def test_split_components_with_large_vertex_numbers(name):
     ids = _mine(cells.shape[0], "uneven")
     got = split_components_distributed(cells[ids], ids, label[ids], mesh.cell_type, COMM)
     np.testing.assert_array_equal(got, ref[ids])
+
+
+@pytest.mark.parametrize("cell_type", ["quadrilateral", "triangle"])
+def test_split_components_chain_across_ranks(cell_type):
+    """A strip of cells dealt to the ranks round-robin: no two neighbours on one rank, so the
+    pieces of a label form a chain that alternates between the ranks (one piece per cell).
+    Joined exactly as the serial pieces, in O(log(pieces)) rounds, not O(chain)."""
+    n = 3000
+    x, cells = _structured(cell_type, (n, 1))
+    # vertices numbered at random: the facet directory's ranks see scattered links of the
+    # chain, not runs of it that they could join alone
+    cells = np.random.default_rng(0).permutation(x.shape[0])[cells]
+    nc = cells.shape[0]
+    mid = np.arange(nc) // (nc // n)  # cells along the strip, one or two per square
+    for label in (np.zeros(nc, dtype=np.int64),  # one piece of the whole strip
+                  (mid > n / 3).astype(np.int64) + (mid > 0.9 * n)):  # three pieces
+        ref = _split_components(cells, label, cell_type)
+        ids = np.flatnonzero(np.arange(nc) % COMM.size == COMM.rank)
+        stats: dict = {}
+        sub, first = _split(cells[ids], ids, label[ids], cell_type, COMM, stats=stats)
+        np.testing.assert_array_equal(sub, ref[ids])
+        lowest = np.full(ref.max() + 1, nc)
+        np.minimum.at(lowest, ref, np.arange(nc))
+        np.testing.assert_array_equal(first, lowest[ref[ids]])
+        assert stats["rounds"] <= 2 * np.log2(nc) + 4
+        if COMM.size > 1:  # the chain's links were spread: it took the hooking rounds
+            assert stats["rounds"] > 3
 
 
 # ------------------------------------------------------------------------------------------

@@ -12,10 +12,12 @@ split of the cells, and no rank ever holds an array of the size of the whole mes
   down by a factor of about the number of samples per round, so a level takes a few
   collective rounds of small data, never a gather of the points.
 - :func:`split_components_distributed`: the connected pieces of equal label of
-  :func:`.decompose._split_components`: pieces of the local cells, joined through the facets
-  that two ranks share (matched at the rank of a directory of facets) on rank 0, which only
-  sees the pieces on the interfaces; the pieces are numbered by their first cell through a
-  directory of the cell ids.
+  :func:`.decompose._split_components`: pieces of the local cells, linked through the facets
+  that two ranks share (matched at the rank of a directory of facets), joined by the
+  distributed connected components of the piece graph
+  (:func:`.distributed_graph.component_minima`: O(log pieces) rounds of hooking and
+  shortcutting, every rank holding only its own pieces and links); the pieces are numbered
+  by their first cell through a directory of the cell ids.
 - :func:`decompose_distributed`: the labels of ByTags / Parts / ByFunction, then the pieces.
 """
 
@@ -28,6 +30,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
+from ..distributed_graph import component_minima
 from ..errors import InputError, collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
@@ -322,18 +325,46 @@ def split_components_distributed(cells: np.ndarray, cell_ids: np.ndarray, label:
     return _split(cells, cell_ids, label, cell_type, comm)[0]
 
 
-def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
-    """:func:`split_components_distributed`, and the first cell of each local cell's piece."""
+def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
+    """:func:`split_components_distributed`, and the first cell of each local cell's piece.
+
+    ``stats``, if given, receives the rounds of the search across ranks
+    (:func:`.distributed_graph.component_minima`).
+    """
     cells = np.asarray(cells, dtype=np.int64)
     ids = np.asarray(cell_ids, dtype=np.int64)
     label = np.asarray(label).astype(np.int64)
     nc = cells.shape[0]
-    ref = reference(cells, cell_type)
-    nf, nvf = len(ref.facets), len(ref.facets[0])
     bound = np.array([cells.max() + 1 if cells.size else 0, ids.max() + 1 if nc else 0],
                      dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, bound, op=MPI.MAX)
     nv, num = int(bound[0]), int(bound[1] if num_cells is None else num_cells)
+    piece, first, edges = _pieces_and_links(cells, ids, label, cell_type, nv, comm)
+    # the pieces joined across ranks: each takes the smallest first cell of its component
+    first = component_minima(comm, first, edges, stats)
+    # number the pieces by their first cell: a directory of the cell ids
+    firsts = np.unique(first)
+    (asked,), order, counts, rcounts = exchange(comm, Blocks(num, comm.size).home(firsts),
+                                                firsts)
+    mine = np.unique(asked)
+    number = exclusive_scan(comm, mine.size) + np.searchsorted(mine, asked)
+    number = answer(comm, number, order, counts, rcounts)
+    sub = number[np.searchsorted(firsts, first)]
+    return sub[piece].astype(np.int32), first[piece]
+
+
+def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
+    """The pieces of equal label of this rank's cells and the links between pieces of ranks.
+
+    Returns:
+        ``(piece, first, edges)``: the local piece of each cell, the first (smallest id) cell
+        of each piece, and pairs of pieces (numbered globally, rank by rank) that two cells of
+        equal label on two ranks join through a facet. Only the rank that keeps a facet in
+        the facet directory holds its link.
+    """
+    nc = cells.shape[0]
+    ref = reference(cells, cell_type)
+    nf, nvf = len(ref.facets), len(ref.facets[0])
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
     facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
     keys = _row_keys(facets, nv)
@@ -347,49 +378,21 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None):
     np.minimum.at(first, piece, ids)
     offset = exclusive_scan(comm, npiece)
     # facets of one local cell: the other cell, if any, is on another rank; meet at the rank
-    # that keeps their smallest vertex
+    # that keeps the sum of their vertices modulo nv in a directory (their smallest vertex
+    # would send most facets to the first ranks: the least of a few numbers is small)
     single = np.ones(nc * nf, dtype=bool)
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     c = f // nf
-    rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c], first[piece[c]]])
-    (got,), _, _, _ = exchange(comm, Blocks(nv, comm.size).home(facets[f, 0]), rows)
+    rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
+    home = Blocks(nv, comm.size).home(facets[f].sum(axis=1) % max(nv, 1))
+    (got,), _, _, _ = exchange(comm, home, rows)
     _, inv = np.unique(_row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
     inv = np.sort(inv.ravel())
     link = (inv[1:] == inv[:-1]) & (got[1:, nvf] == got[:-1, nvf])
-    edges = np.column_stack([got[:-1][link][:, nvf + 2:], got[1:][link][:, nvf + 2:]])
-    # join the pieces on the interfaces on rank 0 (edges: piece, its first cell, piece, first)
-    gathered = comm.gather((edges, npiece), root=0)
-    send_piece = send_first = np.zeros(0, dtype=np.int64)
-    dest = np.zeros(0, dtype=np.int64)
-    if comm.rank == 0:
-        e = np.concatenate([g[0] for g in gathered]).reshape(-1, 4)
-        ends = np.concatenate([e[:, [0, 1]], e[:, [2, 3]]])
-        send_piece, at = np.unique(ends[:, 0], return_inverse=True)
-        at = at.ravel()
-        half = e.shape[0]
-        n = send_piece.size
-        g = sp.coo_matrix((np.ones(half), (at[:half], at[half:])), shape=(n, n))
-        _, comp = connected_components(g, directed=False) if n else (0, np.zeros(0, int))
-        low = np.full(n, np.iinfo(np.int64).max)
-        np.minimum.at(low, at, ends[:, 1])
-        root = np.full(comp.max() + 1 if n else 0, np.iinfo(np.int64).max)
-        np.minimum.at(root, comp, low)
-        send_first = root[comp]
-        starts = np.cumsum([0] + [g[1] for g in gathered])
-        dest = np.searchsorted(starts, send_piece, side="right") - 1
-    (back_piece, back_first), _, _, _ = exchange(comm, dest, send_piece, send_first)
-    first[back_piece - offset] = back_first
-    # number the pieces by their first cell: a directory of the cell ids
-    firsts = np.unique(first)
-    (asked,), order, counts, rcounts = exchange(comm, Blocks(num, comm.size).home(firsts),
-                                                firsts)
-    mine = np.unique(asked)
-    number = exclusive_scan(comm, mine.size) + np.searchsorted(mine, asked)
-    number = answer(comm, number, order, counts, rcounts)
-    sub = number[np.searchsorted(firsts, first)]
-    return sub[piece].astype(np.int32), first[piece]
+    edges = np.column_stack([got[:-1, nvf + 2][link], got[1:, nvf + 2][link]])
+    return piece, first, edges
 
 
 def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.ndarray,
