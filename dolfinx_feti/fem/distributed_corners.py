@@ -5,12 +5,12 @@ and the same span of floating motions) for the shares of a mesh read with ``dist
 (:func:`~dolfinx_feti.share_distributed.share_from_parts`). Each rank holds whole subdomains,
 their dof points and every point's list of subdomains (the node directory). From there:
 
-1. Outer boundary: a facet of the rank's cells that no other local cell has is sent to the
-   home rank of its smallest vertex; a facet only one rank sent is on the outer boundary (its
-   vertices are marked, as the serial code marks the vertices of ``boundary_facets``), a facet
-   sent twice joins two subdomains of two ranks.
-2. Globs: every rank sends its interface points with their subdomain lists to the home rank of
-   their first subdomain, which ORs the boundary marks of a point's copies and counts the
+1. Outer boundary: a facet of the rank's cells (with a vertex on an interface) that no other
+   local cell has is sent to a home rank (by the sum of its vertices); a facet only one rank
+   sent is on the outer boundary (its vertices are marked, as the serial code marks the
+   vertices of ``boundary_facets``), a facet sent twice joins two subdomains of two ranks.
+2. Globs: every rank sends its interface points with their subdomain lists to a home rank (by
+   the sum of the subdomains), which ORs the boundary marks of a point's copies and counts the
    points of every glob exactly as :func:`.corners.primal_globs` does serially.
 3. Rigid joining of the subdomains sharing a facet: the owner of s evaluates every pair (s, t)
    with the corners of step 2. Adding corners only adds rows to a pair's rigid-motion rows, so
@@ -122,9 +122,10 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     global_f = np.sort(pids[facets[f]], axis=1)  # vertices come first among the points
+    # the twins meet at the home of their vertices' sum modulo N, as in distributed_decompose
+    home = Blocks(share.num_points, comm.size).home(global_f.sum(axis=1) % share.num_points)
     (got, got_sub), order, counts, rcounts = exchange(
-        comm, Blocks(share.num_points, comm.size).home(global_f[:, 0]), global_f,
-        sub[facet_cell[f]].astype(np.int64))
+        comm, home, global_f, sub[facet_cell[f]].astype(np.int64))
     _, inverse, count = np.unique(_row_keys(got, share.num_points), return_inverse=True,
                                   return_counts=True)
     inverse = inverse.ravel()
@@ -152,8 +153,10 @@ def _globs(share, outer: np.ndarray, edges: bool, comm: MPI.Comm) -> tuple[np.nd
     width = comm.allreduce(int(mult.max(initial=0)), op=MPI.MAX)
     inter = np.flatnonzero(mult >= 2)
     key = glob_keys(d.ptr, d.subs, inter, outer[inter], width)
-    (got_pid, got_key), order, counts, rcounts = exchange(
-        comm, Blocks(share.dec.num_subdomains, comm.size).home(key[:, 0]), pids[inter], key)
+    nsub = share.dec.num_subdomains  # a glob's home: its subdomains' sum modulo their number
+    home = Blocks(nsub, comm.size).home(np.where(key[:, :-1] >= 0, key[:, :-1], 0).sum(axis=1)
+                                        % nsub)
+    (got_pid, got_key), order, counts, rcounts = exchange(comm, home, pids[inter], key)
     points, first, inverse = np.unique(got_pid, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     flag = np.zeros(points.size, dtype=np.int64)
