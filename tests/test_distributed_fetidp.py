@@ -9,6 +9,8 @@ floating motions and bodies; hence the same FETI-DP solution and the same choice
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import element_models as em
 import numpy as np
 import pytest
@@ -110,14 +112,20 @@ def test_the_solution_is_the_same(case):
         assert ref.rel_max_diff(na, nb) <= 1e-8
 
 
-@pytest.mark.parametrize("name", ["membranes_P1", "hexahedra_P2", "island"])
-def test_auto_chooses_as_on_the_whole_mesh(root, name):
-    """Floating bodies → tfeti; every body held → fetidp (the full rule of choose_method)."""
-    whole, spread = CASES[name](root, False), CASES[name](root, True)
-    chosen = [df.dual_qp(p, method="auto").method for p in (whole, spread)]
-    assert chosen[0] == chosen[1]
-    assert chosen[0] == {"membranes_P1": "tfeti", "hexahedra_P2": "fetidp",
-                         "island": "fetidp"}[name]
+def membranes_by_tags(root, distribute):
+    """B1 with one subdomain per membrane: no gluing rows."""
+    return replace(INPUT_CASES["membranes_P1"](root, distribute), decomposition=df.ByTags())
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("membranes_P1", "tfeti"), ("hexahedra_P2", "fetidp"), ("island", "fetidp"),
+    ("membranes_by_tags", "feti1")])
+def test_auto_chooses_as_on_the_whole_mesh(root, name, expected):
+    """No gluing → feti1; floating bodies → tfeti; every body held → fetidp (the full rule of
+    choose_method)."""
+    make = membranes_by_tags if name == "membranes_by_tags" else CASES[name]
+    chosen = [df.dual_qp(make(root, d), method="auto").method for d in (False, True)]
+    assert chosen == [expected, expected]
 
 
 def test_corners_off_contact_are_refused(root, monkeypatch):
