@@ -23,6 +23,7 @@ the FETI solve and at the end (after the direct solve, which runs on rank 0).
     mpirun -n 2 python bench/setup_profile.py --repeat 3 --json output/bench/setup.json
     mpirun -n 2 python bench/setup_profile.py --root-only   # the mesh on rank 0 only
     mpirun -n 2 python bench/setup_profile.py --distribute  # no rank holds the whole mesh
+    mpirun -n 2 python bench/setup_profile.py --method fetidp --distribute  # FETI-DP's set-up
     PYTHONPATH=/path/to/other/export mpirun -n 2 python bench/setup_profile.py   # A/B
 """
 
@@ -89,7 +90,8 @@ def build_mesh(n: int, replicate: bool = True, distribute: bool = False
     return mesh, {"gmsh model": t_model, "read_gmsh": t_read}
 
 
-def feti(mesh: df.MeshData, H: float, rtol: float) -> tuple[dict[str, float], dict]:
+def feti(mesh: df.MeshData, H: float, rtol: float, method: str = "auto"
+         ) -> tuple[dict[str, float], dict]:
     COMM.Barrier()
     t0 = time.perf_counter()
     problem = df.ContactProblem(
@@ -98,7 +100,7 @@ def feti(mesh: df.MeshData, H: float, rtol: float) -> tuple[dict[str, float], di
     t_problem = tmax(t0)
     COMM.Barrier()
     t0 = time.perf_counter()
-    sol = df.solve(problem, rtol=rtol)
+    sol = df.solve(problem, rtol=rtol, method=method)
     wall = tmax(t0)
     rep = sol.report
     phases = {"problem (checks)": t_problem}
@@ -173,12 +175,13 @@ def main() -> None:
     ap.add_argument("--distribute", action="store_true",
                     help="read_gmsh(distribute=True): every rank a block of cells (the direct "
                          "solve then reads its own copy on rank 0, after FETI)")
+    ap.add_argument("--method", default="auto", help="the FETI method (dual_qp's method)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
     runs = []
     for _ in range(args.repeat):
         mesh, times = build_mesh(args.n, not args.root_only, args.distribute)
-        phases, info = feti(mesh, args.H, args.rtol)
+        phases, info = feti(mesh, args.H, args.rtol, args.method)
         times.update(phases)
         info["peak MiB after FETI"] = COMM.allgather(vm_hwm_mib())
         if not args.no_direct:

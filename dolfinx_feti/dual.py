@@ -266,15 +266,22 @@ def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, fa
 def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
                          timer: Timer, method: str) -> DualQP:
     """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
-    from .share_distributed import share_from_parts, surface_friction, unsupported
+    from .fem.distributed_corners import fetidp_share
+    from .share_distributed import share_from_parts, surface_friction
 
-    why = unsupported(problem, method)
-    if why is not None:
-        raise InputError(why)
+    if method in ("fetidp", "auto") and not CORNERS_ON_CONTACT:
+        raise InputError("FETI-DP on a distributed mesh takes the corners on contact nodes "
+                         "too (dual.CORNERS_ON_CONTACT); read the mesh with distribute=False")
     share, surface, mortar = share_from_parts(problem, comm, timer)
-    if method == "auto":  # the rule's FETI-DP branch needs the whole mesh (not built yet)
-        glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
-        method = "tfeti" if glued else "feti1"
+    with timer.phase("constraints"):
+        auto = method == "auto"
+        if auto:  # choose_method's rule, its first branch here
+            glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
+            method = "fetidp" if glued else "feti1"
+        if method == "fetidp":  # the rule's last branch: "tfeti" if a primal component floats
+            method, share.extra = fetidp_share(
+                share, problem.value_size, problem.mesh.body_names, comm, auto=auto,
+                edges=CORNER_EDGES and problem.mesh.gdim == 3)
     fdata = None
     if any(getattr(c, "friction", None) is not None for c in problem.contact):
         with collective(comm, "friction"):

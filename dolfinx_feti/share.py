@@ -123,6 +123,8 @@ class RankShare:
         rows: The rank's rows of B.
         extra: What the method needs besides (FETI-DP: the corners and floating motions of
             this rank's dofs), or None.
+        directory: On a distributed mesh, the subdomains and Dirichlet mask of the local
+            points (:class:`.share_distributed.NodeDirectory`); None otherwise.
     """
 
     mesh: MeshData
@@ -136,6 +138,7 @@ class RankShare:
     group_errors: dict[str, str]
     rows: RankRows
     extra: object = field(default=None, repr=False)
+    directory: object = field(default=None, repr=False)
 
     @property
     def pair_points(self) -> np.ndarray:

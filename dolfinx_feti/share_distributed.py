@@ -47,12 +47,19 @@ from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row
 from .timing import Timer
 
 
-def unsupported(problem, method: str) -> str | None:
-    """Why ``problem`` on a distributed mesh cannot be solved by ``method`` yet, or None."""
-    if method == "fetidp":
-        return ("method='fetidp' on a distributed mesh (read_gmsh(..., distribute=True)) is not "
-                "built yet: use 'tfeti' or 'feti1', or read the mesh with distribute=False")
-    return None
+@dataclass
+class NodeDirectory:
+    """What a rank knows of its points beyond its own subdomains (a distributed mesh).
+
+    Attributes:
+        ptr, subs: The sorted subdomains (all ranks') holding local point i are
+            ``subs[ptr[i]:ptr[i + 1]]``.
+        fixed: (n, bs) Dirichlet mask of the local points.
+    """
+
+    ptr: np.ndarray
+    subs: np.ndarray
+    fixed: np.ndarray
 
 
 def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
@@ -138,7 +145,8 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
                         **_contact_rows(own, start, extra, comm))
     share = RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
                       num_points=num_points, num_cells=mesh.num_cells, dec=dec,
-                      facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows)
+                      facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows,
+                      directory=NodeDirectory(ptr, node_subs, fixed))
     return share, surface, mortar
 
 
@@ -395,4 +403,4 @@ def _columns(own: Rows, pair_sub, pair_node, pids, num_points, sub_size, sub_ran
         + own.e_comp
 
 
-__all__ = ["share_from_parts", "unsupported"]
+__all__ = ["NodeDirectory", "share_from_parts"]

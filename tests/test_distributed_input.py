@@ -193,9 +193,6 @@ def test_the_checks_of_the_whole_mesh_apply():
 
 
 def test_what_is_not_built_yet_is_refused_by_name(root):
-    problem = hertz_mortar(root, True)
-    with pytest.raises(df.InputError, match="method='fetidp' on a distributed mesh"):
-        df.solve(problem, method="fetidp")
     with pytest.raises(df.InputError, match="curved"):
         df.build_mesh(em.plate_with_hole, False, 0.5, 2, distribute=True)
 

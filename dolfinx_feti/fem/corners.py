@@ -62,18 +62,118 @@ class Corners:
 
 def _free_motions(Y: np.ndarray) -> np.ndarray:
     """Orthonormal basis (k × r) of the motions a with Y a = 0, for rows Y (m × k)."""
-    k = Y.shape[1]
-    if Y.shape[0] == 0:
-        return np.eye(k)
-    G = Y.T @ Y
+    return free_of_gram(Y.T @ Y, Y.shape[0])
+
+
+def free_of_gram(G: np.ndarray, rows: int) -> np.ndarray:
+    """:func:`_free_motions` from the Gram matrix ``G = YᵀY`` of ``rows`` rows (k × k)."""
+    if rows == 0:
+        return np.eye(G.shape[0])
     w, V = np.linalg.eigh(G)
     return V[:, w <= RANK_RTOL * max(np.trace(G), 1e-300)]
 
 
 def _scaled(x: np.ndarray) -> tuple[np.ndarray, float]:
     """Centre and size of a point set (for well-scaled rigid motions)."""
-    lo, hi = x.min(axis=0), x.max(axis=0)
+    return box_scale(x.min(axis=0), x.max(axis=0))
+
+
+def box_scale(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and size of the bounding box ``[lo, hi]``."""
     return 0.5 * (lo + hi), max(float(np.linalg.norm(hi - lo)), 1e-300)
+
+
+def scaled_motions(x: np.ndarray, bs: int) -> np.ndarray:
+    """The rigid motions at points ``x`` scaled by their own box, (n, bs, k)."""
+    centre, scale = _scaled(x)
+    return rigid_motions(x, bs, centre, scale).reshape(x.shape[0], bs, -1)
+
+
+def glob_keys(ptr: np.ndarray, subs: np.ndarray, points: np.ndarray, on_boundary: np.ndarray,
+              width: int) -> np.ndarray:
+    """The glob key of each of ``points``.
+
+    The key is the point's sorted subdomains (``subs[ptr[p]:ptr[p + 1]]``) padded with −1 to
+    ``width``, then whether it lies on the outer boundary (``on_boundary``, one per point).
+    """
+    mult = np.diff(ptr)[points]
+    key = np.full((points.size, width + 1), -1, dtype=np.int64)
+    pos = ptr[points][:, None] + np.arange(width)
+    valid = np.arange(width) < mult[:, None]
+    key[:, :width] = np.where(valid, subs[np.minimum(pos, subs.size - 1)], -1)
+    key[:, width] = on_boundary
+    return key
+
+
+def primal_globs(key: np.ndarray, edges: bool) -> np.ndarray:
+    """Which points are primal, from the :func:`glob_keys` of all interface points.
+
+    ``key`` holds one row per point. The vertices (a glob of one point) are primal, and with
+    ``edges`` every point of three or more subdomains or on the outer boundary.
+    """
+    _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    primal = count[inverse.ravel()] == 1
+    if edges:
+        primal |= ((key[:, :-1] >= 0).sum(axis=1) >= 3) | (key[:, -1] == 1)
+    return primal
+
+
+def _pair_rows(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray) -> np.ndarray:
+    """The rigid-motion rows of the corners' components and of the fixed ones."""
+    return Y[corner[:, None] & np.ones(Y.shape[1], dtype=bool) | fixed]
+
+
+def joined_rigidly(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray) -> bool:
+    """Whether the shared corners and fixed dofs join two subdomains rigidly.
+
+    The arguments are those of :func:`join_pair`.
+    """
+    return _free_motions(_pair_rows(Y, corner, fixed)).shape[1] == 0
+
+
+def join_pair(Y: np.ndarray, corner: np.ndarray, fixed: np.ndarray,
+              avoided: np.ndarray | None = None) -> np.ndarray:
+    """The shared points two subdomains need as corners to be joined rigidly (greedily).
+
+    Args:
+        Y: (n, bs, k) the rigid motions at the points both subdomains hold
+            (:func:`scaled_motions`), in the order of their global numbers.
+        corner: (n,) which of them are corners already.
+        fixed: (n, bs) their Dirichlet mask.
+        avoided: (n,) points to take only if nothing else helps.
+
+    Returns:
+        The positions of the points to add, in the order taken.
+    """
+    corner = corner.copy()
+    rows = _pair_rows(Y, corner, fixed)
+    free = _free_motions(rows)
+    added = []
+    while free.shape[1]:
+        cand = np.flatnonzero(~corner)
+        if cand.size == 0:
+            break
+        score = np.linalg.norm(Y[cand] @ free, axis=(1, 2))
+        if avoided is not None:
+            score[avoided[cand]] *= 1e-6  # only if nothing else helps
+        best = int(np.argmax(score))
+        if not score[best] > 1e-14:
+            break
+        corner[cand[best]] = True
+        added.append(cand[best])
+        rows = np.concatenate([rows, Y[cand[best]]])
+        free = _free_motions(rows)
+    return np.array(added, dtype=np.int64)
+
+
+def held_alone(x: np.ndarray, fixed: np.ndarray, bs: int) -> bool:
+    """Whether a subdomain is held rigidly by its Dirichlet conditions alone.
+
+    ``x`` holds its points, ``fixed`` (n, bs) their Dirichlet mask.
+    """
+    if not fixed.any():
+        return False
+    return _free_motions(scaled_motions(x, bs)[fixed]).shape[1] == 0
 
 
 def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
@@ -98,17 +198,9 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
     inter = np.flatnonzero(mult >= 2)
     on_boundary = np.zeros(N, dtype=bool)
     on_boundary[np.unique(boundary_facets(mesh)[0])] = True
-    width = int(mult.max(initial=0))
-    key = np.full((inter.size, width + 1), -1, dtype=np.int64)
-    pos = ptr[inter][:, None] + np.arange(width)
-    valid = np.arange(width) < mult[inter][:, None]
-    key[:, :width] = np.where(valid, subs[np.minimum(pos, subs.size - 1)], -1)
-    key[:, width] = on_boundary[inter]
-    _, inverse, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    key = glob_keys(ptr, subs, inter, on_boundary[inter], int(mult.max(initial=0)))
     corner = np.zeros(N, dtype=bool)
-    corner[inter[count[inverse.ravel()] == 1]] = True
-    if edges:  # every interface node outside the faces (two subdomains, inside the body)
-        corner[inter[(mult[inter] >= 3) | on_boundary[inter]]] = True
+    corner[inter[primal_globs(key, edges)]] = True
     avoided = np.zeros(N, dtype=bool)
     if avoid is not None:
         avoided[avoid] = True
@@ -116,36 +208,30 @@ def choose_corners(mesh: MeshData, dec: Decomposition, fixed: np.ndarray,
     vertices = int(corner.sum())
 
     # every pair of subdomains sharing a facet is joined rigidly by its shared corners
-    cells = facet_neighbours(mesh.cells, mesh.cell_type)
-    pair = np.sort(dec.cell_sub[cells], axis=1)
-    pair = np.unique(pair[pair[:, 0] != pair[:, 1]], axis=0)
     x = mesh.x if x is None else x
-    held = {}
-    for s, t in pair:
-        both = np.intersect1d(dec.nodes(int(s)), dec.nodes(int(t)), assume_unique=True)
-        centre, scale = _scaled(x[both])
-        Y = rigid_motions(x[both], bs, centre, scale).reshape(both.size, bs, -1)
+    held: dict[int, bool] = {}
+    for s, t in facet_pairs(mesh, dec.cell_sub):
         if all(_held(held, dec, x, fixed, bs, int(u)) for u in (s, t)):
             continue
-        rows = Y[corner[both][:, None] & np.ones(bs, dtype=bool) | fixed[both]]
-        free = _free_motions(rows)
-        while free.shape[1]:
-            cand = np.flatnonzero(~corner[both])
-            if cand.size == 0:
-                break
-            score = np.linalg.norm(Y[cand] @ free, axis=(1, 2))
-            score[avoided[both[cand]]] *= 1e-6  # only if nothing else helps
-            best = int(np.argmax(score))
-            if not score[best] > 1e-14:
-                break
-            corner[both[cand[best]]] = True
-            rows = np.concatenate([rows, Y[cand[best]]])
-            free = _free_motions(rows)
+        both = np.intersect1d(dec.nodes(int(s)), dec.nodes(int(t)), assume_unique=True)
+        added = join_pair(scaled_motions(x[both], bs), corner[both], fixed[both], avoided[both])
+        corner[both[added]] = True
+    return numbered(corner, fixed, vertices)
+
+
+def numbered(corner: np.ndarray, fixed: np.ndarray, vertices: int) -> Corners:
+    """The :class:`Corners` of a corner mask (N,) with the Dirichlet mask (N, bs)."""
     nodes = np.flatnonzero(corner)
     unknown = corner[:, None] & ~fixed
-    index = np.full((N, bs), -1, dtype=np.int64)
+    index = np.full(fixed.shape, -1, dtype=np.int64)
     index[unknown] = np.arange(int(unknown.sum()))
     return Corners(nodes=nodes, index=index, count=int(unknown.sum()), vertices=vertices)
+
+
+def facet_pairs(mesh: MeshData, cell_sub: np.ndarray) -> np.ndarray:
+    """The pairs (s < t) of subdomains that share a facet, sorted, each once."""
+    pair = np.sort(cell_sub[facet_neighbours(mesh.cells, mesh.cell_type)], axis=1)
+    return np.unique(pair[pair[:, 0] != pair[:, 1]], axis=0)
 
 
 def _held(cache: dict, dec: Decomposition, x: np.ndarray, fixed: np.ndarray, bs: int,
@@ -153,13 +239,7 @@ def _held(cache: dict, dec: Decomposition, x: np.ndarray, fixed: np.ndarray, bs:
     """Whether subdomain ``s`` is held rigidly by its Dirichlet conditions alone."""
     if s not in cache:
         nodes = dec.nodes(s)
-        f = fixed[nodes]
-        if not f.any():
-            cache[s] = False
-        else:
-            centre, scale = _scaled(x[nodes])
-            Y = rigid_motions(x[nodes], bs, centre, scale).reshape(nodes.size, bs, -1)
-            cache[s] = _free_motions(Y[f]).shape[1] == 0
+        cache[s] = held_alone(x[nodes], fixed[nodes], bs)
     return cache[s]
 
 
@@ -183,11 +263,12 @@ def primal_components(mesh: MeshData, dec: Decomposition) -> np.ndarray:
     bodies joined only by rows of B (mortar ties, contact) are not: their relative rigid
     motions stay in the kernel of K̃.
     """
-    cells = facet_neighbours(mesh.cells, mesh.cell_type)
-    pair = dec.cell_sub[cells]
-    pair = pair[pair[:, 0] != pair[:, 1]]
-    n = dec.num_subdomains
-    graph = sp.coo_matrix((np.ones(pair.shape[0]), (pair[:, 0], pair[:, 1])), shape=(n, n))
+    return components_of_pairs(facet_pairs(mesh, dec.cell_sub), dec.num_subdomains)
+
+
+def components_of_pairs(pairs: np.ndarray, n: int) -> np.ndarray:
+    """Component of each of ``n`` subdomains in the graph of the subdomain ``pairs`` (P, 2)."""
+    graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
 
@@ -215,20 +296,32 @@ def floating_motions(mesh: MeshData, dec: Decomposition, rows: Rows, fixed: np.n
         subs = np.flatnonzero(comp == c)
         nodes = np.unique(dec.pair_node[np.isin(dec.pair_sub, subs)])
         centre, scale = _scaled(x[nodes])
-        Y = rigid_motions(x[nodes], bs, centre, scale).reshape(nodes.size, bs, -1)
-        free = _free_motions(Y[fixed[nodes]])
+        free = _free_motions(rigid_motions(x[nodes], bs, centre, scale).reshape(
+            nodes.size, bs, -1)[fixed[nodes]])
         if free.shape[1] == 0:
             continue
         for out, (dof_node, dof_comp, dof_sub) in zip(columns, parts, strict=True):
             mine = np.flatnonzero(np.isin(dof_sub, subs))
             Z = np.zeros((dof_node.size, free.shape[1]))
-            Yl = rigid_motions(x[dof_node[mine]], bs, centre, scale).reshape(
-                mine.size, bs, Y.shape[2])[np.arange(mine.size), dof_comp[mine]]
-            Z[mine] = Yl @ free
+            Z[mine] = motions_at(x[dof_node[mine]], dof_comp[mine], bs, centre, scale, free)
             Z[fixed[dof_node, dof_comp]] = 0.0
             out.append(Z)
-        names = sorted({mesh.body_names[b] for b in dec.sub_body[subs]})
-        bodies += ["+".join(names)] * free.shape[1]
+        bodies += [body_label(mesh.body_names, dec.sub_body[subs])] * free.shape[1]
     Z = [np.hstack(cols) if cols else np.zeros((p[0].size, 0))
          for cols, p in zip(columns, parts, strict=True)]
     return Z, bodies
+
+
+def motions_at(x: np.ndarray, comp: np.ndarray, bs: int, centre: np.ndarray, scale: float,
+               free: np.ndarray) -> np.ndarray:
+    """The free motions (columns of ``free``, k × m) at the dofs (points ``x``, ``comp``).
+
+    The rigid motions are scaled by ``centre`` and ``scale`` (those of the component).
+    """
+    Y = rigid_motions(x, bs, centre, scale).reshape(x.shape[0], bs, free.shape[0])
+    return Y[np.arange(x.shape[0]), comp] @ free
+
+
+def body_label(body_names, bodies: np.ndarray) -> str:
+    """The name of a component's motions: the names of its bodies, sorted, joined by '+'."""
+    return "+".join(sorted({body_names[b] for b in bodies}))
