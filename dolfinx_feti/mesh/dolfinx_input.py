@@ -20,6 +20,7 @@ import numpy as np
 
 from .. import compat
 from ..errors import InputError, collective
+from ..exchange import Blocks, answer, exchange, hand_out
 from .dofpoints import degree2_entities
 from .gmsh_input import MeshData, answered_by_root
 from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
@@ -35,14 +36,21 @@ class DolfinxSource:
         input_cells: The DOLFINx input index of each global cell (sorted).
         root_only: For a mesh whose arrays rank 0 holds (``replicate=False``), the
             communicator: the two tables are on rank 0 only, which answers the lookups.
+        directory: For a distributed mesh (``distribute=True``), the communicator: each
+            table is then this rank's share of a directory, ``(input indices, global
+            numbers)`` of the input indices ``i`` with ``i % size == rank``, and a lookup
+            asks the rank that keeps each index.
     """
 
     mesh: object
-    input_nodes: np.ndarray | None
-    input_cells: np.ndarray | None
+    input_nodes: np.ndarray | tuple | None
+    input_cells: np.ndarray | tuple | None
     root_only: object = None
+    directory: object = None
 
-    def _positions(self, table: np.ndarray | None, asked: np.ndarray) -> np.ndarray:
+    def _positions(self, table, asked: np.ndarray) -> np.ndarray:
+        if self.directory is not None:
+            return _ask_directory(self.directory, table, asked)
         if self.root_only is None:
             return np.searchsorted(table, asked)
         return answered_by_root(self.root_only, np.asarray(asked, dtype=np.int64),
@@ -55,6 +63,30 @@ class DolfinxSource:
     def cell_ids(self) -> np.ndarray:
         """The global cell of each local cell (owned and ghost) of the mesh."""
         return self._positions(self.input_cells, compat.cell_input_indices(self.mesh))
+
+
+def _directory(comm, keys: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """This rank's share of a directory input index → global number (collective).
+
+    Every rank registers its (key, value) pairs (a key may come from several ranks, with the
+    same value); the rank ``key % size`` keeps each key.
+    """
+    keys = np.asarray(keys, dtype=np.int64)
+    (k, v), *_ = exchange(comm, keys % comm.size, keys, np.asarray(values, dtype=np.int64))
+    k, first = np.unique(k, return_index=True)
+    return k, v[first]
+
+
+def _ask_directory(comm, table: tuple[np.ndarray, np.ndarray], asked) -> np.ndarray:
+    """The global numbers of the input indices ``asked`` from the directory (collective)."""
+    asked = np.asarray(asked, dtype=np.int64)
+    (q,), order, counts, rcounts = exchange(comm, asked % comm.size, asked)
+    keys, values = table
+    found = np.full(q.size, -1, dtype=np.int64)
+    if keys.size:
+        pos = np.minimum(np.searchsorted(keys, q), keys.size - 1)
+        found = np.where(keys[pos] == q, values[pos], -1)
+    return answer(comm, found, order, counts, rcounts)
 
 
 @dataclass
@@ -85,7 +117,7 @@ class LocalPart:
 
 def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
                  names: Mapping[str, int | tuple[int, int]] | None = None,
-                 replicate: bool = True) -> MeshData:
+                 replicate: bool = True, distribute: bool = False) -> MeshData:
     """A DOLFINx mesh with its tags as the mesh of a :class:`~dolfinx_feti.ContactProblem`.
 
     The cell tags name the bodies, the facet tags the boundary groups (Dirichlet, loads,
@@ -107,13 +139,22 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         replicate: Every rank receives the global arrays (the default), or only rank 0 of the
             mesh's communicator gathers them and the others keep the names (as
             :func:`~dolfinx_feti.read_gmsh` with ``replicate=False``).
+        distribute: Spread the mesh over the ranks instead, as
+            :func:`~dolfinx_feti.read_gmsh` with ``distribute=True``: rank 0 gathers and
+            checks the whole mesh, hands every rank a contiguous block of the cells (in
+            DOLFINx's input order) and keeps only its own block (``mesh.part``); no rank
+            holds the whole mesh after the input, and the output finds the user's nodes and
+            cells through a directory spread over the ranks. Not with ``replicate=False``
+            (which asks rank 0 to keep the whole mesh) nor with curved cells.
 
     Returns:
-        The mesh data (global arrays on every rank, node order of DOLFINx's input).
+        The mesh data (global arrays on every rank, node order of DOLFINx's input; or each
+        rank's block, see ``distribute``).
 
     Raises:
         InputError: For an unsupported mesh (cell type, curved cells, a 2D mesh in 3D),
-            tags of the wrong dimension, untagged cells, or names of tags that do not exist.
+            tags of the wrong dimension, untagged cells, names of tags that do not exist, or
+            ``distribute=True`` with ``replicate=False`` or a curved mesh.
     """
     if not compat.is_mesh(mesh) and hasattr(mesh, "mesh") and hasattr(mesh, "cell_tags"):
         groups = getattr(mesh, "physical_groups", None) or {}
@@ -141,6 +182,15 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         if tags is not None and compat.tags_data(tags)[0] != dim:
             raise InputError(f"from_dolfinx: {what} are tags of entities of dimension "
                              f"{compat.tags_data(tags)[0]}, expected {dim}")
+    if distribute:
+        if not replicate:
+            raise InputError("from_dolfinx: distribute=True spreads the mesh over the ranks; "
+                             "replicate=False (rank 0 keeps the whole mesh) contradicts it: "
+                             "pass one of them")
+        if degree != 1:
+            raise InputError("from_dolfinx: a curved (second-order) mesh cannot be distributed "
+                             "yet: use distribute=False")
+        return scatter(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names)
     return gather(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names, replicate)
 
 
@@ -195,6 +245,33 @@ def gather(part: LocalPart, mesh, cell_type: str,
         data = comm.bcast(None, root=0)
         data.source = DolfinxSource(mesh, None, None, comm)
     data.root_only = comm
+    return data
+
+
+def scatter(part: LocalPart, mesh, cell_type: str,
+            names: Mapping[str, int | tuple[int, int]] | None) -> MeshData:
+    """Each rank's block of the mesh from every rank's part (collective).
+
+    Rank 0 gathers the parts into the whole mesh, checks it and hands it out as
+    :func:`~.distributed.scatter_mesh` does; the link to the user's mesh becomes a directory
+    of the input indices of the vertices and cells (:class:`DolfinxSource`).
+    """
+    from .distributed import scatter_mesh
+
+    comm = mesh.comm
+    parts, whole = comm.gather(part, root=0), None
+    with collective(comm, "mesh"):
+        if comm.rank == 0:
+            whole = _global(parts, mesh, cell_type, names)
+    del parts
+    input_cells = whole.source.input_cells if comm.rank == 0 else None
+    data = scatter_mesh(whole, comm)
+    del whole
+    blocks = Blocks(data.num_cells, comm.size)  # those of scatter_mesh
+    cells_in = hand_out(comm, lambda r: input_cells[blocks.local(r)], "handing out the cells")
+    data.source = DolfinxSource(
+        mesh, _directory(comm, data.node_tags, data.part.vertex_ids),
+        _directory(comm, cells_in, data.part.cell_ids), directory=comm)
     return data
 
 
@@ -300,4 +377,4 @@ def _names(cell_values: np.ndarray, facet_values: np.ndarray, tdim: int,
     return body, facet
 
 
-__all__ = ["DolfinxSource", "LocalPart", "from_dolfinx", "gather", "local_part"]
+__all__ = ["DolfinxSource", "LocalPart", "from_dolfinx", "gather", "local_part", "scatter"]
