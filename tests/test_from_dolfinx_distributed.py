@@ -104,6 +104,9 @@ def test_refused_arguments(hertz):
     msh, ct, ft, names = hertz
     with pytest.raises(df.InputError, match="distribute=True.*replicate=False"):
         df.from_dolfinx(msh, ct, ft, names=names, replicate=False, distribute=True)
+    # rank 0's checks of the whole mesh end every rank with their message
+    with pytest.raises(df.InputError, match="names.*no such tag"):
+        df.from_dolfinx(msh, ct, ft, names={"nothing": 99}, distribute=True)
     _, (curved, cct, cft, cnames) = gmsh_both(em.plate_with_hole, gdim=2)
     with pytest.raises(df.InputError, match="curved.*distribute=False"):
         df.from_dolfinx(curved, cct, cft, names=cnames, distribute=True)

@@ -8,7 +8,10 @@ would start from. :func:`gather` then builds the global arrays of :class:`MeshDa
 pipeline uses today, identical on every rank: nodes and cells are numbered in DOLFINx's input
 order (the order of the arrays the mesh was created from, e.g. gmsh's node tags and the cells
 of the physical groups with ``gmshio``), which does not depend on the number of ranks, so the
-decomposition, the rows and the results do not either.
+decomposition, the rows and the results do not either. With ``distribute=True``,
+:func:`scatter` builds them on rank 0 only, which checks them and hands every rank a block of
+the cells (:func:`~.distributed.scatter_mesh`); the output then finds the user's nodes and
+cells through directories keyed by their input index, spread over the ranks.
 """
 
 from __future__ import annotations
