@@ -83,19 +83,21 @@ def test_hertz_degree2_distributed(hertz):
     assert_same_solution(a, b, msh)
 
 
-def test_quadrilaterals_distributed_xdmf(tmp_path_factory):
-    """Quadrilaterals with contact: the replicated solution, written to XDMF."""
-    _, (msh, ct, ft, names) = gmsh_both(em.rectangle, quads=True, gdim=2)
+@pytest.mark.parametrize("cell", ["quadrilateral", "hexahedron"])
+def test_quadrilaterals_and_hexahedra_distributed_xdmf(cell, tmp_path_factory):
+    """Quadrilaterals or hexahedra with contact: the replicated solution, written to XDMF."""
+    _, (msh, ct, ft, names) = gmsh_both(em.rectangle, quads=True, gdim=2) \
+        if cell == "quadrilateral" else gmsh_both(em.box, hexes=True, gdim=3)
     dist = df.from_dolfinx(msh, ct, ft, names=names, distribute=True)
-    assert dist.cell_type == "quadrilateral" and dist.part is not None
+    assert dist.cell_type == cell and dist.part is not None
     a = df.solve(uniaxial(dist, 1, contact=True), rtol=RTOL)
     b = df.solve(uniaxial(df.from_dolfinx(msh, ct, ft, names=names), 1, contact=True),
                  rtol=RTOL)
     assert_same_solution(a, b, msh)
     folder = COMM.bcast(str(tmp_path_factory.mktemp("dxd")) if COMM.rank == 0 else None)
-    a.write_xdmf(f"{folder}/quads.xdmf")
+    a.write_xdmf(f"{folder}/{cell}.xdmf")
     if COMM.rank == 0:
-        text = open(f"{folder}/quads.xdmf").read()
+        text = open(f"{folder}/{cell}.xdmf").read()
         assert all(f'Name="{n}"' in text for n in ("displacement", "subdomain", "von_mises"))
 
 
