@@ -20,6 +20,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
+from mpi4py import MPI
 
 from .. import compat
 from ..errors import InputError, collective
@@ -89,7 +90,12 @@ def _ask_directory(comm, table: tuple[np.ndarray, np.ndarray], asked) -> np.ndar
     if keys.size:
         pos = np.minimum(np.searchsorted(keys, q), keys.size - 1)
         found = np.where(keys[pos] == q, values[pos], -1)
-    return answer(comm, found, order, counts, rcounts)
+    got = answer(comm, found, order, counts, rcounts)
+    # an index nobody registered would map a user's dof to no point: stop on every rank
+    if comm.allreduce(bool(np.any(got < 0)), op=MPI.LOR):
+        raise AssertionError("from_dolfinx: an input index of the user's mesh is not in the "
+                             "directory of the distributed mesh")
+    return got
 
 
 @dataclass
