@@ -25,6 +25,9 @@ the FETI solve and at the end (after the direct solve, which runs on rank 0).
     mpirun -n 2 python bench/setup_profile.py --distribute  # no rank holds the whole mesh
     mpirun -n 2 python bench/setup_profile.py --method fetidp --distribute  # FETI-DP's set-up
     PYTHONPATH=/path/to/other/export mpirun -n 2 python bench/setup_profile.py   # A/B
+
+An export older than the test suite's current reference assembly (``tests/reference.py``
+needs this tree's ``compat``) runs with ``--no-direct``.
 """
 
 from __future__ import annotations
