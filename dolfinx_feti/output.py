@@ -71,7 +71,19 @@ def output_mesh(mesh: MeshData, comm: MPI.Comm, msh=None) -> tuple[object, np.nd
     if mesh.source is not None:
         return mesh.source.mesh, mesh.source.vertex_ids(), mesh.source.cell_ids()
     msh = parent_mesh(mesh, comm) if msh is None else msh
-    return msh, compat.node_input_indices(msh), compat.cell_input_indices(msh)
+    cells = compat.cell_input_indices(msh)
+    if mesh.part is not None:  # DOLFINx numbered the ranks' blocks one after the other
+        cells = _block_cells(mesh.part, cells, comm)
+    return msh, compat.node_input_indices(msh), cells
+
+
+def _block_cells(part, positions: np.ndarray, comm: MPI.Comm) -> np.ndarray:
+    """The global cell of each position in the ranks' blocks of cells, end to end."""
+    starts = np.concatenate([[0], np.cumsum(comm.allgather(part.cell_ids.size))])
+    positions = np.asarray(positions, dtype=np.int64)
+    (asked,), order, counts, rcounts = exchange(
+        comm, np.searchsorted(starts, positions, side="right") - 1, positions)
+    return answer(comm, part.cell_ids[asked - starts[comm.rank]], order, counts, rcounts)
 
 
 def _part_input(mesh: MeshData, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:

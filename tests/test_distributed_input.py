@@ -218,3 +218,38 @@ def test_local_vertex_numbers_are_those_of_unique(spread):
     assert np.array_equal(local, inverse.reshape(cells.shape))
     empty = _compact(np.zeros((0, 3), dtype=np.int64))
     assert empty[0].size == 0 and empty[1].shape == (0, 3)
+
+
+def _unmatched_facets(mesh, owner, size):
+    """The fraction of the blocks' facets that no other cell of the same block has."""
+    from dolfinx_feti.mesh.topology import _row_keys, cell_facets
+
+    single = total = 0
+    for r in range(size):
+        cells = mesh.cells[owner == r]
+        f = cell_facets(cells, mesh.cell_type)
+        keys = _row_keys(np.sort(f.reshape(-1, f.shape[-1]), axis=1), mesh.num_nodes)
+        _, count = np.unique(keys, return_counts=True)
+        single += int(np.sum(count == 1))
+        total += keys.size
+    return single / total
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("size", [2, 4, 8])
+def test_the_blocks_of_the_input_are_compact(root, size):
+    """Blocks along a Morton curve: equal sizes and few facets between blocks, where on 4 and
+    more ranks the file's order gives blocks whose cells share hardly any facet."""
+    from dolfinx_feti.mesh.distributed import compact_blocks
+
+    mesh = df.read_gmsh(root / "meshes/membranes_8.msh")
+    owner = compact_blocks(mesh.x[mesh.cells].mean(axis=1), size)
+    sizes = np.bincount(owner, minlength=size)
+    assert sizes.max() - sizes.min() <= 1
+    assert np.array_equal(owner, compact_blocks(mesh.x[mesh.cells].mean(axis=1), size))
+    compact = _unmatched_facets(mesh, owner, size)
+    file_order = _unmatched_facets(mesh, np.arange(mesh.num_cells) * size // mesh.num_cells,
+                                   size)
+    assert compact < 0.25, compact
+    if size >= 4:  # two blocks of the file's order are the two membranes, compact too
+        assert file_order > 0.5 and compact < file_order / 4, (compact, file_order)

@@ -1,6 +1,6 @@
 """Dof points and the point → subdomain directory of a mesh whose cells are spread over ranks.
 
-Each rank holds some cells in global vertex numbers (a contiguous block after the scatter of
+Each rank holds some cells in global vertex numbers (a block after the scatter of
 the mesh, any subset after :func:`migrate`). The functions here give exactly what the serial
 code gives on the whole mesh (:func:`.dofpoints.dof_points`, :class:`.decompose.Decomposition`),
 restricted to the rank's cells, without any rank holding an array of the size of the mesh:

@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from .. import compat
 from ..errors import InputError, collective
-from ..exchange import Blocks, answer, exchange, hand_out
+from ..exchange import answer, exchange
 from .dofpoints import degree2_entities
 from .gmsh_input import MeshData, answered_by_root
 from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
@@ -150,11 +150,12 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
             :func:`~dolfinx_feti.read_gmsh` with ``replicate=False``).
         distribute: Spread the mesh over the ranks instead, as
             :func:`~dolfinx_feti.read_gmsh` with ``distribute=True``: rank 0 gathers and
-            checks the whole mesh, hands every rank a contiguous block of the cells (in
-            DOLFINx's input order) and keeps only its own block (``mesh.part``); no rank
-            holds the whole mesh after the input, and the output finds the user's nodes and
-            cells through a directory spread over the ranks. Not with ``replicate=False``
-            (which asks rank 0 to keep the whole mesh) nor with curved cells.
+            checks the whole mesh, hands every rank a compact block of the cells
+            (consecutive along a space-filling curve, in DOLFINx's input order within the
+            block) and keeps only its own block (``mesh.part``); no rank holds the whole
+            mesh after the input, and the output finds the user's nodes and cells through a
+            directory spread over the ranks. Not with ``replicate=False`` (which asks rank 0
+            to keep the whole mesh) nor with curved cells.
 
     Returns:
         The mesh data (global arrays on every rank, node order of DOLFINx's input; or each
@@ -276,8 +277,7 @@ def scatter(part: LocalPart, mesh, cell_type: str,
     input_cells = whole.source.input_cells if comm.rank == 0 else None
     data = scatter_mesh(whole, comm)
     del whole
-    blocks = Blocks(data.num_cells, comm.size)  # those of scatter_mesh
-    cells_in = hand_out(comm, lambda r: input_cells[blocks.local(r)], "handing out the cells")
+    cells_in = answered_by_root(comm, data.part.cell_ids, lambda ids: input_cells[ids])
     data.source = DolfinxSource(
         mesh, _directory(comm, data.node_tags, data.part.vertex_ids),
         _directory(comm, cells_in, data.part.cell_ids), directory=comm)
