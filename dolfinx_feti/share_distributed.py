@@ -34,6 +34,7 @@ from .exchange import answer, exchange
 from .mesh.distributed_decompose import decompose_distributed
 from .mesh.distributed_points import (
     SubdomainDirectory,
+    _ranges,
     _unique,
     migrate,
     number_points,
@@ -130,6 +131,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
         fixed, values = dirichlet_mask_distributed(
             pids, conditions, bs, num_points, comm,
             shared=shared_points(ptr, node_subs, sub_rank, comm.rank))
+        nodes = NodeDirectory(ptr, node_subs, fixed)
         surface = None
         extra = Rows.empty(mesh.gdim)
         mortar: list = []
@@ -137,7 +139,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
             on = np.isin(f_group, [names.index(g) for g in _contact_groups(problem)])
             surface, extra, mortar = gather_surface(
                 problem, (f_vert[on], f_group[on], f_index[on], local_f[on]), names, local_mesh,
-                cell_ids, cell_points, local_points, (pids, ptr, node_subs, fixed), comm)
+                cell_ids, cell_points, local_points, pids, nodes, comm)
         own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
                                     problem.gluing, sub_rank, comm, extra=extra)
         cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
@@ -146,7 +148,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
     share = RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
                       num_points=num_points, num_cells=mesh.num_cells, dec=dec,
                       facets=sub_facets, group_errors=dict(part.verdicts.boundary), rows=rows,
-                      directory=NodeDirectory(ptr, node_subs, fixed))
+                      directory=nodes)
     return share, surface, mortar
 
 
@@ -257,7 +259,7 @@ class Surface:
 
 
 def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, local_points,
-                   directory, comm):
+                   pids, nodes, comm):
     """The contact and tie rows of a distributed mesh, from its contact surfaces (collective).
 
     Every rank sends rank 0 the cells of its subdomains that bound a facet of a contact group,
@@ -274,8 +276,9 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
         cell_ids: Their global numbers.
         cell_points: Their global dof points.
         local_points: Their local dof points.
-        directory: ``(points, ptr, subs, fixed)``: the local points, the subdomains of each,
-            and their Dirichlet mask.
+        pids: The global number of each local point.
+        nodes: The subdomains and the Dirichlet mask of the local points
+            (:class:`NodeDirectory`).
         comm: The ranks.
 
     Returns:
@@ -283,17 +286,16 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
         (every rank) in global points, what the mortar search found (every rank).
     """
     f_vert, f_group, f_index, local_f = facets
-    pids, ptr, subs, fixed = directory
     cells, _ = locate_few_facets(local_mesh.cells, local_f, local_mesh.cell_type)
     sc = np.unique(cells)
     sp = np.unique(local_points[sc])
-    counts = np.diff(ptr)[sp]
+    counts = np.diff(nodes.ptr)[sp]
     piece = {"ids": cell_ids[sc], "vertices": pids[:local_mesh.x.shape[0]][local_mesh.cells[sc]],
              "x": local_mesh.x[local_mesh.cells[sc]], "body": local_mesh.cell_body[sc],
              "tags": local_mesh.node_tags[local_mesh.cells[sc]], "cp": cell_points[sc],
              "f_vert": f_vert, "f_group": f_group, "f_index": f_index,
-             "points": pids[sp], "counts": counts, "fixed": fixed[sp],
-             "subs": subs[np.repeat(ptr[sp], counts) + _ranges(counts)]}
+             "points": pids[sp], "counts": counts, "fixed": nodes.fixed[sp],
+             "subs": nodes.subs[_ranges(nodes.ptr[sp], counts)]}
     pieces = comm.gather(piece, root=0)
     surface = out = None
     with collective(comm, "constraints"):
@@ -332,11 +334,6 @@ def surface_friction(surface: Surface, rows: RankRows):
     return replace(found, rows=index[found.rows], normal_row=index[found.normal_row])
 
 
-def _ranges(counts: np.ndarray) -> np.ndarray:
-    """0 … c − 1 for every count c, concatenated."""
-    return np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-
-
 def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     """Rank 0: the gathered cells as a mesh, its points' global numbers and directory."""
     def cat(key):
@@ -367,7 +364,7 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     _, first = np.unique(points, return_index=True)  # a point sent by several ranks
     at = first[np.searchsorted(points[first], gmap)]
     node_ptr = np.r_[0, np.cumsum(counts[at])].astype(np.int64)
-    node_subs = subs[np.repeat(first_sub[at], counts[at]) + _ranges(counts[at])]
+    node_subs = subs[_ranges(first_sub[at], counts[at])]
     return mesh, gmap, node_ptr, node_subs.astype(np.int32), fixed[at]
 
 

@@ -40,8 +40,8 @@ from mpi4py import MPI
 
 from ..errors import collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
+from ..mesh.distributed_points import _ranges
 from ..mesh.topology import REFERENCE, _row_keys, cell_facets
-from ..share_distributed import _ranges
 from .corners import (
     body_label,
     box_scale,
@@ -267,7 +267,7 @@ def _floating_motions(share, comp: np.ndarray, bs: int, body_names, comm: MPI.Co
     p, c = dec.pair_node[sel], pc[sel]
     n_subs = np.diff(d.ptr)[p]
     e_pair = np.repeat(np.arange(sel.size), n_subs)
-    e_sub = d.subs[np.repeat(d.ptr[p], n_subs) + _ranges(n_subs)]
+    e_sub = d.subs[_ranges(d.ptr[p], n_subs)]
     hit = np.flatnonzero(comp[e_sub] == c[e_pair])  # the subdomains of a point ascend
     _, first = np.unique(e_pair[hit], return_index=True)  # every pair's own one is a hit
     counted = e_sub[hit[first]] == pair_sub[sel]

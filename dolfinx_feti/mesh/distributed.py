@@ -36,6 +36,7 @@ from .checks import (
     nonconforming_nodes,
     unfit_groups,
 )
+from .decompose import midpoints_of
 from .gmsh_input import MeshData
 from .topology import locate_facets
 
@@ -169,7 +170,7 @@ def scatter_mesh(mesh: MeshData | None, comm: MPI.Comm) -> MeshData:
     common = make = None
     with collective(comm, "mesh"):
         if comm.rank == 0:
-            owner = compact_blocks(mesh.x[mesh.cells].mean(axis=1), comm.size)
+            owner = compact_blocks(midpoints_of(mesh.x, mesh.cells), comm.size)
             order = np.argsort(owner, kind="stable")  # by rank, then by cell number
             start = np.searchsorted(owner[order], np.arange(comm.size + 1))
             facet_rank, orphans = {}, {}

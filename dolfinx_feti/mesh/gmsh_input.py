@@ -188,8 +188,8 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
         distribute: Spread the mesh over the ranks instead (``replicate`` is then not used):
             rank 0 reads and checks the model, hands every rank a compact block of the
             cells (consecutive along a space-filling curve, in the file's order within the
-            block) with their vertices and boundary facets, and keeps
-            only its own block; the arrays of each rank are its block, numbered locally
+            block) with their vertices and boundary facets, and keeps only its own block;
+            the arrays of each rank are its block, numbered locally
             (``mesh.part``: :class:`~.distributed.MeshPart`). No rank holds the whole mesh
             after the input; the decomposition and the rows are then computed on the
             distributed data.
