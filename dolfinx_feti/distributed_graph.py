@@ -33,33 +33,11 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
-from .exchange import answer, exchange
+from .exchange import RankNumbering, answer, exchange
 
 
-class _Vertices:
-    """This rank's vertices ``offset … offset + n − 1`` and the owner of any global vertex."""
-
-    def __init__(self, comm: MPI.Comm, n: int):
-        self.comm = comm
-        self.starts = np.concatenate([[0], np.cumsum(comm.allgather(int(n)))]).astype(np.int64)
-        self.offset = int(self.starts[comm.rank])
-
-    def owner(self, vertex: np.ndarray) -> np.ndarray:
-        return np.searchsorted(self.starts, vertex, side="right") - 1
-
-    def route(self, vertex: np.ndarray):
-        """Ask the owners about ``vertex``.
-
-        Returns:
-            The rows of the asked vertices at this rank (as an owner), and the routing of the
-            answers for :func:`.exchange.answer`.
-        """
-        (asked,), order, counts, rcounts = exchange(self.comm, self.owner(vertex), vertex)
-        return asked - self.offset, (order, counts, rcounts)
-
-    def read(self, table: np.ndarray, rows: np.ndarray, routing) -> np.ndarray:
-        """``table`` (this rank's vertices) at the vertices of a :meth:`route`."""
-        return answer(self.comm, table[rows], *routing)
+class _Vertices(RankNumbering):
+    """This rank's vertices ``offset … offset + n − 1``, and messages to any vertex."""
 
     def lowest(self, target: np.ndarray, value: np.ndarray):
         """Send values to vertices: the local vertices that received any and their smallest."""

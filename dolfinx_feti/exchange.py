@@ -69,6 +69,39 @@ class Blocks:
         return slice(int(self.lo[rank]), int(self.lo[rank + 1]))
 
 
+class RankNumbering:
+    """Items numbered globally rank by rank: this rank's are ``offset … offset + n − 1``.
+
+    The directory of a numbering the ranks made themselves (pieces, vertices of a graph, the
+    cells of blocks laid end to end): the owner of a number is the rank that numbered it, and
+    :meth:`route` and :meth:`read` ask it about any numbers.
+    """
+
+    def __init__(self, comm: MPI.Comm, n: int):
+        self.comm = comm
+        self.starts = np.concatenate([[0], np.cumsum(comm.allgather(int(n)))]).astype(np.int64)
+        self.offset = int(self.starts[comm.rank])
+
+    def owner(self, number: np.ndarray) -> np.ndarray:
+        """The rank that numbered each number."""
+        return np.searchsorted(self.starts, number, side="right") - 1
+
+    def route(self, number: np.ndarray):
+        """Ask the owners about ``number`` (collective).
+
+        Returns:
+            The local rows (0 … n − 1) of the numbers asked of this rank, and the routing of
+            the answers for :meth:`read`.
+        """
+        (asked,), order, counts, rcounts = exchange(self.comm, self.owner(number),
+                                                    np.asarray(number, dtype=np.int64))
+        return asked - self.offset, (order, counts, rcounts)
+
+    def read(self, table: np.ndarray, rows: np.ndarray, routing) -> np.ndarray:
+        """``table`` (one row per local item) at the numbers of a :meth:`route` (collective)."""
+        return answer(self.comm, table[rows], *routing)
+
+
 def hand_out(comm: MPI.Comm, make, what: str) -> object:
     """Rank 0 makes the pieces one at a time and sends each to its rank; returns this rank's.
 
@@ -114,4 +147,4 @@ def exclusive_scan(comm: MPI.Comm, count: int) -> int:
     return 0 if comm.rank == 0 or start is None else int(start)
 
 
-__all__ = ["Blocks", "answer", "exchange", "exclusive_scan", "hand_out"]
+__all__ = ["Blocks", "RankNumbering", "answer", "exchange", "exclusive_scan", "hand_out"]

@@ -22,7 +22,7 @@ from mpi4py import MPI
 
 from . import compat
 from .errors import collective
-from .exchange import Blocks, answer, exchange
+from .exchange import Blocks, RankNumbering, answer, exchange
 from .fem.dofmap import dof_points_of_space
 from .mesh.dofpoints import DofPoints, RootLookup, dof_points
 from .mesh.gmsh_input import MeshData
@@ -79,11 +79,8 @@ def output_mesh(mesh: MeshData, comm: MPI.Comm, msh=None) -> tuple[object, np.nd
 
 def _block_cells(part, positions: np.ndarray, comm: MPI.Comm) -> np.ndarray:
     """The global cell of each position in the ranks' blocks of cells, end to end."""
-    starts = np.concatenate([[0], np.cumsum(comm.allgather(part.cell_ids.size))])
-    positions = np.asarray(positions, dtype=np.int64)
-    (asked,), order, counts, rcounts = exchange(
-        comm, np.searchsorted(starts, positions, side="right") - 1, positions)
-    return answer(comm, part.cell_ids[asked - starts[comm.rank]], order, counts, rcounts)
+    blocks = RankNumbering(comm, part.cell_ids.size)
+    return blocks.read(part.cell_ids, *blocks.route(positions))
 
 
 def _part_input(mesh: MeshData, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
