@@ -33,11 +33,10 @@ from .problem import (
 )
 from .report import Report
 from .solution import ContactData, Solution
-from .solve import solve
+from .solver import FetiSolver, solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
-           "Dirichlet", "DualQP", "Elasticity", "InputError", "MeshData", "Mortar", "NodeToNode",
-           "NotConverged",
-           "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SignedDistance", "Solution",
-           "SolveError", "SolverOptions", "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh",
-           "dual_qp", "from_dolfinx", "read_gmsh", "solve"]
+           "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "InputError", "MeshData", "Mortar",
+           "NodeToNode", "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
+           "SignedDistance", "Solution", "SolveError", "SolverOptions", "Sphere", "Subdomain",
+           "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx", "read_gmsh", "solve"]

@@ -178,7 +178,7 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
         _error(f"{PROG}: {pf.path}: {e}")
         return EXIT_USAGE if isinstance(e, InputError) else EXIT_FAILED
 
-    from .solve import solve
+    from .solver import solve
 
     try:
         solution = solve(pf.problem, comm=comm, options=opts)

@@ -296,6 +296,15 @@ def scatter_forward(u: dolfinx.fem.Function) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
+def constant(msh: dolfinx.mesh.Mesh, value) -> dolfinx.fem.Constant:
+    """A constant (scalar or vector) on ``msh``: a runtime value, not a literal of the form.
+
+    The compiled form then does not depend on the value, so a new load of the same kind
+    reuses it instead of compiling again.
+    """
+    return dolfinx.fem.Constant(msh, np.asarray(value, dtype=PETSc.ScalarType))
+
+
 def measure(kind: str, msh: dolfinx.mesh.Mesh, tags=None) -> ufl.Measure:
     """A UFL integration measure (``"dx"`` or ``"ds"``) on ``msh`` with optional MeshTags."""
     return ufl.Measure(kind, domain=msh, subdomain_data=tags)

@@ -25,7 +25,7 @@ problem.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from mpi4py import MPI
@@ -34,23 +34,17 @@ from petsc4py import PETSc
 from .constraints import Kind, build_rows
 from .constraints.dirichlet import dirichlet_mask
 from .constraints.friction import friction_data
-from .errors import InputError, collective
+from .errors import InputError, SolveError, collective
 from .fem.assembly import assemble_subdomains
 from .fem.corners import choose_corners, floating_motions, primal_components
 from .feti.corners import EliminateCorners
 from .feti.dualize import Dualization
+from .feti.homogenize import Homogenize, Project
 from .feti.system import INEQUALITY, BlockSystem
 from .feti.transforms import EliminateDirichlet
 from .mesh.decompose import decompose
 from .problem import ContactProblem
-from .qp import (
-    Projector,
-    RowBlockConstraint,
-    estimate_norm,
-    homogenize,
-    orthonormalize,
-    projected_operator,
-)
+from .qp import Projector, RowBlockConstraint, orthonormalize
 from .share import share_out
 from .timing import Timer
 
@@ -71,7 +65,11 @@ METHODS = ("tfeti", "feti1", "fetidp")
 
 @dataclass
 class DualQP:
-    """The homogenized, projected dual QP of one problem and the FETI objects behind it.
+    """The homogenized, projected dual QP of one problem and the chain of transforms behind it.
+
+    The chain is ``steps`` (the primal transforms: eliminate Dirichlet, eliminate corners),
+    ``feti`` (dualize), ``hom`` (homogenize) and ``proj`` (project); each maps a solution of its
+    child back (:meth:`map_back`). The QP itself: ``A``, ``b``, ``lb``, ``constraint``.
 
     Attributes:
         feti: The dual operators (``F``, ``B``, ``d``, ``e``, kernels, primal recovery) of the
@@ -80,21 +78,15 @@ class DualQP:
             against).
         steps: The primal transforms (eliminate Dirichlet, eliminate corners), in order.
         method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"``.
-        dec: This rank's part of the decomposition (:class:`.share.LocalDecomposition`).
-        rows: This rank's rows and the contact rows (:class:`.share.RankRows`).
         row_index: Local indices, into the rows of ``system`` owned by this rank, of the rows
             of this QP.
-        constraint: ``G̃`` with orthonormal rows (:class:`.qp.RowBlockConstraint`).
-        projector: ``P = I − G̃ᵀG̃``.
-        A: ``P F P``.
-        b: ``P (d − F λ̂)``.
-        lb: Lower bound of ``x``: ``−λ̂`` on the inequality rows, ``−inf`` elsewhere.
-        lam_hat: The particular solution λ̂ of ``G λ = e``.
+        hom: The homogenization (:class:`.feti.homogenize.Homogenize`: λ̂, the bounds).
+        proj: The projection (:class:`.feti.homogenize.Project`: P, P F P, b, ‖P F P‖).
         ineq: Local mask of the inequality rows.
-        norm_A: Lanczos estimate of ``||P F P||``.
-        b_noise: Round-off level of ``b`` (a floor for absolute tolerances).
         warnings: Notes for the report (e.g. an unloaded rigid motion nothing fixes).
         info: Sizes of the method (e.g. FETI-DP's corners).
+        dec: This rank's part of the decomposition (:class:`.share.LocalDecomposition`).
+        rows: This rank's rows and the contact rows (:class:`.share.RankRows`).
         mortar: What the contact search found for each mortar condition
             (:class:`.constraints.mortar_rows.MortarInfo`).
         copy_weight: Per local entry of ``system``'s primal vector, 1 / the number of subdomain
@@ -109,25 +101,65 @@ class DualQP:
     system: BlockSystem
     steps: list
     method: str
-    dec: object
-    rows: object
     row_index: np.ndarray
-    constraint: object
-    projector: Projector
-    A: PETSc.Mat
-    b: PETSc.Vec
-    lb: PETSc.Vec
-    lam_hat: PETSc.Vec
+    hom: Homogenize
+    proj: Project
     ineq: np.ndarray
-    norm_A: float
-    b_noise: float
     warnings: list[str]
     info: dict = field(default_factory=dict)
+    dec: object = None
+    rows: object = None
     mortar: list = field(default_factory=list)
     copy_weight: np.ndarray | None = None
     friction: object = None
     share: object = None
     surface: object = None
+
+    # --- the QP --------------------------------------------------------------------------
+    @property
+    def constraint(self):
+        """G̃ with orthonormal rows (:class:`.qp.equality.OrthonormalConstraint`)."""
+        return self.hom.constraint
+
+    @property
+    def projector(self) -> Projector:
+        """P = I − G̃ᵀG̃."""
+        return self.proj.projector
+
+    @property
+    def A(self) -> PETSc.Mat:  # noqa: N802  (the QP's Hessian)
+        """P F P."""
+        return self.proj.A
+
+    @property
+    def b(self) -> PETSc.Vec:
+        """P (d − F λ̂)."""
+        return self.proj.b
+
+    @property
+    def lb(self) -> PETSc.Vec:
+        """Lower bound of x: −λ̂ on the inequality rows, −inf elsewhere."""
+        return self.hom.lb
+
+    @property
+    def lam_hat(self) -> PETSc.Vec:
+        """The particular solution λ̂ of G λ = e."""
+        return self.hom.lam_hat
+
+    @property
+    def norm_A(self) -> float:  # noqa: N802
+        """The Lanczos estimate of ‖P F P‖."""
+        return self.proj.norm_A
+
+    @property
+    def b_noise(self) -> float:
+        """Round-off level of b (a floor for absolute tolerances)."""
+        return self.hom.b_noise
+
+    @property
+    def primal(self):
+        """The primal problem that was dualized (the last of the chain)."""
+        return self.feti.primal
 
     def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
         """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
@@ -137,6 +169,36 @@ class DualQP:
         x = self.b.duplicate() if out is None else out
         x.array[:] = np.maximum(0.0, self.lb.array_r)
         return x
+
+    def warm_start(self, lam: PETSc.Vec, out: PETSc.Vec) -> float:
+        """A start near the multipliers ``lam`` of an earlier load case, feasible for the bounds.
+
+        x = max(s·w, lb), w = P lam: the earlier homogenized solution scaled by s, where
+
+        - s = (G lam)ᵀe / ‖G lam‖², the load factor along the coarse space (G lam is the old
+          e), when the load acts on floating subdomains: for a proportional load with the
+          same contact set the start is the new solution itself (λ = λ̂ + s·P lam = s·lam);
+        - else (e = 0, so λ̂ = 0 and x = λ) the best multiple of lam for the new cost,
+          s = bᵀw / wᵀAw (one multiplication by A).
+
+        Returns:
+            The factor s (for SMALBE's multiplier too, which scales with the load).
+        """
+        Glam = self.constraint.base.mult(lam)
+        e = self.feti.e
+        g2, e2 = float(Glam @ Glam), float(e @ e)
+        self.projector.apply(lam, out)
+        if e2 > 0 and g2 > 1e-24 * e2:
+            s = float(Glam @ e) / g2
+        else:
+            Aw = out.duplicate()
+            self.A.mult(out, Aw)
+            curvature = float(Aw.dot(out))
+            s = float(self.b.dot(out)) / curvature if curvature > 0 else 1.0
+            Aw.destroy()
+        s = max(s, 0.0)
+        out.array[:] = np.maximum(s * out.array_r, self.lb.array_r)
+        return s
 
     def objective(self, x: PETSc.Vec) -> float:
         """``1/2 xᵀ A x − bᵀ x`` (one multiplication by ``A``; collective)."""
@@ -148,15 +210,9 @@ class DualQP:
 
     def multipliers(self, x: PETSc.Vec) -> PETSc.Vec:
         """λ = λ̂ + x."""
-        lam = x.copy()
-        lam.axpy(1.0, self.lam_hat)
-        return lam
+        return self.hom.map_back(x, None)
 
-    @property
-    def primal(self):
-        """The primal problem that was dualized (the last of the chain)."""
-        return self.feti.primal
-
+    # --- the way back --------------------------------------------------------------------
     def free_motions(self, N: np.ndarray) -> np.ndarray:
         """The motions R n_k (columns of ``N``: coarse vectors) in the layout of ``system``."""
         Z = self.feti.R @ N
@@ -180,11 +236,60 @@ class DualQP:
             u, lam = u_new, lam_new
         return u, lam
 
+    # --- a new load case -----------------------------------------------------------------
+    def for_load(self, system: BlockSystem) -> DualQP:
+        """The dual QP of ``system``, a new load case of this one's (same K and B).
+
+        Each transform of the chain is applied to the new right-hand sides and shares its
+        operators: the factorizations, F, G, the coarse factor, P F P and ‖P F P‖ are kept;
+        d, e, λ̂, b and the bounds are new (one K⁺ application and one F application).
+
+        Raises:
+            InputError: When the new load cannot be balanced (``e ∉ Im G``).
+        """
+        steps, parent = [], system
+        for step in self.steps:
+            steps.append(step.for_load(parent))
+            parent = steps[-1].child
+        feti = self.feti.for_load(parent)
+        warnings = _check_balance(self.constraint, feti)
+        hom = self.hom.for_load(feti)
+        return replace(self, feti=feti, system=system, steps=steps, hom=hom,
+                       proj=self.proj.for_load(hom), warnings=warnings)
+
+    def destroy_load(self) -> None:
+        """Free the vectors of this load case (not the shared operators)."""
+        self.hom.destroy()
+        self.proj.b.destroy()
+
+
+@dataclass
+class SharedProblem:
+    """What the set-up hands each rank before assembly: its share and what the rows found.
+
+    Attributes:
+        share: This rank's share (:class:`.share.RankShare`: cells, dof points, rows).
+        method: The method (``"auto"`` resolved).
+        mortar: What the contact search found for each mortar condition.
+        friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
+        surface: On a distributed mesh with contact, the cells along the contact surfaces
+            gathered on rank 0; None elsewhere.
+    """
+
+    share: object
+    method: str
+    mortar: list
+    friction: object = None
+    surface: object = None
+
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             factor: str | None = None, norm_rtol: float = 1e-4,
             timer: Timer | None = None, method: str = "tfeti") -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
+
+    The three stages are :func:`share_problem`, :func:`~.fem.assembly.assemble_subdomains`
+    and :func:`qp_of_share`; :class:`~dolfinx_feti.FetiSolver` keeps what each returns.
 
     Args:
         problem: The contact problem.
@@ -202,16 +307,23 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     Raises:
         InputError: When the load on a floating body cannot be balanced (``e ∉ Im G``).
     """
+    timer = Timer() if timer is None else timer
+    shared = share_problem(problem, comm, method, timer)
+    data = assemble_subdomains(problem, shared.share, comm, timer)
+    return qp_of_share(problem, shared, data, factor=factor, norm_rtol=norm_rtol, timer=timer)
+
+
+def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: Timer
+                  ) -> SharedProblem:
+    """Decompose ``problem``, build its rows and give every rank its share (collective)."""
     if method not in (*METHODS, "auto"):
         raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
-    timer = Timer() if timer is None else timer
-    bs = problem.value_size
     held = problem.mesh.root_only
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
                          "(read_gmsh(..., replicate=False)): solve on that communicator")
     if problem.mesh.part is not None:
-        return _dual_qp_distributed(problem, comm, factor, norm_rtol, timer, method)
+        return _share_distributed(problem, comm, timer, method)
     dec = rows = extra = common = None
     # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
     # arrays; every rank then keeps only its share (:mod:`.share`).
@@ -236,36 +348,69 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         fdata = comm.bcast(fdata, root=0)
     with timer.phase("distribution"):
         share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
-                          rows, bs, comm, extra)
-        del dec, rows
-    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata)
+                          rows, problem.value_size, comm, extra)
+    return SharedProblem(share, method, mortar, fdata)
 
 
-def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, factor,
-                 norm_rtol: float, timer: Timer, mortar: list, fdata, surface=None) -> DualQP:
-    """Assemble this rank's subdomains and chain the method's transforms (collective)."""
-    data = assemble_subdomains(problem, share, comm, timer)
-    info: dict = {}
+def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
+                factor: str | None = None, norm_rtol: float = 1e-4,
+                timer: Timer | None = None, factors_of: DualQP | None = None) -> DualQP:
+    """Chain the method's transforms on this rank's assembled subdomains (collective).
+
+    ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
+    are taken over instead of factoring again.
+    """
+    timer = Timer() if timer is None else timer
     with timer.phase("constraints"):
-        total = BlockSystem.from_rows(data, share.rows)
-        steps: list = []
-        if method in ("feti1", "fetidp"):
-            steps.append(EliminateDirichlet(total, share.rows.own.kind == Kind.DIRICHLET))
-        if method == "fetidp":
-            part = share.extra
-            steps.append(EliminateCorners(steps[-1].child, part["corners"], part["count"],
-                                          part["modes"], part["bodies"]))
-            info = part["info"]
-    qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
-                  timer=timer, dec=share.dec, rows=share.rows, info=info)
-    qp.mortar, qp.friction, qp.share, qp.surface = mortar, fdata, share, surface
-    qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
+        total = BlockSystem.from_rows(data, shared.share.rows)
+        steps = method_steps(total, shared)
+        if factors_of is not None:
+            adopt_factors(steps[-1] if steps else total,
+                          factors_of.steps[-1] if factors_of.steps else factors_of.system)
+    qp = chain_qp(total, steps, method=shared.method, factor=factor,
+                  norm_rtol=norm_rtol, timer=timer, dec=shared.share.dec,
+                  rows=shared.share.rows,
+                  info=shared.share.extra["info"] if shared.method == "fetidp" else None)
+    qp.mortar, qp.friction = shared.mortar, shared.friction
+    qp.share, qp.surface = shared.share, shared.surface
+    qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)
     return qp
 
 
-def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
-                         timer: Timer, method: str) -> DualQP:
-    """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
+def adopt_factors(new, old) -> None:
+    """Give ``new`` (a system, or the last primal step) the factorizations of ``old``.
+
+    Both act on the same subdomain matrices; the rows may differ. Raises SolveError when
+    what the factors were built on differs (other eliminated dofs or corners).
+    """
+    comm = (new.comm if isinstance(new, BlockSystem) else new.parent.comm)
+    if isinstance(new, BlockSystem):
+        new.Kplus = old.Kplus
+        return
+    same = (np.array_equal(getattr(new, "fixed", None), getattr(old, "fixed", None))
+            if isinstance(new, EliminateDirichlet) else
+            np.array_equal(new.coarse, old.coarse))
+    if not comm.allreduce(bool(same), op=MPI.LAND):
+        raise SolveError("the new rows eliminate other dofs or corners than the set-up's: "
+                         "create a new FetiSolver")
+    new.adopt_factors(old)
+
+
+def method_steps(total: BlockSystem, shared: SharedProblem) -> list:
+    """The primal transforms of the method, applied to ``total`` (the first of the chain)."""
+    steps: list = []
+    if shared.method in ("feti1", "fetidp"):
+        steps.append(EliminateDirichlet(total, shared.share.rows.own.kind == Kind.DIRICHLET))
+    if shared.method == "fetidp":
+        part = shared.share.extra
+        steps.append(EliminateCorners(steps[-1].child, part["corners"], part["count"],
+                                      part["modes"], part["bodies"]))
+    return steps
+
+
+def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, method: str
+                       ) -> SharedProblem:
+    """:func:`share_problem` on a distributed mesh: every rank builds its own share."""
     from .fem.distributed_corners import fetidp_share
     from .share_distributed import share_from_parts, surface_friction
 
@@ -288,8 +433,7 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
             if comm.rank == 0:  # from the contact rows, on the cells along the surfaces
                 fdata = surface_friction(surface, share.rows)
         fdata = comm.bcast(fdata, root=0)
-    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata,
-                        surface)
+    return SharedProblem(share, method, mortar, fdata, surface)
 
 
 def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
@@ -367,32 +511,20 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
     row_index = np.arange(total.dual_size[0])
     for step in steps:
         row_index = row_index[step.kept]
-    with timer.phase("factorization"):
-        system.factorize(factor, site="factorization")  # guarded inside (collective phases)
+    if not system.factored:
+        with timer.phase("factorization"):
+            system.factorize(factor, site="factorization")  # guarded inside (collective)
     with timer.phase("dual operators"):
         feti = Dualization(system)
     ineq = system.types == INEQUALITY
     with timer.phase("coarse problem"):
-        ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)
+        ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))
         warnings = _check_balance(ocon, feti)
-        lam_hat = feti.d.duplicate()
-        homogenize(ocon, lam_hat)
-        Flh = feti.d.duplicate()
-        feti.F.mult(lam_hat, Flh)
-        b_noise = 1e3 * np.finfo(float).eps * (feti.d.norm() + Flh.norm())
-        Flh.aypx(-1.0, feti.d)  # d − F λ̂
-        projector = Projector(ocon)
-        b = Flh.duplicate()
-        projector.apply(Flh, b)
-        Flh.destroy()
-        A = projected_operator(feti.F, ocon)
-        norm = estimate_norm(A, b, rtol=norm_rtol)
-        lb = b.duplicate()
-        lb.array[:] = np.where(ineq, -lam_hat.array_r, -np.inf)
+        hom = Homogenize(feti, ocon, ineq)
+        proj = Project(hom, norm_rtol)
     return DualQP(feti=feti, system=total, steps=steps, method=method, dec=dec, rows=rows,
-                  row_index=row_index, constraint=ocon, projector=projector, A=A, b=b, lb=lb,
-                  lam_hat=lam_hat, ineq=ineq, norm_A=float(norm.value),
-                  b_noise=float(b_noise), warnings=warnings, info=info or {})
+                  row_index=row_index, hom=hom, proj=proj, ineq=ineq, warnings=warnings,
+                  info=info or {})
 
 
 def _check_balance(ocon, feti: Dualization) -> list[str]:
@@ -430,4 +562,5 @@ def _unbalanced(N: np.ndarray, feti: Dualization) -> float:
     return float(np.max(along / np.maximum(scale, 1e-300), initial=0.0))
 
 
-__all__ = ["METHODS", "DualQP", "chain_qp", "dual_qp"]
+__all__ = ["METHODS", "DualQP", "SharedProblem", "chain_qp", "dual_qp", "qp_of_share",
+           "share_problem"]

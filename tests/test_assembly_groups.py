@@ -10,7 +10,7 @@ import scipy.sparse as sp
 from test_b1_membranes import grid
 
 import dolfinx_feti as df
-import dolfinx_feti.dual as dual
+import dolfinx_feti.solver as solver
 from dolfinx_feti.fem import assembly
 
 
@@ -49,13 +49,13 @@ def test_grouping_changes_no_bit(root, monkeypatch):
     for limit in (10**9, 40):  # one mesh per body; a mesh per subdomain (32 cells each)
         got = {}
 
-        def spy(*args, _orig=assembly.assemble_subdomains, _got=got):
-            data = _orig(*args)
+        def spy(*args, _orig=assembly.assemble_subdomains, _got=got, **kwargs):
+            data = _orig(*args, **kwargs)
             _got["K"], _got["f"] = data.K.copy(), data.f.copy()
             return data
 
         monkeypatch.setattr(assembly, "CELLS_PER_MESH", limit)
-        monkeypatch.setattr(dual, "assemble_subdomains", spy)
+        monkeypatch.setattr(solver, "assemble_subdomains", spy)
         sol = df.solve(problem, rtol=1e-10)
         runs.append((got, sol.report.hessian_mults, sol.nodal_values()))
     (a, mults_a, u_a), (b, mults_b, u_b) = runs

@@ -136,29 +136,39 @@ def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np
                 spec=np.full(npair, index, dtype=np.int32))
 
 
-def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.ndarray,
-                  node_subs: np.ndarray, points: DofPoints | None = None) -> Rows:
-    """Rows −n·u <= φ/|∇φ| at the dof points of a boundary group, n = ∇φ/|∇φ|."""
-    points = dof_points(mesh, 1) if points is None else points
-    nodes, normals, _ = surface(mesh, spec.group, points)
+def obstacle_gaps(spec: RigidObstacle, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The gaps φ/|∇φ| and the normals n = ∇φ/|∇φ| of an obstacle at the points ``x``, checked.
+
+    Raises:
+        InputError: Naming the condition, for a distance that fails, has the wrong shape, is
+            not finite or has a zero gradient.
+    """
+    npts, gdim = x.shape
     try:
-        phi, grad = spec.obstacle.distance(points.x[nodes])
+        phi, grad = spec.obstacle.distance(x)
         phi, grad = np.asarray(phi, dtype=float), np.asarray(grad, dtype=float)
     except InputError as e:
         raise InputError(f"obstacle on {spec.group!r}: {e}") from None
     except Exception as e:  # a user's signed distance: say which one failed
         raise InputError(f"obstacle on {spec.group!r}: its distance(x) raised "
                          f"{type(e).__name__}: {e}") from e
-    if phi.shape != (nodes.size,) or grad.shape != (nodes.size, mesh.gdim):
+    if phi.shape != (npts,) or grad.shape != (npts, gdim):
         raise InputError(f"obstacle on {spec.group!r}: distance() must return arrays of shape "
-                         f"({nodes.size},) and ({nodes.size}, {mesh.gdim}), got {phi.shape} and "
-                         f"{grad.shape}")
+                         f"({npts},) and ({npts}, {gdim}), got {phi.shape} and {grad.shape}")
     if not (np.all(np.isfinite(phi)) and np.all(np.isfinite(grad))):
         raise InputError(f"obstacle on {spec.group!r}: the signed distance is not finite")
     g = np.linalg.norm(grad, axis=1)
     if np.any(g <= 0):
         raise InputError(f"obstacle on {spec.group!r}: zero distance gradient at some nodes")
-    n = grad / g[:, None]
+    return phi / g, grad / g[:, None]
+
+
+def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.ndarray,
+                  node_subs: np.ndarray, points: DofPoints | None = None) -> Rows:
+    """Rows −n·u <= φ/|∇φ| at the dof points of a boundary group, n = ∇φ/|∇φ|."""
+    points = dof_points(mesh, 1) if points is None else points
+    nodes, normals, _ = surface(mesh, spec.group, points)
+    gap, n = obstacle_gaps(spec, points.x[nodes])
     away = np.einsum("ij,ij->i", normals, n) > 0.0
     if np.any(away):
         raise InputError(f"obstacle on {spec.group!r}: inconsistent normals: the surface faces "
@@ -170,6 +180,6 @@ def obstacle_rows(mesh: MeshData, spec: RigidObstacle, index: int, node_ptr: np.
     return Rows(e_row=np.repeat(np.arange(npn), gdim),
                 e_sub=np.repeat(first[nodes], gdim).astype(np.int32),
                 e_node=np.repeat(nodes, gdim), e_comp=np.tile(np.arange(gdim), npn).astype(np.int8),
-                e_coef=-n.ravel(), rhs=phi / g, kind=np.full(npn, Kind.OBSTACLE, dtype=np.int8),
+                e_coef=-n.ravel(), rhs=gap, kind=np.full(npn, Kind.OBSTACLE, dtype=np.int8),
                 scale=np.ones(npn), node=nodes, partner=np.full(npn, -1), normal=n,
                 spec=np.full(npn, index, dtype=np.int32))

@@ -116,15 +116,15 @@ def dirichlet_mask_distributed(points: np.ndarray, conditions: list[ConditionPoi
     local, cond, vals = (np.concatenate(a) for a in zip(*records, strict=True)) if records \
         else (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros((0, bs)))
     send = shared[local]
-    settled = _settle(comm, np.c_[points[local[send]], cond[send]], vals[send], bs, num_points,
-                      points[shared])
+    settled = settle_conditions(comm, np.c_[points[local[send]], cond[send]], vals[send], bs,
+                                num_points, points[shared])
     fixed[shared] = ~np.isnan(settled)
     values[shared] = np.nan_to_num(settled, nan=0.0)
     return fixed, values
 
 
-def _settle(comm: MPI.Comm, point_cond: np.ndarray, vals: np.ndarray, bs: int, num_points: int,
-            query: np.ndarray) -> np.ndarray:
+def settle_conditions(comm: MPI.Comm, point_cond: np.ndarray, vals: np.ndarray, bs: int,
+                      num_points: int, query: np.ndarray) -> np.ndarray:
     """Combine the ranks' condition values per point in a directory; the values at ``query``.
 
     Args:
@@ -214,4 +214,5 @@ def own_rows(points: np.ndarray, ptr: np.ndarray, subs: np.ndarray, fixed: np.nd
     return rows, exclusive_scan(comm, rows.size), comm.allreduce(rows.size)
 
 
-__all__ = ["ConditionPoints", "dirichlet_mask_distributed", "own_rows", "shared_points"]
+__all__ = ["ConditionPoints", "dirichlet_mask_distributed", "own_rows", "settle_conditions",
+           "shared_points"]

@@ -6,7 +6,7 @@ place that builds meshes and assembles.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,6 +42,9 @@ class SubdomainData:
         dof_comp: Component of every local dof.
         dof_node: Global dof point of every local dof.
         dof_sub: Subdomain of every local dof.
+        assemblers: The meshes and spaces the blocks were assembled on (one
+            :class:`~dolfinx_feti.fem.Subdomain` per run of subdomains, in block order), kept
+            for :func:`assemble_loads`; None when not kept.
     """
 
     comm: MPI.Comm
@@ -58,6 +61,7 @@ class SubdomainData:
     dof_comp: np.ndarray
     dof_node: np.ndarray
     dof_sub: np.ndarray
+    assemblers: list | None = field(default=None, repr=False)
 
     @property
     def primal_start(self) -> int:
@@ -122,27 +126,39 @@ def _block_diagonal(parts: list[sp.csr_matrix]) -> sp.csr_matrix:
                          shape=(sum(p.shape[0] for p in parts), int(cols[-1])))
 
 
+def _subdomains(share: RankShare):
+    """The meshes of this rank's runs of subdomains (:func:`_runs_of_equal_bodies`), lazily."""
+    mesh, dec = share.mesh, share.dec
+    cells_of = _cells_by_subdomain(dec.cell_sub, dec.subs)
+    for group in _runs_of_equal_bodies(mesh, dec.subs, cells_of, CELLS_PER_MESH):
+        yield Subdomain(group, mesh, [cells_of[s] for s in group],
+                        [dec.nodes(s) for s in group],
+                        [share.facets.get(s, {}) for s in group], share.points,
+                        check_group=share.check_group)
+
+
 def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Comm,
-                        timer: Timer) -> SubdomainData:
+                        timer: Timer, assemblers: list | None = None, *,
+                        keep: bool = True) -> SubdomainData:
     """Mesh and assemble the subdomains of this rank (collective on ``comm``).
 
     Consecutive subdomains of a rank with the same bodies are meshed together as a disjoint
     union, up to about :data:`CELLS_PER_MESH` cells, so one assembly gives their block of the
     block-diagonal K (see :class:`~dolfinx_feti.fem.Subdomain`); the grouping changes no bit
-    of K or f. Only the rank's share (:mod:`dolfinx_feti.share`) is read.
+    of K or f. Only the rank's share (:mod:`dolfinx_feti.share`) is read. ``assemblers``, the
+    :attr:`SubdomainData.assemblers` of an earlier call on the same share, skips the meshing
+    (new forms on the same subdomains); ``keep=False`` frees each mesh after its assembly
+    (less memory during the factorization, a new meshing for :func:`assemble_loads`).
     """
     mesh, dec, bs = share.mesh, share.dec, problem.value_size
     local_subs = dec.subs
     sub_offset = np.concatenate([[0], np.cumsum(bs * dec.sub_size)]).astype(np.int64)
     with timer.phase("assembly"), collective(comm, "assembly"):
-        cells_of = _cells_by_subdomain(dec.cell_sub, local_subs)
-        K_parts, f_parts = [], []
-        for group in _runs_of_equal_bodies(mesh, local_subs, cells_of, CELLS_PER_MESH):
-            sub = Subdomain(group, mesh, [cells_of[s] for s in group],
-                            [dec.nodes(s) for s in group],
-                            [share.facets.get(s, {}) for s in group], share.points,
-                            check_group=share.check_group)
+        K_parts, f_parts, kept = [], [], []
+        for sub in _subdomains(share) if assemblers is None else assemblers:
             K, f = sub.assemble(problem.forms, bs)
+            if keep:
+                kept.append(sub)
             K_parts.append(K)
             f_parts.append(f)
         K = _block_diagonal(K_parts)
@@ -158,4 +174,18 @@ def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Com
         f=np.concatenate(f_parts) if f_parts else np.zeros(0), kernels=kernels, labels=labels,
         bodies=[mesh.body_names[dec.sub_body[s]] for s in local_subs],
         dof_x=x[local_node], dof_comp=np.tile(np.arange(bs), local_node.size // bs),
-        dof_node=np.repeat(share.pair_points, bs), dof_sub=dof_sub)
+        dof_node=np.repeat(share.pair_points, bs), dof_sub=dof_sub,
+        assemblers=kept if keep else None)
+
+
+def assemble_loads(forms, data: SubdomainData, share: RankShare, timer: Timer) -> np.ndarray:
+    """The load vector of ``forms`` on the subdomains of ``data`` (collective).
+
+    Only the linear forms are assembled, on the meshes and spaces of the first assembly when
+    it kept them (else meshed again): a new load case (tractions, body forces) of the same
+    stiffness costs one vector assembly.
+    """
+    with timer.phase("assembly"), collective(data.comm, "assembly"):
+        subs = _subdomains(share) if data.assemblers is None else data.assemblers
+        parts = [sub.assemble_load(forms, data.bs) for sub in subs]
+    return np.concatenate(parts) if parts else np.zeros(0)

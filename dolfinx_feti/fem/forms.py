@@ -11,6 +11,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import ufl
 
+from .. import compat
 from ..errors import InputError
 from ..validation import (
     SAFE_MAGNITUDE,
@@ -54,6 +55,11 @@ def _per_body(value, mesh, what: str) -> dict[str, float]:
     return dict.fromkeys(mesh.body_names, float(value))
 
 
+def _frozen(value):
+    """A per-body mapping as a sorted tuple (comparable), a number as itself."""
+    return tuple(sorted(value.items())) if isinstance(value, Mapping) else value
+
+
 def _check_groups(groups: Mapping, mesh, what: str) -> None:
     for name, v in groups.items():
         mesh.facets(name)
@@ -95,6 +101,10 @@ class Elasticity:
         self.body_force = args["body_force"]
         self.degree = args["degree"]
         self._E = self._nu = None
+
+    def stiffness_key(self) -> tuple:
+        """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
+        return "Elasticity", _frozen(self.E), _frozen(self.nu), self.degree
 
     def check(self, mesh) -> None:
         """Validate the material data and the named groups against ``mesh``."""
@@ -143,13 +153,14 @@ class Elasticity:
         L = 0
         if self.body_force is not None:
             x = ufl.SpatialCoordinate(V.mesh)
-            b = self.body_force(x) if callable(self.body_force) else ufl.as_vector(
-                [float(c) for c in self.body_force])
+            b = self.body_force(x) if callable(self.body_force) else compat.constant(
+                compat.space_mesh(V), [float(c) for c in self.body_force])
             L += ufl.inner(b, v) * sub.dx()
         for name, t in self.tractions.items():
             if sub.has_facets(name):
                 x = ufl.SpatialCoordinate(V.mesh)
-                tv = t(x) if callable(t) else ufl.as_vector([float(c) for c in t])
+                tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
+                                                              [float(c) for c in t])
                 L += ufl.inner(tv, v) * sub.ds(name)
         return a, L or None
 
@@ -174,6 +185,10 @@ class Poisson:
         self.degree = args["degree"]
         self._k = None
 
+    def stiffness_key(self) -> tuple:
+        """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
+        return "Poisson", _frozen(self.k), self.degree
+
     def check(self, mesh) -> None:
         """Validate the data and the named groups against ``mesh``."""
         self._k = _per_body(self.k, mesh, "conductivity k")
@@ -190,9 +205,11 @@ class Poisson:
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
         x = ufl.SpatialCoordinate(V.mesh)
         a = sub.cellwise(self._k) * ufl.inner(ufl.grad(u), ufl.grad(v)) * sub.dx()
-        f = self.source(x) if callable(self.source) else float(self.source)
+        msh = compat.space_mesh(V)
+        f = self.source(x) if callable(self.source) else \
+            compat.constant(msh, self.source) if self.source != 0 else 0.0
         L = f * v * sub.dx()
         for name, g in self.flux.items():
             if sub.has_facets(name):
-                L += (g(x) if callable(g) else float(g)) * v * sub.ds(name)
+                L += (g(x) if callable(g) else compat.constant(msh, g)) * v * sub.ds(name)
         return a, L

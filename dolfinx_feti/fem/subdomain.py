@@ -242,36 +242,57 @@ class Subdomain:
     def assemble(self, forms, value_size: int) -> tuple[sp.csr_matrix, np.ndarray]:
         """Assemble the user's forms and return (K, f) in the canonical dof order.
 
-        ``forms`` may return ``L = None`` (or an empty form) for an unloaded subdomain.
+        ``forms`` may return ``L = None`` (or an empty form) for an unloaded subdomain. The
+        space and the dof permutation are kept for :meth:`assemble_load`.
         """
-        V = compat.function_space(self.mesh, value_size, self.degree)
+        a, L = self._forms(forms, value_size)
+        A = compat.assemble_matrix(a)
+        indptr, indices, data = A.getValuesCSR()
+        K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
+        A.destroy()
+        perm = self._perm
+        K = K[perm][:, perm].tocsr()
+        K.eliminate_zeros()  # P1 on structured grids leaves exact zeros: they cost in the factor
+        K.sort_indices()
+        if not np.all(np.isfinite(K.data)):
+            raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
+                             "assembled stiffness matrix has non-finite entries (NaN/Inf in the "
+                             "data)")
+        return K, self._load(L, K.shape[0])
+
+    def assemble_load(self, forms, value_size: int) -> np.ndarray:
+        """Assemble only the linear form of ``forms`` (a new load case on the same space)."""
+        _, L = self._forms(forms, value_size)
+        return self._load(L, self._perm.size)
+
+    def _forms(self, forms, value_size: int):
+        """The user's (a, L) on this subdomain's space, checked; the space's permutation kept."""
+        if getattr(self, "_space", None) is None:
+            self._space = compat.function_space(self.mesh, value_size, self.degree)
+            # canonical dof bs*node + c  ←  DOLFINx dof bs*d + c
+            node_of_dof = self._canonical_points(self._space)
+            bs = value_size
+            perm = np.empty(bs * node_of_dof.size, dtype=np.int64)
+            for c in range(bs):
+                perm[bs * node_of_dof + c] = bs * np.arange(node_of_dof.size) + c
+            self._perm = perm
+        V = self._space
         a, L = forms(V, self)
         self._check_space(((a, "bilinear"), (L, "linear")), V)
         for form, what in ((a, "bilinear"), (L, "linear")):
             _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
                                    f"the {what} form")
-        A = compat.assemble_matrix(a)
-        indptr, indices, data = A.getValuesCSR()
-        K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
-        A.destroy()
+        return a, L
+
+    def _load(self, L, n: int) -> np.ndarray:
+        """The assembled linear form in the canonical order (zeros for no form)."""
         if _is_zero(L):  # no load on this subdomain
-            f = np.zeros(K.shape[0])
-        else:
-            b = compat.assemble_vector(L)
-            f = b.array.copy()
-            b.destroy()
-        # canonical dof bs*node + c  ←  DOLFINx dof bs*d + c
-        node_of_dof = self._canonical_points(V)
-        bs = value_size
-        perm = np.empty(bs * node_of_dof.size, dtype=np.int64)
-        for c in range(bs):
-            perm[bs * node_of_dof + c] = bs * np.arange(node_of_dof.size) + c
-        K = K[perm][:, perm].tocsr()
-        K.eliminate_zeros()  # P1 on structured grids leaves exact zeros: they cost in the factor
-        K.sort_indices()
-        f = f[perm]
-        if not (np.all(np.isfinite(K.data)) and np.all(np.isfinite(f))):
+            return np.zeros(n)
+        b = compat.assemble_vector(L)
+        f = b.array.copy()
+        b.destroy()
+        f = f[self._perm]
+        if not np.all(np.isfinite(f)):
             raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
-                             "assembled stiffness matrix or load has non-finite entries (NaN/Inf "
-                             "in the data)")
-        return K, f
+                             "assembled load has non-finite entries (NaN/Inf in the data)")
+        return f

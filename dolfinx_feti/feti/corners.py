@@ -25,6 +25,8 @@ its own entries.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
@@ -76,6 +78,11 @@ class CornerSystem(_Rows):
         """Factor K_rr, build Ψ and S_cc, factor S_cc (collective; ``site``: the guard's)."""
         self._step.factorize(factor, site)
 
+    @property
+    def factored(self) -> bool:
+        """Whether K̃⁺ is there (:meth:`factorize` done, or factors adopted)."""
+        return self._step.Krr_plus is not None
+
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K̃⁺ x."""
         self._step.apply_kplus(x.array_r, y.array)
@@ -96,9 +103,8 @@ class CornerSystem(_Rows):
         return self._step.assembled()
 
     def destroy(self) -> None:
-        """Free the PETSc objects."""
-        for obj in (self.B, self.c, self.f):
-            obj.destroy()
+        """Free the PETSc objects (of a :meth:`with_rhs` copy: its vectors only)."""
+        self._destroy_rows()
 
 
 class EliminateCorners:
@@ -146,18 +152,11 @@ class EliminateCorners:
         Bt.destroy()
         empty = np.diff(Bl.indptr) == 0
         self.kept = ~(empty & (parent.types == EQUALITY))
-        gone = ~self.kept
-        c = parent.c.array_r
-        bad = np.abs(c[gone]) > 1e-12 * max(np.abs(c).max(initial=0.0), 1e-300)
-        if comm.allreduce(bool(np.any(bad)), op=MPI.LOR):
-            raise InputError("FETI-DP: an equality row between copies of one corner dof has a "
-                             "nonzero right-hand side")
         nk = int(self.kept.sum())
         B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)), (n_dp, N_dp),
                       comm)
         self.B_parent = select_rows(parent.B, self.kept)
-        f = B.createVecRight()
-        self.E.multTranspose(parent.f, f)
+        f, c = self._rhs(parent, B)
 
         # the blocks of K̃
         K = parent.K
@@ -187,9 +186,39 @@ class EliminateCorners:
         Zr = np.where(self.is_corner[:, None], 0.0, modes)
         self.kernel_local = sp.csr_matrix(np.vstack([Zr, Zc]) if rank == 0 else Zr)
         self.kernel_bodies = list(mode_bodies)
-        self.child = CornerSystem(self, B, c[self.kept], f, parent.types[self.kept])
+        self.child = CornerSystem(self, B, c, f, parent.types[self.kept])
         self.Krr_plus: FixingNodesInverse | None = None
         self.S_plus: FixingNodesInverse | None = None
+
+    def _rhs(self, parent: BlockSystem, B: PETSc.Mat) -> tuple[PETSc.Vec, np.ndarray]:
+        """The child's load Eᵀ f and its kept right-hand sides (local), checked."""
+        c = parent.c.array_r
+        bad = np.abs(c[~self.kept]) > 1e-12 * max(np.abs(c).max(initial=0.0), 1e-300)
+        if parent.comm.allreduce(bool(np.any(bad)), op=MPI.LOR):
+            raise InputError("FETI-DP: an equality row between copies of one corner dof has a "
+                             "nonzero right-hand side")
+        f = B.createVecRight()
+        self.E.multTranspose(parent.f, f)
+        return f, c[self.kept]
+
+    def adopt_factors(self, other: EliminateCorners) -> None:
+        """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other`` (same matrices and corners)."""
+        for name in ("Krr_plus", "Psi", "S", "S_plus", "_t", "_blocks_of"):
+            if hasattr(other, name):
+                setattr(self, name, getattr(other, name))
+
+    def for_load(self, parent: BlockSystem) -> EliminateCorners:
+        """This step applied to ``parent``, a new load case of its parent (same K and B).
+
+        The corner factorizations, Ψ and S_cc are shared; only the child's f and c are new.
+        """
+        new = copy.copy(self)
+        new.parent = parent
+        f, c = self._rhs(parent, self.child.B)
+        new.child = self.child.with_rhs(f.array_r, c)
+        f.destroy()
+        new.child._step = new
+        return new
 
     # --- the coarse problem ----------------------------------------------------------------
     def _colours(self) -> list[np.ndarray]:

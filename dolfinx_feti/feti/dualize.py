@@ -11,6 +11,8 @@ FETI-DP), so the same step serves every method.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
@@ -69,14 +71,30 @@ class Dualization:
         self.Gt_local = sp.csr_matrix((data, indices, indptr), shape=(self.dual_size[0], m))
         Gt.destroy()
         Rmat.destroy()
-        self.e = self.comm.allreduce(self.R.T @ self.f.array_r, op=MPI.SUM) if m else \
-            np.zeros(0)
-        self.d = self.B.createVecLeft()
+        self.e, self.d = self._linear_terms()
+
+    def _linear_terms(self) -> tuple[np.ndarray, PETSc.Vec]:
+        """e = Rᵀ f and d = B K⁺ f − c (one application of K⁺)."""
+        e = self.comm.allreduce(self.R.T @ self.f.array_r, op=MPI.SUM) if self.coarse_size \
+            else np.zeros(0)
+        d = self.B.createVecLeft()
         v = self.B.createVecRight()
-        primal.apply_kplus(self.f, v)
-        self.B.mult(v, self.d)
-        self.d.axpy(-1.0, self.c)
+        self.primal.apply_kplus(self.f, v)
+        self.B.mult(v, d)
+        d.axpy(-1.0, self.c)
         v.destroy()
+        return e, d
+
+    def for_load(self, primal) -> Dualization:
+        """The dualization of ``primal``, a new load case of this one's primal (same K, B).
+
+        F, G and R are shared (and so is the count of F applications); d and e are new.
+        """
+        new = copy.copy(self)
+        new.primal, new.c, new.f = primal, primal.c, primal.f
+        new.e, new.d = new._linear_terms()
+        new._shares_operators = True
+        return new
 
     @property
     def hessian_mults(self) -> int:
@@ -120,6 +138,7 @@ class Dualization:
         return alpha
 
     def destroy(self) -> None:
-        """Free the PETSc objects of the dual (not the primal's)."""
-        for obj in (self.F, self.d):
+        """Free the PETSc objects of the dual (not the primal's; of a copy: only d)."""
+        shared = getattr(self, "_shares_operators", False)
+        for obj in (self.d,) if shared else (self.F, self.d):
             obj.destroy()

@@ -10,6 +10,7 @@ of :mod:`.transforms` and :mod:`.corners` produce new systems from it.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 from typing import NamedTuple
 
@@ -108,6 +109,27 @@ class _Rows:
         self.primal_size = B.getLocalSize()[1], B.getSize()[1]
         self.primal_start = B.getOwnershipRangeColumn()[0]
 
+    def with_rhs(self, f: np.ndarray, c: np.ndarray):
+        """The same problem with the load ``f`` and right-hand sides ``c`` (local arrays).
+
+        The copy shares every operator (K, its factor, B, the kernels): a new load case costs
+        two vectors. It frees only those two vectors (:meth:`destroy`); the operators stay
+        with the system they came from.
+        """
+        new = copy.copy(self)
+        new.c, new.f = self.B.createVecLeft(), self.B.createVecRight()
+        new.c.array[:] = c
+        new.f.array[:] = f
+        new._shares_operators = True
+        return new
+
+    def _destroy_rows(self) -> bool:
+        """Free f and c, and B unless shared; whether the operators are this system's own."""
+        own = not getattr(self, "_shares_operators", False)
+        for obj in (self.B, self.c, self.f) if own else (self.c, self.f):
+            obj.destroy()
+        return own
+
 
 class BlockSystem(_Rows):
     """A FETI primal problem with block-diagonal K, distributed by blocks over the ranks.
@@ -168,6 +190,11 @@ class BlockSystem(_Rows):
         """
         with collective(self.comm, site):
             self.Kplus = FixingNodesInverse(self.K, self.kernels, factor, self.labels)
+
+    @property
+    def factored(self) -> bool:
+        """Whether K⁺ is there (:meth:`factorize` done, or a factor adopted)."""
+        return self.Kplus is not None
 
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K⁺ x (the local solves)."""
@@ -244,8 +271,6 @@ class BlockSystem(_Rows):
         return PreconditionerOperands(self.K, self.B, None, self.blocks)
 
     def destroy(self) -> None:
-        """Free the PETSc objects."""
-        if self.Kplus is not None:
+        """Free the PETSc objects (of a :meth:`with_rhs` copy: its vectors only)."""
+        if self._destroy_rows() and self.Kplus is not None:
             self.Kplus.destroy()
-        for obj in (self.B, self.c, self.f):
-            obj.destroy()

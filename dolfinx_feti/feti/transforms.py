@@ -15,6 +15,8 @@ all rows, the same as Total FETI's.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
@@ -125,22 +127,14 @@ class EliminateDirichlet:
             raise SolveError("EliminateDirichlet: a row to eliminate is not an equality with a "
                              "single entry on a dof of its own rank")
         col = Bl.indices[Bl.indptr[rows]] - start if rows.size else np.zeros(0, np.int64)
-        value = parent.c.array_r[rows] / Bl.data[Bl.indptr[rows]]
+        if np.unique(col).size != col.size:
+            raise InputError("EliminateDirichlet: a dof has two Dirichlet rows")
+        self._rows, self._col, self._diag = rows, col, Bl.data[Bl.indptr[rows]]
         n = parent.K.shape[0]
         self.fixed = np.zeros(n, dtype=bool)
         self.fixed[col] = True
-        self.values = np.zeros(n)
-        self.values[col] = value
-        if np.unique(col).size != col.size:
-            raise InputError("EliminateDirichlet: a dof has two Dirichlet rows")
 
-        # c ← c − B u_D and B without the fixed columns (its other rows may be on other ranks)
-        uD = parent.B.createVecRight()
-        uD.array[:] = self.values
-        c = parent.c.copy()
-        BuD = parent.B.createVecLeft()
-        parent.B.mult(uD, BuD)
-        c.axpy(-1.0, BuD)
+        # B without the fixed columns (its other rows may be on other ranks)
         keep_col = parent.B.createVecRight()
         keep_col.array[:] = (~self.fixed).astype(float)
         Bk = parent.B.duplicate(copy=True)
@@ -148,27 +142,58 @@ class EliminateDirichlet:
         Bl = local_csr(Bk)
         Bl.eliminate_zeros()
         Bk.destroy()
+        keep_col.destroy()
         empty = np.diff(Bl.indptr) == 0
         self.kept = ~(empty & (parent.types == EQUALITY))
-        gone = ~self.kept & ~eliminate
-        inconsistent = np.abs(c.array_r[gone]) > 1e-12 * max(
+        self._gone = ~self.kept & ~eliminate
+        self.values, f, c = self._lift(parent)
+        nk = int(self.kept.sum())
+        B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)),
+                      parent.B.getSizes()[1], comm)
+        Kc, kernels = parent.held(self.fixed)
+        self.child = BlockSystem(comm, Kc, f, B, c, parent.types[self.kept], parent.offsets,
+                                 kernels, parent.labels, parent.bodies,
+                                 None if parent.blocks is None else parent.blocks[self.kept])
+
+    def _lift(self, parent: BlockSystem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """u_D from the parent's Dirichlet rows, and the child's f and c (local arrays).
+
+        c ← c − B u_D; the load of a free dof loses K u_D, a fixed dof's is zero.
+        """
+        comm = parent.comm
+        values = np.zeros(parent.K.shape[0])
+        values[self._col] = parent.c.array_r[self._rows] / self._diag
+        uD = parent.B.createVecRight()
+        uD.array[:] = values
+        BuD = parent.B.createVecLeft()
+        parent.B.mult(uD, BuD)
+        c = parent.c.array_r - BuD.array_r
+        uD.destroy()
+        BuD.destroy()
+        inconsistent = np.abs(c[self._gone]) > 1e-12 * max(
             np.abs(parent.c.array_r).max(initial=0.0), 1e-300)
         if comm.allreduce(bool(np.any(inconsistent)), op=MPI.LOR):
             raise InputError("an equality row (gluing) involves only dofs with Dirichlet "
                              "conditions whose prescribed values it does not satisfy")
-        nk = int(self.kept.sum())
-        B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)),
-                      parent.B.getSizes()[1], comm)
-
-        Kc, kernels = parent.held(self.fixed)
-        f = parent.f.array_r - parent.K @ self.values
+        f = parent.f.array_r - parent.K @ values
         f[self.fixed] = 0.0
-        self.child = BlockSystem(comm, Kc, f, B, c.array_r[self.kept],
-                                 parent.types[self.kept], parent.offsets, kernels,
-                                 parent.labels, parent.bodies,
-                                 None if parent.blocks is None else parent.blocks[self.kept])
-        for obj in (uD, c, BuD, keep_col):
-            obj.destroy()
+        return values, f, c[self.kept]
+
+    def adopt_factors(self, other: EliminateDirichlet) -> None:
+        """Take the factor of ``other``'s child (the same held K: same matrices and dofs)."""
+        self.child.Kplus = other.child.Kplus
+
+    def for_load(self, parent: BlockSystem) -> EliminateDirichlet:
+        """This step applied to ``parent``, a new load case of its parent (same K and B).
+
+        Only u_D and the child's right-hand sides are recomputed; the child shares K, its
+        factor and B with this step's child (:meth:`BlockSystem.with_rhs`).
+        """
+        new = copy.copy(self)
+        new.parent = parent
+        new.values, f, c = self._lift(parent)
+        new.child = self.child.with_rhs(f, c)
+        return new
 
     def map_primal(self, Z: np.ndarray) -> np.ndarray:
         """Homogeneous primal vectors (columns, local rows) of the child → of the parent."""

@@ -14,6 +14,7 @@ one coarse solve.
 
 from __future__ import annotations
 
+import copy
 from typing import Protocol, runtime_checkable
 
 import numpy as np
@@ -176,6 +177,25 @@ class OrthonormalConstraint:
         self.rhs_tilde: np.ndarray | None = None
         self.inconsistency: float = 0.0
 
+    def with_rhs(self, rhs: np.ndarray) -> OrthonormalConstraint:
+        """This constraint with the right-hand side ``D x = rhs`` (a shallow copy).
+
+        Sets ``rhs_tilde`` and ``inconsistency``; the factorization is shared, so a new load
+        case of the same ``D`` costs one application of ``T``.
+        """
+        e = np.asarray(rhs, dtype=np.float64)
+        if e.shape != (self.base.m,):
+            raise ValueError(f"orthonormalize: rhs has shape {e.shape}, expected "
+                             f"({self.base.m},)")
+        new = copy.copy(self)
+        e_norm = float(np.linalg.norm(e))
+        N = self.null_space
+        new.inconsistency = (float(np.linalg.norm(N.T @ e)) / e_norm
+                             if e_norm > 0 and N.shape[1] else 0.0)
+        # T e for the part of e in the range of D: the least-squares e when it is inconsistent
+        new.rhs_tilde = self.transform(self._off_null(e))
+        return new
+
     def transform(self, z: np.ndarray) -> np.ndarray:
         """Return ``T z`` for ``z`` in the range of the original ``D``."""
         if self._factor is not None:
@@ -252,18 +272,7 @@ def orthonormalize(con: RowBlockConstraint, rhs: np.ndarray | None = None,
         method = "dense" if con.m <= DENSE_MAX else "sparse"
     result = (_orthonormalize_sparse(con, rtol, backend) if method == "sparse"
               else _orthonormalize_dense(con, rtol))
-    m = con.m
-    if rhs is not None:
-        e = np.asarray(rhs, dtype=np.float64)
-        if e.shape != (m,):
-            raise ValueError(f"orthonormalize: rhs has shape {e.shape}, expected ({m},)")
-        e_norm = float(np.linalg.norm(e))
-        N = result.null_space
-        result.inconsistency = (float(np.linalg.norm(N.T @ e)) / e_norm
-                                if e_norm > 0 and N.shape[1] else 0.0)
-        # T e for the part of e in the range of D: the least-squares e when it is inconsistent
-        result.rhs_tilde = result.transform(result._off_null(e))
-    return result
+    return result if rhs is None else result.with_rhs(rhs)
 
 
 def _orthonormalize_dense(con: RowBlockConstraint, rtol: float) -> OrthonormalConstraint:

@@ -1,0 +1,80 @@
+"""What may change between two load cases of one set-up, and a refusal naming what may not.
+
+:meth:`~dolfinx_feti.FetiSolver.update` reuses the decomposition, the rows' structure and the
+factorizations, so the new problem must have the same mesh, groups, decomposition, conditions
+and stiffness; its loads (tractions, body forces), Dirichlet values and rigid obstacles'
+positions may differ.
+"""
+
+from __future__ import annotations
+
+from .errors import InputError
+from .problem import ContactProblem, Dirichlet, RigidObstacle
+
+
+def _dirichlet_key(bc: Dirichlet) -> tuple:
+    return bc.group, None if bc.components is None else tuple(int(c) for c in bc.components)
+
+
+def _contact_key(c) -> tuple:
+    """The parts of a contact condition the set-up depends on (not an obstacle's position)."""
+    if isinstance(c, RigidObstacle):
+        return type(c).__name__, c.group, type(c.obstacle).__name__, c.friction
+    return type(c).__name__, c
+
+
+def stiffness_key(forms):
+    """What determines the stiffness matrix of ``forms``, when the forms object says so.
+
+    :class:`~dolfinx_feti.Elasticity` and :class:`~dolfinx_feti.Poisson` give theirs
+    (``stiffness_key``); for a plain callable the object itself stands for its bilinear form.
+    """
+    key = getattr(forms, "stiffness_key", None)
+    return key() if callable(key) else forms
+
+
+def check_same_structure(old: ContactProblem, new: ContactProblem, *,
+                         stiffness: bool = True) -> None:
+    """Refuse, by name, a new problem whose differences a set-up of ``old`` cannot reuse.
+
+    Args:
+        old: The problem of the set-up.
+        new: The new load case.
+        stiffness: Whether the bilinear form must be the same too (not for a new stiffness).
+
+    Raises:
+        InputError: Naming the first difference found.
+    """
+    if not isinstance(new, ContactProblem):
+        raise InputError(f"update takes a ContactProblem, got {type(new).__name__}")
+    same = [
+        ("mesh", new.mesh is old.mesh, "another mesh object (the decomposition and the "
+         "shares belong to the set-up's mesh)"),
+        ("value_size", new.value_size == old.value_size, f"{new.value_size} components, not "
+         f"{old.value_size}"),
+        ("degree", new.degree == old.degree, f"degree {new.degree}, not {old.degree}"),
+        ("decomposition", new.decomposition == old.decomposition,
+         f"{new.decomposition!r}, not {old.decomposition!r}"),
+        ("gluing", new.gluing == old.gluing, f"{new.gluing!r}, not {old.gluing!r}"),
+        ("ties", list(new.ties) == list(old.ties), "other ties"),
+        ("dirichlet", [_dirichlet_key(b) for b in new.dirichlet]
+         == [_dirichlet_key(b) for b in old.dirichlet],
+         "other Dirichlet groups or components (their values may change)"),
+        ("contact", [_contact_key(c) for c in new.contact]
+         == [_contact_key(c) for c in old.contact],
+         "other contact conditions, groups or friction (a rigid obstacle's position may "
+         "change)"),
+    ]
+    if stiffness:
+        differs = stiffness_key(new.forms) != stiffness_key(old.forms)
+        same.append(("forms", not differs, "another material or bilinear form; use "
+                     "FetiSolver.update_stiffness(problem) (or update(problem, "
+                     "check_stiffness=True) for forms whose stiffness is unchanged)"))
+    for name, ok, why in same:
+        if not ok:
+            raise InputError(f"FetiSolver.update: the new problem differs in {name}: {why}. "
+                             "Only loads, Dirichlet values and obstacle positions may change "
+                             "on one set-up; create a new FetiSolver for the rest")
+
+
+__all__ = ["check_same_structure", "stiffness_key"]

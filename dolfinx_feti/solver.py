@@ -1,0 +1,400 @@
+"""The solver object: set up once, solve many times.
+
+As DOLFINx's ``LinearProblem`` keeps its KSP, :class:`FetiSolver` keeps everything a FETI
+solve builds — the decomposition and every rank's share, the assembled and factored
+subdomains, the chain of transforms (eliminate Dirichlet, eliminate corners, dualize,
+homogenize, project) with the coarse factor, the preconditioner and ‖P F P‖ — and solves again
+after :meth:`FetiSolver.update` has changed what depends on the load only:
+
+    solver = df.FetiSolver(problem, comm=comm, rtol=1e-8)
+    sol0 = solver.solve()
+    solver.update(problem_with_more_load)   # f, c, d, e, λ̂, b and the bounds; nothing else
+    sol1 = solver.solve()                   # warm-started from sol0's multipliers
+
+:meth:`FetiSolver.update_rows` takes new constraint rows (a new contact search; a curved
+obstacle that moved), :meth:`FetiSolver.update_stiffness` new stiffness matrices (a new
+material, a tangent stiffness): each rebuilds what depends on them and keeps the rest.
+:func:`dolfinx_feti.solve` is one set-up and one solve of this object.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .constraints.load_rows import LoadRows
+from .dual import DualQP, SharedProblem, qp_of_share, share_problem
+from .dual_solve import solve_qp, warn_loose_stop
+from .errors import InputError, NotConverged
+from .fem.assembly import assemble_loads, assemble_subdomains
+from .feti.precond import make_preconditioner
+from .friction import FrictionSolve
+from .log import Progress
+from .mortar_report import mortar_warnings
+from .options import SolverOptions
+from .problem import ContactProblem
+from .problem_diff import check_same_structure
+from .qp import ConvergedReason
+from .report import Report
+from .solution import Solution
+from .timing import Timer
+
+#: Starts :meth:`FetiSolver.solve` accepts besides a Solution or a Vec.
+COLD = "cold"
+
+
+class FetiSolver:
+    """A FETI contact solver set up once for a problem, solved as often as needed.
+
+    Args:
+        problem: The problem.
+        comm: The ranks to spread the subdomains over.
+        options: Solver options (:class:`~dolfinx_feti.SolverOptions`), or command-line tokens
+            to read ``-feti_<name> value`` options from; keyword arguments override both.
+        keep_meshes: Keep the DOLFINx meshes and spaces of the subdomains, so that
+            :meth:`update` assembles only the new loads (False: less memory during the
+            factorization; each update meshes the subdomains again).
+        **kwargs: Fields of :class:`~dolfinx_feti.SolverOptions` (``rtol=1e-8``, ...).
+
+    Attributes:
+        problem: The problem of the next solve (the last one given to :meth:`update`).
+        options: The solver options.
+        qp: The dual QP and its chain of transforms (:class:`~dolfinx_feti.dual.DualQP`).
+        preconditioner: The dual preconditioner (None for ``preconditioner="none"``).
+        solves: Number of solves so far.
+    """
+
+    def __init__(self, problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+                 options: SolverOptions | Sequence[str] | None = None,
+                 keep_meshes: bool = True, **kwargs) -> None:
+        if options is None or not isinstance(options, SolverOptions):
+            opts = SolverOptions.create(argv=options, **kwargs)
+        else:
+            opts = options.replace(**kwargs)
+        self.options, self.comm, self.problem = opts, comm, problem
+        self._progress = Progress(comm, opts.verbose)
+        self._timer = Timer(self._progress.phase)
+        self._shared: SharedProblem = share_problem(problem, comm, opts.method, self._timer)
+        self._data = assemble_subdomains(problem, self._shared.share, comm, self._timer,
+                                         keep=keep_meshes)
+        self._loads = LoadRows(self._shared.share, problem.value_size)
+        self.qp: DualQP = qp_of_share(problem, self._shared, self._data, factor=opts.factor,
+                                      norm_rtol=opts.norm_rtol, timer=self._timer)
+        self.preconditioner = None
+        self._new_preconditioner()
+        self._lam: PETSc.Vec | None = None
+        self._mu: np.ndarray | None = None
+        self.solves = 0
+
+    # --- what changes between solves ---------------------------------------------------------
+    def update(self, problem: ContactProblem, *, check_stiffness: bool = False) -> None:
+        """Take a new load case: tractions, body forces, Dirichlet values, obstacle positions.
+
+        Recomputes the load f, the right-hand sides c of the Dirichlet and obstacle rows, and
+        through the chain d, e, λ̂, b and the bounds. The factorizations, G, the coarse factor,
+        the preconditioner and ‖P F P‖ are kept. An obstacle whose normals change (a curved
+        obstacle that moved) changes B: then the rows are updated as by :meth:`update_rows`.
+
+        Args:
+            problem: A problem on the same mesh, groups, decomposition and conditions, whose
+                bilinear form is the same (checked for :class:`~dolfinx_feti.Elasticity` and
+                :class:`~dolfinx_feti.Poisson`; for other forms with ``check_stiffness``, by
+                assembling K again, or use :meth:`update_stiffness`).
+            check_stiffness: Reassemble K and refuse the update if it changed.
+
+        Raises:
+            InputError: Naming what differs, for a problem whose changes cannot reuse the
+                set-up (another mesh, decomposition, condition, group or material), or a new
+                load that cannot be balanced.
+        """
+        check_same_structure(self.problem, problem, stiffness=not check_stiffness)
+        if check_stiffness:
+            self._check_stiffness(problem)
+        f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
+        with self._timer.phase("constraints"):
+            rows, moved = self._loads.rows(problem, self.comm)
+        if moved:  # B changes with the obstacle's normals
+            self.problem = problem
+            self._data = replace(self._data, f=f)
+            self.update_rows(rows)
+            return
+        with self._timer.phase("dual operators"):
+            system = self.qp.system.with_rhs(f, rows.own.rhs)
+            qp = self.qp.for_load(system)
+        self._adopt(qp, rows)
+        self._data = replace(self._data, f=f)
+        self.problem = problem
+
+    def update_rows(self, rows) -> None:
+        """Take new constraint rows on the same decomposition (e.g. after a new contact search).
+
+        Args:
+            rows: This rank's rows (:class:`~dolfinx_feti.share.RankRows`) in the layout of
+                the set-up's: the same rows, with new coefficients or right-hand sides.
+
+        B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the
+        subdomain factorizations are kept.
+        """
+        old = self.qp
+        self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
+        self._loads = LoadRows(self._shared.share, self.problem.value_size)
+        qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
+                         norm_rtol=self.options.norm_rtol, timer=self._timer,
+                         factors_of=old)
+        self._adopt(qp, rows)
+        self._new_preconditioner()
+        self._mu = None  # the multiplier of another G̃
+
+    def update_stiffness(self, problem: ContactProblem | None = None) -> None:
+        """Reassemble and refactor the subdomains (a new material, or a new bilinear form).
+
+        The decomposition, the shares and the rows are kept; K, f, every factorization, the
+        dual operators, the coarse problem and the preconditioner are rebuilt. The kernels of
+        the subdomain matrices are taken to be the rigid motions, as at set-up.
+
+        Args:
+            problem: The problem with the new forms (same mesh, groups and conditions);
+                default: the current problem's forms assembled again.
+        """
+        if problem is not None:
+            check_same_structure(self.problem, problem, stiffness=False)
+            self.problem = problem
+        self._data = assemble_subdomains(self.problem, self._shared.share, self.comm,
+                                         self._timer, self._data.assemblers,
+                                         keep=self._data.assemblers is not None)
+        with self._timer.phase("constraints"):
+            rows, _ = self._loads.rows(self.problem, self.comm)
+        self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
+        self._loads = LoadRows(self._shared.share, self.problem.value_size)
+        qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
+                         norm_rtol=self.options.norm_rtol, timer=self._timer)
+        self._adopt(qp, rows)
+        self._new_preconditioner()
+
+    def _adopt(self, qp: DualQP, rows) -> None:
+        """Make ``qp`` (with ``rows``) the current QP; keep what the set-up found."""
+        old = self.qp
+        qp.rows = rows
+        qp.share = replace(old.share, rows=rows) if old.share.rows is not rows else old.share
+        self._shared = replace(self._shared, share=qp.share)
+        self.qp = qp
+
+    def _new_preconditioner(self) -> None:
+        if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
+            self.preconditioner.destroy()
+        opts = self.options
+        with self._timer.phase("preconditioner"):
+            self.preconditioner = make_preconditioner(opts.preconditioner, self.qp.primal,
+                                                      opts.factor, opts.preconditioner_scaling)
+
+    def _check_stiffness(self, problem: ContactProblem) -> None:
+        """Refuse forms whose stiffness differs from the set-up's (one assembly of K)."""
+        data = assemble_subdomains(problem, self._shared.share, self.comm, Timer(),
+                                   self._data.assemblers)
+        diff = abs(data.K - self._data.K).max() if data.K.nnz else 0.0
+        scale = abs(self._data.K).max() if self._data.K.nnz else 1.0
+        changed = self.comm.allreduce(bool(diff > 1e-12 * scale), op=MPI.LOR)
+        if changed:
+            raise InputError("update: the new problem's bilinear form gives another stiffness "
+                             "matrix; use FetiSolver.update_stiffness(problem)")
+
+    # --- the solve -------------------------------------------------------------------------
+    def solve(self, x0: Solution | PETSc.Vec | str | None = None) -> Solution:
+        """Solve the current problem (collective).
+
+        Args:
+            x0: Where the QP solver starts: None for the last solve's multipliers (a warm
+                start; the default start on the first solve), ``"cold"`` for the default
+                start (λ = λ̂ where feasible), a :class:`~dolfinx_feti.Solution` of this
+                problem's set-up for its multipliers, or a Vec of multipliers of the QP's rows.
+                Friction solves start cold (their bounds move with the state).
+
+        Returns:
+            The solution (displacement, multipliers, contact pressure, report). A solve that
+            does not converge is returned with ``report.converged == False``, a negative
+            ``report.converged_reason`` and its residuals (unless ``error_if_not_converged``).
+            Its report's timings are those of this solve and of the set-up or updates since
+            the previous one.
+
+        Raises:
+            NotConverged: With ``error_if_not_converged``, when the solver did not converge.
+        """
+        opts, qp, comm, progress = self.options, self.qp, self.comm, self._progress
+        timer, self._timer = self._timer, Timer(progress.phase)
+        report = Report()
+        report.warnings.extend(qp.warnings)
+        rows, system = qp.rows, qp.system
+        fdata = qp.friction
+        friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
+        mults0 = qp.feti.hessian_mults
+        start, scale = self._start(x0) if friction is None else (None, 1.0)
+        mu = self._mu * scale if x0 is None and start is not None and self._mu is not None \
+            else None
+        start_mults = qp.feti.hessian_mults - mults0
+        out = solve_qp(qp, opts, report=report, progress=progress, timer=timer,
+                       friction=friction, preconditioner=self.preconditioner, x0=start,
+                       multiplier0=mu)
+        report.hessian_mults += start_mults  # the warm start's line search
+        report.extra["warm_start_scale"] = scale if start is not None else None
+        if start is not None:
+            start.destroy()
+        self._remember(out)
+        sol = self._solution(out, report, friction)
+        warn_loose_stop(report, opts.rtol)
+        report.timings = timer.reduced(comm)
+        report.timings["total"] = float(sum(report.timings.values()))
+        report.extra["options"] = opts.to_dict()
+        report.extra["history"] = out.result.history[-50:] if comm.rank == 0 else []
+        report.extra["solve"] = self.solves
+        self.solves += 1
+        if opts.error_if_not_converged and not report.converged:
+            raise NotConverged(f"the solver did not converge: {report.reason} (converged reason "
+                               f"{report.converged_reason}); see error.solution.report", sol)
+        return sol
+
+    def _start(self, x0) -> tuple[PETSc.Vec | None, float]:
+        """The QP iterate to start from (None: the default start) and the warm start's scale."""
+        if isinstance(x0, str):
+            if x0 != COLD:
+                raise InputError(f"x0 must be None, {COLD!r}, a Solution or a Vec, got {x0!r}")
+            return None, 1.0
+        lam = self._lam if x0 is None else x0
+        if isinstance(lam, Solution):
+            if lam.feti.B.getSize() != self.qp.system.B.getSize():
+                raise InputError("x0: a Solution of another problem (its rows differ)")
+            full = lam.lam
+            lam = self.qp.b.duplicate()
+            lam.array[:] = full.array_r[self.qp.row_index]
+        if lam is None:
+            return None, 1.0
+        if lam.getSizes() != self.qp.b.getSizes():
+            raise InputError(f"x0: {lam.getSize()} multipliers for a QP of {self.qp.b.getSize()} "
+                             "rows")
+        x = self.qp.b.duplicate()
+        scale = self.qp.warm_start(lam, x)
+        if lam is not x0 and lam is not self._lam:
+            lam.destroy()
+        return x, scale
+
+    def _remember(self, out) -> None:
+        """Keep λ = λ̂ + x and SMALBE's multiplier of this solve as the next one's start."""
+        if self._lam is not None:
+            self._lam.destroy()
+        self._lam = self.qp.multipliers(out.x)
+        mu = out.result.multiplier
+        self._mu = None if mu is None else np.array(mu, dtype=float)
+
+    def _solution(self, out, report: Report, friction) -> Solution:
+        """The Solution of a QP solve, with its report filled (collective)."""
+        qp, comm, opts = self.qp, self.comm, self.options
+        res, feti, rows, system = out.result, qp.feti, qp.rows, qp.system
+        n_ineq = int(rows.contact.inequality.sum())
+        report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
+        report.reason = res.reason if np.isfinite(res.gP_norm) else "non-finite iterate"
+        report.converged_reason = int(ConvergedReason.of(report.reason))
+        report.outer_iterations = res.outer_iterations
+        report.iterations = res.iterations
+        report.counts = dict(res.counts)
+        report.gP_rel = float(res.gP_norm / res.b_norm) if res.b_norm > 0 else float(res.gP_norm)
+        e_norm = float(np.linalg.norm(feti.e))
+        report.G_lambda = float(np.linalg.norm(out.G_lambda - feti.e) /
+                                (e_norm if e_norm > 0 else 1.0))
+        report.norm_F = qp.norm_A
+        report.hessian_mults_total = feti.hessian_mults
+        n_tang = 0 if qp.friction is None else int(qp.friction.rows.size)
+        report.sizes = {"primal": system.primal_size[1], "dual": rows.size,
+                        "inequality": n_ineq, "equality": rows.size - n_ineq - n_tang,
+                        "subdomains": qp.dec.num_subdomains, "coarse": int(feti.coarse_size),
+                        "coarse_rank": int(qp.constraint.m), "ranks": comm.size}
+        report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP"}[qp.method]
+        if qp.method != "tfeti":
+            report.sizes["dual_method"] = int(feti.dual_size[1])
+        report.sizes.update(qp.info)
+        if not report.converged:
+            report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
+                                   f"{opts.max_it} iterations / {opts.max_outer} outer "
+                                   "iterations")
+            if n_ineq and report.G_lambda > 1e3 * opts.rtol:
+                report.warnings.append(
+                    f"the contact forces do not balance the load (||G lambda - e|| / ||e|| = "
+                    f"{report.G_lambda:.1e}): a body may be pulled away from its only support; "
+                    "contact can push but not pull")
+        self._progress.info(
+            f"{report.solver}: {'converged' if report.converged else 'NOT converged'} "
+            f"({report.reason}), {report.outer_iterations} outer / {report.iterations} inner "
+            f"iterations, {report.hessian_mults} F-multiplications")
+        if friction is not None:
+            report.sizes["tangential"] = n_tang
+            report.extra["friction"] = friction.info
+            friction.destroy()
+        sol = Solution(self.problem, system, qp.share, out.u, out.lam, out.alpha, report, comm,
+                       friction=friction, surface=qp.surface)
+        sol.dual = feti
+        sol.check_kkt(rows.own.inequality)
+        if qp.mortar:
+            self._mortar_report(sol, report)
+        return sol
+
+    def _mortar_report(self, sol: Solution, report: Report) -> None:
+        """The mortar checks (rank 0 holds the surfaces), on every rank's report."""
+        comm, qp = self.comm, self.qp
+        c, found = sol.contact, None
+        surface = sol.surface  # a distributed mesh: the cells along the surfaces (rank 0)
+        nodal = sol.nodal_values_on_root() if self.problem.mesh.part is None else \
+            sol.surface_values()
+        if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
+            mesh, node = (self.problem.mesh, c.node) if surface is None else \
+                (surface.problem.mesh, surface.local(c.node))
+            found = mortar_warnings(mesh, qp.mortar, nodal, c.spec, node, c.force)
+        warn, report.extra["mortar"] = comm.bcast(found, root=0)
+        report.warnings.extend(warn)
+
+    def destroy(self) -> None:
+        """Free the PETSc objects the solver holds (its Solutions keep theirs)."""
+        if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
+            self.preconditioner.destroy()
+        if self._lam is not None:
+            self._lam.destroy()
+            self._lam = None
+
+
+def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+          options: SolverOptions | Sequence[str] | None = None, **kwargs) -> Solution:
+    """Solve a contact problem by FETI (Total FETI, FETI-1 or FETI-DP: option ``method``).
+
+    One set-up and one solve of a :class:`FetiSolver`; to solve again on the same set-up
+    (load cases, load steps) keep the solver instead.
+
+    Args:
+        problem: The problem.
+        comm: The ranks to spread the subdomains over.
+        options: Solver options (:class:`SolverOptions`), or command-line tokens from which
+            to read ``-feti_<name> value`` options (``options=sys.argv``: the script's command
+            line, read only when passed); or give them as keyword arguments (``rtol=1e-8``,
+            ...), which override both and the PETSc options database.
+        **kwargs: Fields of :class:`SolverOptions`; with ``options`` given, they override its
+            fields.
+
+    Returns:
+        The solution (displacement, multipliers, contact pressure, report). A solve that does
+        not converge is returned with ``report.converged == False``, a negative
+        ``report.converged_reason`` and its residuals (unless ``error_if_not_converged``).
+
+    Raises:
+        NotConverged: With ``error_if_not_converged``, when the solver did not converge (on
+            every rank; ``error.solution`` holds what was reached).
+        InputError: For a problem that is ill-posed as described (e.g. a floating body with a
+            load its constraints cannot balance).
+    """
+    solver = FetiSolver(problem, comm=comm, options=options, keep_meshes=False, **kwargs)
+    try:
+        return solver.solve()
+    finally:
+        solver.destroy()
+
+
+__all__ = ["COLD", "FetiSolver", "solve"]
