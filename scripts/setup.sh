@@ -4,7 +4,7 @@
 #   2. the serial OpenBLAS as the BLAS/LAPACK alternative (no thread oversubscription under MPI);
 #   3. the virtual environment .venv (it sees the Debian packages: --system-site-packages);
 #   4. the editable install of dolfinx_feti (redone only when pyproject.toml changes);
-#   5. ruff, pinned in pyproject.toml's "lint" extra, from PyPI.
+#   5. the linters (ruff, import-linter), pinned in pyproject.toml's "lint" extra, from PyPI.
 # Idempotent; a second run takes well under a second.
 set -euo pipefail
 
@@ -111,17 +111,20 @@ else
     echo "$hash" >"$STAMP"
 fi
 
-# 5. ruff (version pinned in pyproject.toml) ---------------------------------------------------
-ruff_req="$("$SYS_PYTHON" -c '
+# 5. the linters: ruff and import-linter (versions pinned in pyproject.toml's "lint" extra) ---
+lint_reqs="$("$SYS_PYTHON" -c '
 import tomllib
 with open("pyproject.toml", "rb") as f:
-    lint = tomllib.load(f)["project"]["optional-dependencies"]["lint"]
-print(next(r for r in lint if r.startswith("ruff")))
+    print(" ".join(tomllib.load(f)["project"]["optional-dependencies"]["lint"]))
 ')"
-ruff_version="${ruff_req#ruff==}"
-if [ -x "$VENV/bin/ruff" ] && [ "$("$VENV/bin/ruff" --version 2>/dev/null)" = "ruff $ruff_version" ]; then
-    say "ruff: $ruff_version present"
-else
-    say "ruff: installing $ruff_req"
-    "$VENV/bin/pip" install -q --disable-pip-version-check "$ruff_req"
-fi
+for req in $lint_reqs; do
+    name="${req%%==*}"
+    version="${req#*==}"
+    have="$("$VENV/bin/pip" show "$name" 2>/dev/null | sed -n 's/^Version: //p')"
+    if [ "$have" = "$version" ]; then
+        say "$name: $version present"
+    else
+        say "$name: installing $req"
+        "$VENV/bin/pip" install -q --disable-pip-version-check "$req"
+    fi
+done
