@@ -133,20 +133,7 @@ def parse_text(name: str, text: str) -> Any:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise InputError(f"unknown solver option {name!r}{hint}; the options are "
                          f"{', '.join(DECLARED)}")
-    check = DECLARED[name][2].check
-    if isinstance(check, Maybe):
-        if text.lower() == "none":
-            return None
-        check = check.check
-    try:
-        if isinstance(check, Integer):
-            value = float(text)
-            return int(value) if value.is_integer() else value
-        if isinstance(check, Real):
-            return float(text)
-    except ValueError:
-        raise InputError(f"solver option {name} must be {check.what}, got {text!r}") from None
-    return text  # strings and flags: the field's check reads them
+    return DECLARED[name][2].from_text(text, name)
 
 
 def kind(name: str) -> str:
