@@ -1,9 +1,10 @@
 """Solver options: declared next to each solver, read under nested prefixes, checked by name.
 
 Each solver declares its options where it is defined (an :class:`~dolfinx_feti.validation.
-OptionSet`: default, check, meaning): MPRGP in :mod:`dolfinx_feti.qp.mprgp`
+OptionSet`: default, check, meaning): MPRGP and MPGP in :mod:`dolfinx_feti.qp.mpgp`
 (``-feti_mprgp_gamma``, ``_expansion``, ``_alpha``), SMALBE in :mod:`dolfinx_feti.qp.smalbe`
-(``-feti_smalbe_rho``, ``_M``, ...), the dual penalty and the FETI solve itself here
+(``-feti_smalbe_rho``, ``_M``, ...; the solver objects read the same declarations, see
+:mod:`dolfinx_feti.qp.solver`), the dual penalty and the FETI solve itself here
 (``-feti_rtol``, ``-feti_factor``, ...). :class:`SolverOptions` is made from these
 declarations: one field per option, named ``<solver>_<option>`` (``smalbe_rho``), so the
 keyword ``df.solve(..., smalbe_rho=2)``, the problem file's ``[solver] smalbe_rho = 2`` and the

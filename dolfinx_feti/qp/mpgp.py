@@ -176,6 +176,7 @@ class MPGP(QPSolver):
 
     options: ClassVar[OptionSet] = OPTIONS
     name: ClassVar[str] = "mpgp"
+    inner_capable: ClassVar[bool] = True
     #: The proportioning step unless one is given.
     default_proportioning: ClassVar[str] = "projection"
 

@@ -138,6 +138,7 @@ class SMALBE(QPSolver):
 
     Raises:
         ValueError: For an invalid option (an InputError naming it for the declared ones).
+        TypeError: For an inner solver that cannot be one (``inner_capable`` false).
     """
 
     options: ClassVar[OptionSet] = OPTIONS
@@ -167,6 +168,9 @@ class SMALBE(QPSolver):
         if rtol < 0 or max_outer < 1 or max_it < 0 or not eq_scale > 0:
             raise ValueError("smalbe: need beta > 1, rtol >= 0, max_outer >= 1, max_it >= 0, "
                              "eq_scale > 0")
+        if inner is not None and not getattr(inner, "inner_capable", False):
+            raise TypeError(f"smalbe: {type(inner).__name__} cannot be the inner solver (it "
+                            "takes no warm start and stopping test: use MPGP or MPRGP)")
         self.inner = inner if inner is not None else MPRGP(options_prefix=options_prefix)
         self.rtol, self.eq_rtol, self.eq_scale = rtol, rtol if eq_rtol is None else eq_rtol, \
             eq_scale

@@ -47,11 +47,16 @@ class QPSolver:
     Attributes:
         options: The declared options of the class (the set's name is the nested prefix).
         name: The solver's name in messages and reports.
+        inner_capable: Whether it can be SMALBE's inner solver.
         options_prefix: The prefix the options were read under, or None.
     """
 
     options: ClassVar[OptionSet] = OptionSet("", "no options")
     name: ClassVar[str] = "qp"
+    #: Whether ``solve(qp, x)`` also takes ``stop``, ``b_norm``, ``g``, ``g_valid``, ``rtol``,
+    #: ``atol`` and ``max_it`` (a warm-started solve under the caller's test): what SMALBE
+    #: needs of its inner solver.
+    inner_capable: ClassVar[bool] = False
 
     def _set_options(self, options_prefix: str | None, **given: Any) -> None:
         """Set each declared option as an attribute: default < database < ``given``.
