@@ -5,8 +5,8 @@ frictionless solve, on the two stacked blocks of ``demos/demo_tresca3d.py`` (E =
 top displaced by (0.02, 0.01, −0.02), g = 0.0075, Parts(2) per block) for growing n.
 
 Run: ``python bench/friction3d_mpgp.py`` (``--help``). Writes
-``output/bench/friction3d_mpgp.md``. The MPGP variant is chosen by wrapping
-``dolfinx_feti.qp.mpgp.mpgp`` (SMALBE looks it up at each call).
+``output/bench/friction3d_mpgp.md``. The MPGP variant is chosen by replacing SMALBE's inner
+solver class ``dolfinx_feti.qp.smalbe.INNER['mpgp']`` (SMALBE looks it up at each call).
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti import meshes
 
-# the module (dolfinx_feti.qp.mpgp as an attribute is the function of the same name)
-mpgp_module = importlib.import_module("dolfinx_feti.qp.mpgp")
+# the module (dolfinx_feti.qp.smalbe as an attribute is the function of the same name)
+smalbe_module = importlib.import_module("dolfinx_feti.qp.smalbe")
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIFT = (0.02, 0.01, -0.02)
@@ -39,7 +39,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/friction3d_mpgp.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    plain = mpgp_module.mpgp
+    plain = smalbe_module.INNER["mpgp"]
     lines = [f"3D blocks, Tresca g = {args.g}, Parts(2) per block, {comm.size} rank(s); "
              "F-multiplications (SMALBE outer iterations), seconds", "",
              "| n | contact nodes | rtol | frictionless | MPGP 'interior' | MPGP 'tangent' | "
@@ -50,7 +50,8 @@ def main() -> None:
             cells = []
             for friction, face in ((None, None), (df.Tresca(args.g), "interior"),
                                    (df.Tresca(args.g), "tangent")):
-                mpgp_module.mpgp = plain if face is None else functools.partial(plain, face=face)
+                smalbe_module.INNER["mpgp"] = plain if face is None else \
+                    functools.partial(plain, face=face)
                 problem = df.ContactProblem(
                     mesh, df.Elasticity(1.0, 0.3),
                     dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=SHIFT)],
@@ -65,7 +66,7 @@ def main() -> None:
                              + ("" if r.converged else " NOT CONVERGED"))
                 slipping = (np.mean(sol.contact.state == df.ContactData.SLIP)
                             if friction is not None else 0.0)
-            mpgp_module.mpgp = plain
+            smalbe_module.INNER["mpgp"] = plain
             lines.append(f"| {n} | {sol.contact.node.size} | {rtol:g} | " + " | ".join(cells)
                          + f" | {100 * slipping:.0f} % |")
             if comm.rank == 0:

@@ -13,7 +13,7 @@ of the other rank count (1 or 2) is there, the differences between the two are p
 
 ``--trace K`` prints ‖b‖ (split into the rows with a bound and the others) and, for outer
 iteration K of the first run, every inner iterate's ‖gᴾ‖, SMALBE's inner threshold
-M‖Gλ − e‖ and the stop decision (it wraps the inner solver and reads the stop test's closure:
+M‖Gλ − e‖ and the stop decision (it wraps ``MPGP.solve`` and reads the stop test's closure:
 a measuring aid tied to ``qp/smalbe.py``'s internals).
 
 Run: ``python bench/stop_accuracy.py`` and ``mpirun -n 2 python bench/stop_accuracy.py``
@@ -69,40 +69,41 @@ problem = make_problem(1.0)
 perturbed = make_problem(1.0 + args.perturb) if args.perturb else None
 
 
-def traced(mpgp, outer: int):
-    """``mpgp`` printing the inner iterates of SMALBE's outer iteration ``outer`` (rank 0)."""
-    def run(*a, stop=None, **kw):
+def traced(solve, outer: int):
+    """``MPGP.solve`` printing the inner iterates of SMALBE's outer iteration ``outer`` (rank 0)."""
+    def run(self, qp, x, *, stop=None, **kw):
         if not tracing:
-            return mpgp(*a, stop=stop, **kw)
+            return solve(self, qp, x, stop=stop, **kw)
         k, tracing[0] = tracing[0], tracing[0] + 1
-        if k == 0 and kw.get("lb") is not None:  # b - Dᵀμ with μ = 0: b, split by row kind
-            b, bounded = a[1].array_r, np.isfinite(kw["lb"].array_r)
+        if k == 0 and qp.constraints is not None:  # b - Dᵀμ with μ = 0: b, by row kind
+            b = qp.b.array_r
+            bounded = np.isfinite(qp.constraints.l) | np.isfinite(qp.constraints.u)
             parts = [comm.allreduce(float(b[m] @ b[m])) ** 0.5 for m in (bounded, ~bounded)]
             if comm.rank == 0:
                 print(f"    ||b|| = {np.hypot(*parts):.3f}: rows with a bound "
                       f"{parts[0]:.3f}, the others {parts[1]:.3f}")
         if k != outer or stop is None:
-            return mpgp(*a, stop=stop, **kw)
+            return solve(self, qp, x, stop=stop, **kw)
         cells = dict(zip(stop.__code__.co_freevars,
                          (c.cell_contents for c in stop.__closure__), strict=True))
-        D, M_k, it = cells["D"], stop.__defaults__[0], [0]
+        D, M_k, it = cells["D"], cells["M_k"], [0]
 
-        def st(gP, x, g):
-            dx = float(np.linalg.norm(D.mult(x)))
-            dec = stop(gP, x, g)
+        def st(gP, xv, g):
+            dx = float(np.linalg.norm(D.mult(xv)))
+            dec = stop(gP, xv, g)
             if comm.rank == 0:
                 print(f"    outer {k} inner {it[0]:3d}: ||g^P|| {gP:.11e}  M||G lambda - e|| "
                       f"{M_k * dx:.6e}  stop {bool(dec)}")
             it[0] += 1
             return dec
-        return mpgp(*a, stop=st, **kw)
+        return solve(self, qp, x, stop=st, **kw)
     return run
 
 
 tracing: list[int] = []  # [number of inner solves so far] while the traced solve runs
 if args.trace is not None:
-    mprgp = sys.modules["dolfinx_feti.qp.mprgp"]
-    mprgp.mpgp = traced(mprgp.mpgp, args.trace)
+    MPGP = sys.modules["dolfinx_feti.qp.mpgp"].MPGP
+    MPGP.solve = traced(MPGP.solve, args.trace)
 
 
 largest_block = [0]  # the most entries in a row of Z in the last setup: its largest block

@@ -1,9 +1,10 @@
 """Solver options: declared next to each solver, read under nested prefixes, checked by name.
 
 Each solver declares its options where it is defined (an :class:`~dolfinx_feti.validation.
-OptionSet`: default, check, meaning): MPRGP in :mod:`dolfinx_feti.qp.mprgp`
+OptionSet`: default, check, meaning): MPRGP and MPGP in :mod:`dolfinx_feti.qp.mpgp`
 (``-feti_mprgp_gamma``, ``_expansion``, ``_alpha``), SMALBE in :mod:`dolfinx_feti.qp.smalbe`
-(``-feti_smalbe_rho``, ``_M``, ...), the dual penalty and the FETI solve itself here
+(``-feti_smalbe_rho``, ``_M``, ...; the solver objects read the same declarations, see
+:mod:`dolfinx_feti.qp.solver`), the dual penalty and the FETI solve itself here
 (``-feti_rtol``, ``-feti_factor``, ...). :class:`SolverOptions` is made from these
 declarations: one field per option, named ``<solver>_<option>`` (``smalbe_rho``), so the
 keyword ``df.solve(..., smalbe_rho=2)``, the problem file's ``[solver] smalbe_rho = 2`` and the
@@ -133,20 +134,7 @@ def parse_text(name: str, text: str) -> Any:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise InputError(f"unknown solver option {name!r}{hint}; the options are "
                          f"{', '.join(DECLARED)}")
-    check = DECLARED[name][2].check
-    if isinstance(check, Maybe):
-        if text.lower() == "none":
-            return None
-        check = check.check
-    try:
-        if isinstance(check, Integer):
-            value = float(text)
-            return int(value) if value.is_integer() else value
-        if isinstance(check, Real):
-            return float(text)
-    except ValueError:
-        raise InputError(f"solver option {name} must be {check.what}, got {text!r}") from None
-    return text  # strings and flags: the field's check reads them
+    return DECLARED[name][2].from_text(text, name)
 
 
 def kind(name: str) -> str:

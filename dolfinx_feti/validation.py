@@ -346,6 +346,31 @@ class Option:
     def __init__(self, default: Any, check: Check, doc: str) -> None:
         self.default, self.check, self.doc = default, check, doc
 
+    def from_text(self, text: str, name: str) -> Any:
+        """The value written as ``text`` (command line, options database), typed, not checked.
+
+        Numbers become int or float by the check, ``none`` is None where None is allowed;
+        strings and flags are returned as they are (the check reads them).
+
+        Raises:
+            InputError: ``solver option <name> must be <what>`` for a text of the wrong type.
+        """
+        check = self.check
+        if isinstance(check, Maybe):
+            if text.lower() == "none":
+                return None
+            check = check.check
+        try:
+            if isinstance(check, Integer):
+                value = float(text)
+                return int(value) if value.is_integer() else value
+            if isinstance(check, Real):
+                return float(text)
+        except ValueError:
+            raise InputError(f"solver option {name} must be {check.what}, got {text!r}"
+                             ) from None
+        return text
+
 
 class OptionSet:
     """The options of one solver, declared next to it, read under a nested prefix.

@@ -26,6 +26,8 @@ SECTIONS = [
                                   "AffineTraction", "GridLabels", "generators",
                                   "check_command_line"]),
     ("dolfinx_feti.postprocess", None),
+    ("dolfinx_feti.qp", ["QP", "QPSolver", "CG", "MPGP", "MPRGP", "SMALBE", "Absolute",
+                         "QPResult", "ConvergedReason"]),
     ("dolfinx_feti.cli", ["main"]),
 ]
 _SECTION = re.compile(r"^(Args|Arguments|Attributes|Returns|Raises|Yields|Note|Example|Examples):$")

@@ -7,7 +7,6 @@ import math
 import os
 import shutil
 import tempfile
-from contextlib import contextmanager
 from dataclasses import fields
 from pathlib import Path
 
@@ -15,25 +14,13 @@ import numpy as np
 import pytest
 import ufl
 from petsc4py import PETSc
+from petsc_db import petsc_options
 
 import dolfinx_feti as df
 from dolfinx_feti import factor as factor_module
 from dolfinx_feti.factor import available_factors, default_factor
 
 MESHES = Path(__file__).resolve().parents[1] / "meshes"
-
-
-@contextmanager
-def petsc_options(**values):
-    """Set ``-<name> value`` in the PETSc options database for the block, then remove them."""
-    db = PETSc.Options()
-    try:
-        for k, v in values.items():
-            db.setValue(k, v)
-        yield
-    finally:
-        for k in values:
-            db.delValue(k)
 
 
 @pytest.fixture

@@ -2,9 +2,13 @@
 
 Only NumPy, SciPy, petsc4py and mpi4py are used: vectors are PETSc Vecs (possibly distributed),
 operators PETSc Mats (AIJ or python shells), equality constraints small and replicated.
+
+The solvers are objects (:class:`CG`, :class:`MPGP`, :class:`MPRGP`, :class:`SMALBE`, all
+:class:`QPSolver`), set up once and applied to any :class:`QP` by ``solve(qp, x)``; the
+functions ``cg``, ``mpgp``, ``mprgp``, ``smalbe`` are their one-call forms.
 """
 
-from .cg import cg
+from .cg import CG, cg
 from .discs import Discs, SeparableSet
 from .equality import (
     EqualityConstraint,
@@ -16,15 +20,23 @@ from .equality import (
     penalized_operator,
     projected_operator,
 )
-from .mpgp import mpgp
-from .mprgp import mprgp
+from .mpgp import MPGP, mpgp
+from .mprgp import MPRGP, mprgp
 from .norm import NormEstimate, estimate_norm
 from .precond import Preconditioner, ProjectedPreconditioner
+from .problem import QP
 from .result import ConvergedReason, QPResult
 from .shell import python_shell
-from .smalbe import smalbe
+from .smalbe import SMALBE, Absolute, smalbe
+from .solver import QPSolver
 
 __all__ = [
+    "CG",
+    "MPGP",
+    "MPRGP",
+    "QP",
+    "SMALBE",
+    "Absolute",
     "ConvergedReason",
     "Discs",
     "EqualityConstraint",
@@ -34,6 +46,7 @@ __all__ = [
     "ProjectedPreconditioner",
     "Projector",
     "QPResult",
+    "QPSolver",
     "RowBlockConstraint",
     "SeparableSet",
     "cg",

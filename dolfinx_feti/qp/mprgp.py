@@ -2,31 +2,39 @@
 
 Minimizes ``f(x) = 1/2 x^T A x - b^T x`` subject to ``l <= x <= u`` (infinite bounds allowed) for
 a symmetric positive (semi)definite ``A``. See ALGORITHMS.md section 4 and Dostál, *Optimal
-Quadratic Programming Algorithms* (2009), chapter 5. It is the loop of :func:`.mpgp.mpgp` on a
-flat constraint set (a box): three expansion steps (the standard fixed-length one and the
-variants ``'optimal'``, ``'projcg'``), an adaptive (Barzilai-Borwein) length of the fixed one
+Quadratic Programming Algorithms* (2009), chapter 5. It is :class:`.mpgp.MPGP` on a flat
+constraint set (a box) with MPRGP's proportioning step (the exact line search along the
+chopped gradient): three expansion steps (the standard fixed-length one and the variants
+``'optimal'``, ``'projcg'``), an adaptive (Barzilai-Borwein) length of the fixed one
 (``alpha='bb'``), and CG steps preconditioned in face.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import ClassVar
 
 from petsc4py import PETSc
 
-from ..validation import Choice, Option, OptionSet, Real
-from .mpgp import ALPHAS, EXPANSIONS, mpgp
+from .mpgp import ALPHAS, EXPANSIONS, MPGP, OPTIONS
+from .problem import QP
 from .result import QPResult
 
-#: MPRGP's options (also those of MPGP): ``-feti_mprgp_<name>``, ``SolverOptions.mprgp_<name>``.
-OPTIONS = OptionSet(
-    "mprgp", "MPRGP (bounds) and MPGP (bounds and discs), alone or as SMALBE's inner solver",
-    gamma=Option(1.0, Real(gt=0), "the proportioning parameter Γ"),
-    expansion=Option("fixed", Choice(*EXPANSIONS), "the expansion step: 'fixed', 'optimal' or "
-                     "'projcg' (see mprgp())"),
-    alpha=Option("fixed", Choice(*ALPHAS), "the expansion step length: 'fixed' (1.95/||A||) or "
-                 "'bb' (Barzilai–Borwein, kept only if the energy decreases; needs expansion "
-                 "'fixed')"))
+
+class MPRGP(MPGP):
+    """MPGP on a box with MPRGP's proportioning step (the line search along β).
+
+    Same constructor and :meth:`~.mpgp.MPGP.solve` as :class:`.mpgp.MPGP`, with
+    ``proportioning='line'`` by default; a QP with discs is refused (that is MPGP's).
+    """
+
+    name: ClassVar[str] = "mprgp"
+    default_proportioning: ClassVar[str] = "line"
+
+    def solve(self, qp: QP, x: PETSc.Vec, **kwargs) -> QPResult:  # noqa: D102
+        if qp.constraints is not None and qp.constraints.curved:
+            raise ValueError("mprgp: the QP has disc constraints; solve it by MPGP")
+        return super().solve(qp, x, **kwargs)
 
 
 def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: float = 1e-6,
@@ -38,14 +46,13 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
           g_valid: bool = False, preconditioner=None, alpha: str = "fixed") -> QPResult:
     """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` by MPRGP (collective).
 
-    :func:`.mpgp.mpgp` without discs and with MPRGP's proportioning (the exact line search
-    along the chopped gradient): the arguments, the steps, the counts and the result are
-    described there.
+    The function form of :class:`MPRGP` (see :class:`.mpgp.MPGP` for the arguments, the steps,
+    the counts and the result).
     """
-    return mpgp(A, b, x, lb=lb, ub=ub, rtol=rtol, atol=atol, gamma=gamma, alpha_bar=alpha_bar,
-                norm_A=norm_A, expansion=expansion, max_it=max_it, stop=stop, monitor=monitor,
-                b_norm=b_norm, g=g, g_valid=g_valid, preconditioner=preconditioner, alpha=alpha,
-                proportioning="line", name="mprgp")
+    solver = MPRGP(rtol=rtol, atol=atol, max_it=max_it, gamma=gamma, expansion=expansion,
+                   alpha=alpha, alpha_bar=alpha_bar, monitor=monitor)
+    qp = QP.create(A, b, lb=lb, ub=ub, norm_A=norm_A, preconditioner=preconditioner)
+    return solver.solve(qp, x, stop=stop, b_norm=b_norm, g=g, g_valid=g_valid)
 
 
-__all__ = ["ALPHAS", "EXPANSIONS", "OPTIONS", "mprgp"]
+__all__ = ["ALPHAS", "EXPANSIONS", "MPRGP", "OPTIONS", "mprgp"]

@@ -1,7 +1,8 @@
 """SMALBE-M: semimonotonic augmented Lagrangians for bound and equality constraints (Dostál).
 
-Minimizes ``f(x) = 1/2 x^T A x - b^T x`` subject to ``lb <= x <= ub`` and ``D x = 0``, with an
-inner MPRGP on the augmented Lagrangian ``L(x, mu, rho) = f(x) + mu^T D x + rho/2 ||D x||^2``.
+Minimizes ``f(x) = 1/2 x^T A x - b^T x`` subject to ``x`` in a constraint set (bounds, discs)
+and ``D x = 0``, with an inner solver (an :class:`.mpgp.MPGP` object: MPRGP on bounds, MPGP
+with discs) on the augmented Lagrangian ``L(x, mu, rho) = f(x) + mu^T D x + rho/2 ||D x||^2``.
 See ALGORITHMS.md section 5 and Dostál, *Optimal Quadratic Programming Algorithms* (2009),
 chapter 6. The penalty ``rho`` stays fixed; the inner precision factor ``M`` adapts.
 """
@@ -10,23 +11,30 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..validation import Choice, Integer, Maybe, Option, OptionSet, Real
+from .anderson import Anderson
 from .equality import EqualityConstraint, penalized_operator
-from .mprgp import mprgp
+from .mpgp import MPGP
+from .mprgp import MPRGP
 from .norm import estimate_norm
 from .precond import Preconditioner, ProjectedPreconditioner
+from .problem import QP
 from .result import QPResult
+from .solver import QPSolver
 
 _RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_it",
              "preconditioner")
 PRECONDITIONER_FORMS = ("projected", "plain")
 ACCELERATIONS = ("none", "anderson")
+#: The inner solvers of :func:`smalbe` by name.
+INNER = {"mprgp": MPRGP, "mpgp": MPGP}
 
 #: SMALBE's options: ``-feti_smalbe_<name>``, ``SolverOptions.smalbe_<name>``. ``rho`` and
 #: ``M`` are relative to ||A||, ``eta`` to ||b|| (the caller scales them).
@@ -46,21 +54,25 @@ OPTIONS = OptionSet(
                  "of past updates)"))
 
 
-def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, lb=None,
-           ub=None, rtol: float = 1e-6, eq_rtol: float | None = None, rho: float | None = None,
-           M: float | None = None, eta: float | None = None, beta: float = 2.0,
-           norm_A: float | None = None, inner: str = "mprgp",
-           inner_options: dict[str, Any] | None = None, max_outer: int = 100,
-           max_it: int = 10000, monitor: Callable[[int, dict], None] | None = None,
-           eq_scale: float = 1.0, multiplier: np.ndarray | None = None,
-           preconditioner=None, preconditioner_form: str = "projected",
-           acceleration: str = "none", depth: int = 5) -> QPResult:
-    """Solve ``min f(x)`` s.t. ``lb <= x <= ub``, ``D x = 0`` by SMALBE-M (collective).
+@dataclass(frozen=True)
+class Absolute:
+    """A value of ``rho``, ``M`` or ``eta`` taken as it is, not relative to ``||A||``/``||b||``.
+
+    PERMON's ``QPS_ARG_DIRECT`` (against ``QPS_ARG_MULTIPLE``, the options' units):
+    ``SMALBE(rho=Absolute(5.0))`` penalizes with 5, whatever ``||A||``.
+    """
+
+    value: float
+
+
+class SMALBE(QPSolver):
+    """SMALBE-M for a QP with an equality constraint, owning its inner solver (collective).
 
     Outer iteration ``k``:
 
-    1. MPRGP on ``L(., mu_k, rho)`` (Hessian ``A + rho D^T D``, linear term ``b - D^T mu_k``),
-       warm-started, until ``||g^P(x, mu_k, rho)|| <= min(M ||D x||, eta)`` or the final test.
+    1. The inner solver on ``L(., mu_k, rho)`` (Hessian ``A + rho D^T D``, linear term
+       ``b - D^T mu_k``, the QP's constraint set), warm-started, until
+       ``||g^P(x, mu_k, rho)|| <= min(M ||D x||, eta)`` or the final test.
     2. Final test: ``||g^P(x, mu_k, rho)|| <= rtol ||b||`` and
        ``eq_scale ||D x|| <= eq_rtol ||b||``.
        Because ``grad_x L(x, mu_k, rho) = A x - b + D^T (mu_k + rho D x)``, the first condition
@@ -70,16 +82,17 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     4. ``M <- M / beta`` if ``L(x_k, mu_k, rho) < L(x_{k-1}, mu_{k-1}, rho) + rho/2 ||D x_k||^2``
        (the augmented Lagrangian did not increase enough).
 
-    ``D`` must have orthonormal rows; then for ``A = P A P`` (``P`` the projector onto
-    ``ker D``, as in FETI where ``A = P F P``) the inner Hessian has norm ``max(||A||, rho)``
-    exactly, which sets the inner ``alpha_bar``. For an ``A`` that does not commute with
-    ``D^T D`` pass ``inner_options={'norm_A': norm_A + rho}`` (a valid upper bound).
+    ``D`` (the QP's ``eq``) must have orthonormal rows; then for ``A = P A P`` (``P`` the
+    projector onto ``ker D``, as in FETI where ``A = P F P``) the inner Hessian has norm
+    ``max(||A||, rho)`` exactly, which sets the inner ``alpha_bar``. For an ``A`` that does not
+    commute with ``D^T D`` pass ``inner_norm_A=norm_A + rho`` (a valid upper bound).
 
     The inner gradient is carried over between outer iterations (the change of ``mu`` changes
     it by ``D^T (mu_{k+1} - mu_k)``), so an outer iteration costs no extra multiplication.
 
-    Preconditioning: ``preconditioner`` approximates ``A^{-1}`` (in FETI, e.g. the lumped or
-    Dirichlet preconditioner of ``F``) and the inner MPRGP preconditions in face with
+    Preconditioning: the QP's ``preconditioner`` approximates ``A^{-1}`` (in FETI, e.g. the
+    lumped or Dirichlet preconditioner of ``F``) and the inner solver preconditions in face
+    with
 
     - ``preconditioner_form='projected'`` (default): ``P M^{-1} P + rho^{-1} D^T D``
       (:class:`.ProjectedPreconditioner`). This assumes ``A = P A P`` (``A`` maps ``ker D``
@@ -93,35 +106,21 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
     ``counts['precond']`` sums the applications of ``M^{-1}`` over all inner solves.
 
     Args:
-        A: Symmetric positive semidefinite Hessian, positive definite on ``ker D``.
-        b: Linear term.
-        D: Equality constraint with orthonormal rows (e.g. from ``orthonormalize``).
-        x: Start (projected onto the box), overwritten with the solution.
-        lb: Lower bound (Vec, scalar or None).
-        ub: Upper bound (Vec, scalar or None).
+        inner: The inner solver (an :class:`.mpgp.MPGP`, e.g. :class:`.mprgp.MPRGP` on
+            bounds, ``MPGP()`` with discs); its own tolerances are replaced by SMALBE's tests.
+            Default: ``MPRGP(options_prefix=options_prefix)``.
         rtol: Relative tolerance of the projected gradient.
         eq_rtol: Relative tolerance of the constraint; default ``rtol``.
-        rho: Penalty; default ``1.1 ||A||``.
-        M: Initial inner precision factor; default ``100 ||A||``.
-        eta: Inner absolute precision cap; default ``0.1 ||b||``.
-        beta: Divisor of ``M`` (> 1).
-        norm_A: ``||A||``; default a Lanczos estimate (counted in ``hessian_mults``).
-        inner: Inner solver: ``'mprgp'`` (bounds ``lb``, ``ub``) or ``'mpgp'``
-            (:func:`.mpgp.mpgp`: bounds and disc constraints, given as
-            ``inner_options={'discs': ...}``).
-        inner_options: Extra keyword arguments of the inner solver (``gamma``, ``expansion``,
-            ``alpha``, ``alpha_bar``, ``norm_A``, ``monitor``; ``discs`` for MPGP).
-        max_outer: Maximum number of outer iterations.
-        max_it: Budget of inner iterations over all outer iterations.
-        monitor: Called as ``monitor(k, record)`` after each outer iteration with the record
-            that is appended to ``history``.
         eq_scale: Scales ``||D x||`` in the final test. ``D x`` and ``b`` have different units
             (in FETI: multipliers vs. gradients); ``eq_scale = ||A||`` makes the test
             unit-consistent. Default 1 (the test of the theory).
-        multiplier: Initial ``mu`` (replicated array of length ``D.m``); default zeros.
-        preconditioner: Optional ``M^{-1}`` (a PETSc Mat or PC, an object with ``mult(x, y)``
-            or a callable ``f(x, y)``).
-        preconditioner_form: ``'projected'`` or ``'plain'``, see above.
+        max_outer: Maximum number of outer iterations.
+        max_it: Budget of inner iterations over all outer iterations.
+        rho: Penalty relative to ``||A||`` (option ``-<prefix>smalbe_rho``), or
+            :class:`Absolute`.
+        M: Initial inner precision factor relative to ``||A||``, or :class:`Absolute`.
+        eta: Inner precision cap relative to ``||b||`` (None: 0.1), or :class:`Absolute`.
+        beta: Divisor of ``M`` (> 1).
         acceleration: ``'none'``: step 3 as above. ``'anderson'``: Anderson acceleration of
             the fixed point ``mu -> mu + rho D x(mu)`` (type II, least squares over the last
             ``depth`` differences), its memory cleared whenever the active set of the inner
@@ -129,163 +128,277 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
             test are unchanged, and the returned multiplier is always the plain update of the
             final ``x``, i.e. the KKT multiplier).
         depth: Memory of the Anderson acceleration.
+        inner_norm_A: ``||A + rho D^T D||`` for the inner solver; default ``max(||A||, rho)``.
+        preconditioner_form: ``'projected'`` or ``'plain'``, see above.
+        monitor: Called as ``monitor(k, record)`` after each outer iteration with the record
+            that is appended to ``history``.
+        options_prefix: Read the declared options (:data:`OPTIONS`) as
+            ``-<options_prefix>smalbe_<name>`` (e.g. ``'feti_'``); keywords given here override
+            them. None: the database is not read.
 
-    Returns:
-        The result, with ``multiplier``, ``outer_iterations`` and one history record per outer
-        iteration: ``k``, ``inner_iterations``, ``hessian_mults``, ``gP``, ``Dx``, ``M`` (used
-        in this inner solve), ``M_next``, ``rho``, ``L`` (``L(x_k, mu_k, rho)``), ``L_prev``,
-        ``L_increase_ok`` (the step-4 test held; None at ``k = 0``), ``M_decreased``,
-        ``inner_reason``. ``reason`` is ``'converged'``, ``'max_it'``, ``'max_outer'`` or the
-        inner failure (``'unbounded'``, ``'breakdown'``).
+    Raises:
+        ValueError: For an invalid option (an InputError naming it for the declared ones).
+        TypeError: For an inner solver that cannot be one (``inner_capable`` false).
     """
-    if inner not in ("mprgp", "mpgp"):
+
+    options: ClassVar[OptionSet] = OPTIONS
+    name: ClassVar[str] = "smalbe"
+
+    def __init__(self, inner: MPGP | None = None, *, rtol: float = 1e-6,
+                 eq_rtol: float | None = None, eq_scale: float = 1.0, max_outer: int = 100,
+                 max_it: int = 10000, rho: float | Absolute | None = None,
+                 M: float | Absolute | None = None, eta: float | Absolute | None = None,
+                 beta: float | None = None, acceleration: str | None = None,
+                 depth: int | None = None, inner_norm_A: float | None = None,
+                 preconditioner_form: str = "projected",
+                 monitor: Callable[[int, dict], None] | None = None,
+                 options_prefix: str | None = None) -> None:
+        scaled = {"rho": rho, "M": M, "eta": eta}
+        absolute = {k: float(v.value) for k, v in scaled.items() if isinstance(v, Absolute)}
+        scaled = {k: None if k in absolute else v for k, v in scaled.items()}
+        self._set_options(options_prefix, beta=beta, acceleration=acceleration, depth=depth,
+                          **scaled)
+        for k, v in absolute.items():
+            setattr(self, k, v)
+        #: The names among rho, M, eta that hold absolute values.
+        self.absolute = frozenset(absolute)
+        if preconditioner_form not in PRECONDITIONER_FORMS:
+            raise ValueError(f"smalbe: preconditioner_form must be one of "
+                             f"{PRECONDITIONER_FORMS}, got {preconditioner_form!r}")
+        if rtol < 0 or max_outer < 1 or max_it < 0 or not eq_scale > 0:
+            raise ValueError("smalbe: need beta > 1, rtol >= 0, max_outer >= 1, max_it >= 0, "
+                             "eq_scale > 0")
+        if inner is not None and not getattr(inner, "inner_capable", False):
+            raise TypeError(f"smalbe: {type(inner).__name__} cannot be the inner solver (it "
+                            "takes no warm start and stopping test: use MPGP or MPRGP)")
+        self.inner = inner if inner is not None else MPRGP(options_prefix=options_prefix)
+        self.rtol, self.eq_rtol, self.eq_scale = rtol, rtol if eq_rtol is None else eq_rtol, \
+            eq_scale
+        self.max_outer, self.max_it, self.inner_norm_A = max_outer, max_it, inner_norm_A
+        self.preconditioner_form, self.monitor = preconditioner_form, monitor
+
+    def penalties(self, norm_A: float, b_norm: float) -> tuple[float, float, float]:
+        """``(rho, M, eta)`` in absolute units for ``||A||`` and ``||b||``."""
+        def value(k: str, scale: float, default: float) -> float:
+            v = getattr(self, k)
+            if k in self.absolute:
+                return v
+            return (default if v is None else v) * scale
+        return value("rho", norm_A, 1.1), value("M", norm_A, 1.0), value("eta", b_norm, 0.1)
+
+    def solve(self, qp: QP, x: PETSc.Vec, *, multiplier: np.ndarray | None = None) -> QPResult:
+        """Minimize ``qp`` (which must have ``eq``) from ``x`` (collective).
+
+        Args:
+            qp: The QP: ``A`` symmetric positive semidefinite, positive definite on
+                ``ker D``; ``eq`` the constraint ``D`` with orthonormal rows (e.g. from
+                ``orthonormalize``).
+            x: Start (projected onto the set), overwritten with the solution.
+            multiplier: Initial ``mu`` (replicated array of length ``D.m``); default zeros.
+
+        Returns:
+            The result, with ``multiplier``, ``outer_iterations`` and one history record per
+            outer iteration: ``k``, ``inner_iterations``, ``hessian_mults``, ``gP``, ``Dx``,
+            ``M`` (used in this inner solve), ``M_next``, ``rho``, ``L``
+            (``L(x_k, mu_k, rho)``), ``L_prev``, ``L_increase_ok`` (the step-4 test held;
+            None at ``k = 0``), ``M_decreased``, ``inner_reason``. ``reason`` is
+            ``'converged'``, ``'max_it'``, ``'max_outer'`` or the inner failure
+            (``'unbounded'``, ``'breakdown'``); ``converged_reason`` the signed code.
+
+        Raises:
+            ValueError: For a QP without equality constraint, non-finite ``b``, non-positive
+                penalties or a multiplier of the wrong shape.
+        """
+        if qp.eq is None:
+            raise ValueError("smalbe: the QP has no equality constraint; solve it by the "
+                             "inner solver alone")
+        return _SMALBESolve(self, qp, x, multiplier).run()
+
+
+class _SMALBESolve:
+    """The state of one SMALBE solve: the multiplier, the inner QP, the outer records."""
+
+    def __init__(self, solver: SMALBE, qp: QP, x: PETSc.Vec,
+                 multiplier: np.ndarray | None) -> None:
+        self.s, self.x, self.D = solver, x, qp.eq
+        self.b_norm = b_norm = qp.b.norm()
+        if not math.isfinite(b_norm):
+            raise ValueError("smalbe: b has non-finite entries")
+        self.mults = 0
+        self.counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
+        norm_A = qp.norm_A
+        if norm_A is None:
+            est = estimate_norm(qp.A, x)
+            norm_A, self.mults, self.counts["norm"] = est.value, est.iterations, est.iterations
+        rho, self.M, eta = solver.penalties(norm_A, b_norm)
+        # A zero b (e.g. a body resting on an obstacle with no load) leaves eta = 0: the inner
+        # solves are then exact, which x = 0 (g = 0) satisfies at once.
+        if not (rho > 0 and self.M > 0 and (eta > 0 or (eta == 0 and b_norm == 0))):
+            raise ValueError(f"smalbe: need rho, M, eta > 0 (got {rho}, {self.M}, {eta}); "
+                             "eta = 0 only for a zero b")
+        self.rho, self.eta = rho, eta
+        self.tol_g = solver.rtol * b_norm
+        self.tol_e = solver.eq_rtol * b_norm / solver.eq_scale
+        self.mu = np.zeros(self.D.m) if multiplier is None else \
+            np.array(multiplier, dtype=np.float64)
+        if self.mu.shape != (self.D.m,):
+            raise ValueError(f"smalbe: multiplier has shape {self.mu.shape}, expected "
+                             f"({self.D.m},)")
+        self.inner_qp = self._inner_qp(qp, norm_A)
+        self.g, self.tmp = qp.b.duplicate(), qp.b.duplicate()
+        self.g_valid = False
+        self.anderson = Anderson(solver.depth) if solver.acceleration == "anderson" else None
+        self.prev_active: np.ndarray | None = None
+        self.history: list[dict] = []
+        self.total_it, self.L_prev = 0, None
+
+    def _inner_qp(self, qp: QP, norm_A: float) -> QP:
+        """The QP of the augmented Lagrangian: ``A + rho D^T D``, ``b - D^T mu``, the set."""
+        s, rho = self.s, self.rho
+        inner_norm = s.inner_norm_A if s.inner_norm_A is not None else max(norm_A, rho)
+        H = penalized_operator(qp.A, self.D, rho)
+        self.prec, inner_prec = None, None
+        if qp.preconditioner is not None:
+            self.prec = Preconditioner(qp.preconditioner)  # counts the applications of M^{-1}
+            self.counts["precond"] = 0
+            inner_prec = (ProjectedPreconditioner(self.prec, self.D, rho)
+                          if s.preconditioner_form == "projected" else self.prec)
+        bk = qp.b.duplicate()
+        self.D.mult_transpose(self.mu, bk)
+        bk.aypx(-1.0, qp.b)  # b - D^T mu
+        return qp.child(A=H, b=bk, eq=None, norm_A=inner_norm, preconditioner=inner_prec)
+
+    def run(self) -> QPResult:
+        """The outer loop; the result."""
+        reason = "max_outer"
+        for k in range(self.s.max_outer):
+            M_k = self.M
+            res = self._inner_solve(M_k)
+            reason = self._outer_update(k, M_k, res)
+            if reason is not None:
+                break
+        else:
+            reason = "max_outer"
+        return self._result(reason, res)
+
+    def _inner_solve(self, M_k: float) -> QPResult:
+        """The inner solve of one outer iteration; its counts added to SMALBE's."""
+        D, eta, tol_g, tol_e = self.D, self.eta, self.tol_g, self.tol_e
+
+        def inner_stop(gP: float, xv: PETSc.Vec, gv: PETSc.Vec) -> bool:
+            dxv = float(np.linalg.norm(D.mult(xv)))
+            return gP <= min(M_k * dxv, eta) or (gP <= tol_g and dxv <= tol_e)
+
+        res = self.s.inner.solve(self.inner_qp, self.x, stop=inner_stop, rtol=0.0, atol=0.0,
+                                 max_it=self.s.max_it - self.total_it, b_norm=self.b_norm,
+                                 g=self.g, g_valid=self.g_valid)
+        self.g_valid = True
+        self.total_it += res.iterations
+        self.mults += res.hessian_mults
+        for key, value in res.counts.items():
+            self.counts[key] = self.counts.get(key, 0) + value
+        return res
+
+    def _outer_update(self, k: int, M_k: float, res: QPResult) -> str | None:
+        """Record the outer iteration, adapt M, update the multiplier; the reason to stop."""
+        rho = self.rho
+        self.Dx = Dx = self.D.mult(self.x)
+        self.dx = dx = float(np.linalg.norm(Dx))
+        L, L_prev = res.objective, self.L_prev
+        increase_ok = None if L_prev is None else bool(L >= L_prev + 0.5 * rho * dx * dx)
+        if increase_ok is False:
+            self.M /= self.s.beta
+        record = {"k": k, "inner_iterations": res.iterations,
+                  "hessian_mults": res.hessian_mults, "gP": res.gP_norm, "Dx": dx, "M": M_k,
+                  "M_next": self.M, "rho": rho, "L": L, "L_prev": L_prev,
+                  "L_increase_ok": increase_ok, "M_decreased": increase_ok is False,
+                  "inner_reason": res.reason}
+        self.history.append(record)
+        if self.s.monitor is not None:
+            self.s.monitor(k, record)
+        final = res.gP_norm <= self.tol_g and dx <= self.tol_e
+        self._update_multiplier(Dx, res, final)
+        self.L_prev = L
+        if final:
+            return "converged"
+        return None if res.converged else res.reason
+
+    def _update_multiplier(self, Dx: np.ndarray, res: QPResult, final: bool) -> None:
+        """``mu += rho D x`` (accelerated unless final), and ``b - D^T mu``, ``g`` with it.
+
+        Updated even at the end: the KKT multiplier of the final x is ``mu_k + rho D x``
+        (the plain update, whatever the acceleration).
+        """
+        step = self.rho * Dx
+        if not final and self.anderson is not None:
+            # A new active set is a new affine map: the secant memory of the old one misleads.
+            comm = self.x.getComm().tompi4py()
+            if self.prev_active is None or comm.allreduce(
+                    bool(np.any(res.active != self.prev_active)), op=MPI.LOR):
+                self.anderson.reset()
+            step = self.anderson.step(self.mu, step)
+            self.prev_active = res.active.copy()
+        self.mu += step
+        self.D.mult_transpose(step, self.tmp)
+        self.inner_qp.b.axpy(-1.0, self.tmp)
+        self.g.axpy(1.0, self.tmp)
+
+    def _result(self, reason: str, res: QPResult) -> QPResult:
+        rho, Dx, dx, mu = self.rho, self.Dx, self.dx, self.mu
+        f = res.objective - float(np.dot(mu - rho * Dx, Dx)) - 0.5 * rho * dx * dx
+        if self.prec is not None:
+            self.counts["precond"] = self.prec.count
+        return QPResult(x=self.x, converged=reason == "converged", reason=reason,
+                        iterations=self.total_it, outer_iterations=len(self.history),
+                        hessian_mults=self.mults, counts=self.counts, gP_norm=res.gP_norm,
+                        Dx_norm=dx, b_norm=self.b_norm, active=res.active,
+                        active_count=res.active_count, history=self.history, multiplier=mu,
+                        objective=f)
+
+
+def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, lb=None,
+           ub=None, rtol: float = 1e-6, eq_rtol: float | None = None, rho: float | None = None,
+           M: float | None = None, eta: float | None = None, beta: float = 2.0,
+           norm_A: float | None = None, inner: str = "mprgp",
+           inner_options: dict[str, Any] | None = None, max_outer: int = 100,
+           max_it: int = 10000, monitor: Callable[[int, dict], None] | None = None,
+           eq_scale: float = 1.0, multiplier: np.ndarray | None = None,
+           preconditioner=None, preconditioner_form: str = "projected",
+           acceleration: str = "none", depth: int = 5) -> QPResult:
+    """Solve ``min f(x)`` s.t. ``lb <= x <= ub``, ``D x = 0`` by SMALBE-M (collective).
+
+    The function form of :class:`SMALBE` (see there for the algorithm and the result), with
+    ``rho``, ``M``, ``eta`` absolute (defaults ``1.1 ||A||``, ``100 ||A||``, ``0.1 ||b||``).
+
+    ``inner`` is ``'mprgp'`` (:class:`.mprgp.MPRGP`, bounds ``lb``, ``ub``) or ``'mpgp'``
+    (:class:`.mpgp.MPGP`: bounds and disc constraints, given as
+    ``inner_options={'discs': ...}``); ``inner_options`` are the keyword arguments of the inner
+    solver's constructor (``gamma``, ``expansion``, ``alpha``, ``alpha_bar``, ``face``,
+    ``monitor``), ``discs`` (the QP's) and ``norm_A`` (SMALBE's ``inner_norm_A``). ``norm_A``
+    is ``||A||`` (default a Lanczos estimate, counted in ``hessian_mults``), ``preconditioner``
+    the QP's ``M^{-1}``; the others are :class:`SMALBE`'s and :meth:`SMALBE.solve`'s.
+    """
+    if inner not in INNER:
         raise ValueError(f"smalbe: inner solver {inner!r} is not available ('mprgp', 'mpgp')")
-    if inner == "mpgp":
-        from .mpgp import mpgp as inner_solver
-    else:
-        inner_solver = mprgp
     opts = dict(inner_options or {})
     bad = sorted(set(opts) & set(_RESERVED))
     if bad:
         raise ValueError(f"smalbe: inner_options may not set {bad} (SMALBE controls them; "
                          "pass a preconditioner as smalbe(preconditioner=...))")
+    discs, inner_norm_A = opts.pop("discs", None), opts.pop("norm_A", None)
     if acceleration not in ACCELERATIONS or depth < 1:
         raise ValueError(f"smalbe: acceleration must be one of {ACCELERATIONS} and depth >= 1, "
                          f"got {acceleration!r}, {depth}")
-    if preconditioner_form not in PRECONDITIONER_FORMS:
-        raise ValueError(f"smalbe: preconditioner_form must be one of {PRECONDITIONER_FORMS}, "
-                         f"got {preconditioner_form!r}")
-    if not beta > 1.0 or rtol < 0 or max_outer < 1 or max_it < 0 or not eq_scale > 0:
-        raise ValueError("smalbe: need beta > 1, rtol >= 0, max_outer >= 1, max_it >= 0, "
-                         "eq_scale > 0")
-    eq_rtol = rtol if eq_rtol is None else eq_rtol
-    b_norm = b.norm()
-    if not math.isfinite(b_norm):
-        raise ValueError("smalbe: b has non-finite entries")
-    mults = 0
-    counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
-    if norm_A is None:
-        est = estimate_norm(A, x)
-        norm_A, mults, counts["norm"] = est.value, est.iterations, est.iterations
-    rho = 1.1 * norm_A if rho is None else float(rho)
-    M = 100.0 * norm_A if M is None else float(M)
-    eta = 0.1 * b_norm if eta is None else float(eta)
-    # A zero b (e.g. a body resting on an obstacle with no load) leaves eta = 0: the inner
-    # solves are then exact, which x = 0 (g = 0) satisfies at once.
-    if not (rho > 0 and M > 0 and (eta > 0 or (eta == 0 and b_norm == 0))):
-        raise ValueError(f"smalbe: need rho, M, eta > 0 (got {rho}, {M}, {eta}); "
-                         "eta = 0 only for a zero b")
-    opts.setdefault("norm_A", max(norm_A, rho))
-    H = penalized_operator(A, D, rho)
-    if preconditioner is not None:
-        prec = Preconditioner(preconditioner)  # counts the applications of M^{-1}
-        counts["precond"] = 0
-        opts["preconditioner"] = (ProjectedPreconditioner(prec, D, rho)
-                                  if preconditioner_form == "projected" else prec)
-    tol_g, tol_e = rtol * b_norm, eq_rtol * b_norm / eq_scale
-
-    mu = np.zeros(D.m) if multiplier is None else np.array(multiplier, dtype=np.float64)
-    if mu.shape != (D.m,):
-        raise ValueError(f"smalbe: multiplier has shape {mu.shape}, expected ({D.m},)")
-    bk, g, tmp = b.duplicate(), b.duplicate(), b.duplicate()
-    D.mult_transpose(mu, bk)
-    bk.aypx(-1.0, b)  # b - D^T mu
-    g_valid = False
-    anderson = _Anderson(depth) if acceleration == "anderson" else None
-    prev_active, comm = None, x.getComm().tompi4py()
-    history: list[dict] = []
-    total_it, L_prev, reason = 0, None, "max_outer"
-    res = None
-    dx = math.nan
-    for k in range(max_outer):
-        M_k = M
-
-        def inner_stop(gP: float, xv: PETSc.Vec, gv: PETSc.Vec, M_k: float = M_k) -> bool:
-            dxv = float(np.linalg.norm(D.mult(xv)))
-            return gP <= min(M_k * dxv, eta) or (gP <= tol_g and dxv <= tol_e)
-
-        res = inner_solver(H, bk, x, lb=lb, ub=ub, rtol=0.0, atol=0.0, stop=inner_stop,
-                    max_it=max_it - total_it, b_norm=b_norm, g=g, g_valid=g_valid, **opts)
-        g_valid = True
-        total_it += res.iterations
-        mults += res.hessian_mults
-        for key, value in res.counts.items():
-            counts[key] = counts.get(key, 0) + value
-        Dx = D.mult(x)
-        dx = float(np.linalg.norm(Dx))
-        L = res.objective
-        increase_ok = None if L_prev is None else bool(L >= L_prev + 0.5 * rho * dx * dx)
-        if increase_ok is False:
-            M /= beta
-        record = {"k": k, "inner_iterations": res.iterations,
-                  "hessian_mults": res.hessian_mults, "gP": res.gP_norm, "Dx": dx, "M": M_k,
-                  "M_next": M, "rho": rho, "L": L, "L_prev": L_prev, "L_increase_ok": increase_ok,
-                  "M_decreased": increase_ok is False, "inner_reason": res.reason}
-        history.append(record)
-        if monitor is not None:
-            monitor(k, record)
-        # Update mu even at the end: the KKT multiplier of the final x is mu_k + rho D x.
-        step = rho * Dx
-        if res.gP_norm <= tol_g and dx <= tol_e:
-            pass  # the final multiplier: the plain update (KKT), whatever the acceleration
-        elif anderson is not None:
-            # A new active set is a new affine map: the secant memory of the old one misleads.
-            if prev_active is None or comm.allreduce(
-                    bool(np.any(res.active != prev_active)), op=MPI.LOR):
-                anderson.reset()
-            step = anderson.step(mu, step)
-            prev_active = res.active.copy()
-        mu += step
-        D.mult_transpose(step, tmp)
-        bk.axpy(-1.0, tmp)
-        g.axpy(1.0, tmp)
-        L_prev = L
-        if res.gP_norm <= tol_g and dx <= tol_e:
-            reason = "converged"
-            break
-        if not res.converged:
-            reason = res.reason
-            break
-    f = res.objective - float(np.dot(mu - rho * Dx, Dx)) - 0.5 * rho * dx * dx
-    if preconditioner is not None:
-        counts["precond"] = prec.count
-    return QPResult(x=x, converged=reason == "converged", reason=reason, iterations=total_it,
-                    outer_iterations=len(history), hessian_mults=mults, counts=counts,
-                    gP_norm=res.gP_norm, Dx_norm=dx, b_norm=b_norm, active=res.active,
-                    active_count=res.active_count, history=history, multiplier=mu,
-                    objective=f)
+    solver = SMALBE(
+        INNER[inner](**opts), rtol=rtol, eq_rtol=eq_rtol, eq_scale=eq_scale,
+        max_outer=max_outer, max_it=max_it, rho=1.1 if rho is None else Absolute(rho),
+        M=100.0 if M is None else Absolute(M), eta=None if eta is None else Absolute(eta),
+        beta=beta, acceleration=acceleration, depth=depth, inner_norm_A=inner_norm_A,
+        preconditioner_form=preconditioner_form, monitor=monitor)
+    qp = QP.create(A, b, lb=lb, ub=ub, discs=discs, eq=D, norm_A=norm_A,
+                   preconditioner=preconditioner)
+    return solver.solve(qp, x, multiplier=multiplier)
 
 
-class _Anderson:
-    """Anderson acceleration (type II) of the fixed point ``mu -> mu + rho D x(mu)``.
-
-    Once the active set has settled the map is affine in ``mu`` and its contraction
-    ``(I + rho S)^{-1}`` (``S`` the dual Schur complement on the free set) has only a few
-    eigenvalues away from 0 (one or two on B1), so a short secant memory removes them in a few
-    outer iterations where the plain update needs tens. ``mu`` and the residuals are
-    replicated and identical on every rank, so every rank takes the same step.
-    """
-
-    def __init__(self, depth: int) -> None:
-        self.depth = depth
-        self._mu: list[np.ndarray] = []  # mu_k
-        self._f: list[np.ndarray] = []   # f_k = rho D x_k (the plain step)
-
-    def reset(self) -> None:
-        """Forget the history."""
-        self._mu.clear()
-        self._f.clear()
-
-    def step(self, mu: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """Return the accelerated ``mu_{k+1} - mu_k`` from ``mu_k`` and the plain step ``f``."""
-        self._mu.append(mu.copy())
-        self._f.append(f.copy())
-        if len(self._f) > self.depth + 1:
-            self._mu.pop(0)
-            self._f.pop(0)
-        if len(self._f) < 2:
-            return f
-        dF = np.diff(np.array(self._f), axis=0).T           # columns f_i+1 - f_i
-        dG = dF + np.diff(np.array(self._mu), axis=0).T     # G(mu) = mu + f
-        gamma = np.linalg.lstsq(dF, f, rcond=1e-10)[0]
-        return f - dG @ gamma
+__all__ = ["ACCELERATIONS", "INNER", "OPTIONS", "PRECONDITIONER_FORMS", "SMALBE", "Absolute",
+           "smalbe"]

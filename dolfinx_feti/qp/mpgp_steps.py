@@ -1,0 +1,309 @@
+"""One MPGP solve: the iterate, its gradient, the work vectors and the steps that move them.
+
+:class:`.mpgp.MPGP` is set up once; each ``solve`` makes an :class:`MPGPSolve` (the state of
+that solve) and runs its loop. The steps are the methods: the split of the gradient, the
+stopping test, the proportioning test, the CG direction in the face (preconditioned in face),
+the CG step (turning disc pairs along their circles), the expansion (its variant an object of
+:mod:`.expansion`, chosen when the solver was made) and the proportioning step. The algorithm
+and its variants are described in :mod:`.mpgp`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .box import Box, check_finite
+from .discs import SeparableSet
+from .precond import Preconditioner
+from .problem import QP
+from .result import QPResult
+from .start import Counter, feasible_start, step_length
+
+if TYPE_CHECKING:
+    from .mpgp import MPGP
+
+# z^T phi below this fraction of ||z|| ||phi|| means that the preconditioned free gradient is
+# no descent direction (M^{-1} singular or not positive there): the step falls back to phi.
+_DESCENT_RTOL = 1e-12
+# p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
+# curvature of a PSD operator along a null direction tiny but positive, not zero.
+CURVATURE_RTOL = 1e-14
+# A step along the circles is rejected when it raises the energy by more than this times
+# Σ|x||g| (the round-off level of the energy differences).
+_ENERGY_NOISE = 64 * np.finfo(float).eps
+
+
+class MPGPSolve:
+    """The state of one MPGP solve of ``qp`` from ``x`` (collective; see :meth:`.MPGP.solve`).
+
+    Raises:
+        ValueError: For a variant the constraint set does not allow, non-finite data or an
+            invalid step length.
+        TypeError: For a preconditioner of no accepted kind.
+    """
+
+    def __init__(self, solver: MPGP, qp: QP, x: PETSc.Vec, *, stop, b_norm: float | None,
+                 g: PETSc.Vec | None, g_valid: bool, rtol: float, atol: float,
+                 max_it: int) -> None:
+        name = solver.name
+        self.solver, self.x, self.b = solver, x, qp.b
+        self.rtol, self.atol, self.max_it = rtol, atol, max_it
+        self.comm = x.getComm().tompi4py()
+        S = qp.constraints if qp.constraints is not None else Box(None, None, x)
+        self.S: Box | SeparableSet = S
+        solver.expansion_step.check(name, S.curved)
+        self.line_search = solver.proportioning == "line" and not S.curved
+        self.tangent = S.curved and solver.face == "tangent"
+        use = qp.preconditioner is not None and solver.preconditioning == "face"
+        self.prec = Preconditioner(qp.preconditioner) if use else None
+        check_finite(self.comm, f"{name}: b", qp.b.array_r)
+        check_finite(self.comm, f"{name}: the start x", x.array_r)
+        self.mult = Counter(qp.A)
+        self.counts = {"cg": 0, "expansion": 0, "proportioning": 0, "norm": 0}
+        if solver.expansion_step.rejects:
+            self.counts["rejected"] = 0
+        if self.prec is not None:
+            self.counts["precond"] = 0
+        self.alpha_bar, self.scale_A = step_length(name, self.mult, x, self.counts,
+                                                   solver.alpha_bar, qp.norm_A)
+        self.b_norm = qp.b.norm() if b_norm is None else b_norm
+        self.stop = stop
+        self.g = feasible_start(name, S.project, self.mult, x, qp.b, g, g_valid, self.comm)
+        self.phi, self.beta, self.p, self.Ap = (x.duplicate() for _ in range(4))
+        self.Hp = x.duplicate() if self.tangent else self.Ap  # (A + curvature) p on circles
+        self.z = self.phi if self.prec is None else x.duplicate()
+        self.history: list[dict] = []
+        self.it, self.kind = 0, "init"
+        self.cg_pending = False  # p holds a CG direction to be continued (else restart)
+        self.pHp = 1.0
+        n = x.getLocalSize()
+        self.rot = np.zeros(n, dtype=bool)  # disc entries turning along their circle
+        self.curv = np.zeros(n)
+
+    # --- the loop --------------------------------------------------------------------------
+    def run(self) -> QPResult:
+        """Iterate until a stopping test holds; the result."""
+        while True:
+            phi_a, phi2, beta2, gP, active = self.split()
+            reason = self.stopping(gP)
+            if reason is not None:
+                break
+            self.it += 1
+            kind = None
+            if self.proportional(phi_a, beta2):
+                kind = self.face_step(active, phi2)
+            if kind is None:  # not proportional, or a turning CG step was rejected
+                kind = self.proportioning(beta2)
+            if kind == "unbounded":
+                reason = kind
+                break
+            self.kind, self.cg_pending = kind, kind == "cg"
+            self.counts[kind] += 1
+        return self.result(reason, gP, active)
+
+    def split(self) -> tuple[np.ndarray, float, float, float, np.ndarray]:
+        """Split ``g`` into ``phi`` and ``beta``: ``(phi, ||phi||², ||beta||², ||g^P||, active)``.
+
+        With curved faces the tangential gradient of turning pairs counts as free.
+        """
+        x, g = self.x, self.g
+        phi_a, beta_a, active = self.S.split(x.array_r, g.array_r)
+        if self.tangent:  # pairs on their circle pushed outwards: their tangential part is free
+            rot, self.curv = self.S.rotating(x.array_r, g.array_r)
+            self.rot = rot
+            phi_a[rot] = beta_a[rot]
+            beta_a[rot] = 0.0
+        self.phi.array[:] = phi_a
+        self.beta.array[:] = beta_a
+        phi2, beta2 = self.phi.dot(self.phi), self.beta.dot(self.beta)
+        return phi_a, phi2, beta2, math.sqrt(phi2 + beta2), active
+
+    def stopping(self, gP: float) -> str | None:
+        """Record the iterate; the reason to stop, or None."""
+        monitor, rtol, atol = self.solver.monitor, self.rtol, self.atol
+        self.history.append({"it": self.it, "kind": self.kind, "gP": gP})
+        if monitor is not None:
+            monitor(self.it, gP, self.kind)
+        if not math.isfinite(gP):
+            return "breakdown"
+        if gP <= max(rtol * self.b_norm, atol):
+            return "rtol" if rtol * self.b_norm >= atol else "atol"
+        if self.stop is not None and self.stop(gP, self.x, self.g):
+            return "stop"
+        if self.it >= self.max_it:
+            return "max_it"
+        return None
+
+    def proportional(self, phi_a: np.ndarray, beta2: float) -> bool:
+        """The proportioning test ``||beta||² <= Gamma² phi~^T phi``."""
+        phit_a = self.S.reduced_free(self.x.array_r, phi_a, self.alpha_bar)
+        phit_phi = self.comm.allreduce(float(np.dot(phit_a, phi_a)))
+        gamma = self.solver.gamma
+        return beta2 <= gamma * gamma * phit_phi
+
+    # --- the steps in the face -------------------------------------------------------------
+    def face_step(self, active: np.ndarray, phi2: float) -> str | None:
+        """A CG step, or an expansion where it leaves the set.
+
+        Returns its kind, ``'unbounded'``, or None when a turning CG step was rejected (a
+        proportioning step follows).
+        """
+        x, p, Ap, rot = self.x, self.p, self.Ap, self.rot
+        self.direction(active & ~rot, phi2)  # entries fixed in this face: active, not turning
+        self.mult(p, Ap)
+        if self.tangent:
+            self.Hp.array[:] = Ap.array_r + self.curv * p.array_r
+            moves = self.comm.allreduce(bool(np.any(p.array_r[rot] != 0.0)), op=MPI.LOR)
+            pf = p.array_r.copy()
+            pf[rot] = 0.0  # rotating pairs follow their circle: no limit on the step
+        else:
+            moves, pf = False, p.array_r
+        pHp, gp = p.dot(self.Hp), self.g.dot(p)
+        self.pHp = pHp
+        t_f = self.S.max_step(x.array_r, pf)
+        positive = pHp > CURVATURE_RTOL * self.scale_A * p.dot(p)
+        t_cg = gp / pHp if positive else math.inf
+        if t_cg <= t_f and math.isfinite(t_cg):
+            return self.cg_step(t_cg, moves)
+        if not math.isfinite(t_f):
+            return "unbounded"
+        if moves:
+            # To the boundary along p (turning pairs), then a projected free-gradient step.
+            x.array[:] = self.S.step(x.array_r, p.array_r, t_f)
+            self.fresh_gradient()
+            self.projected_step(self.alpha_bar)
+            return "expansion"
+        ok = self.solver.expansion_step.expand(self, t_cg, t_f, gp, pHp, positive)
+        return "expansion" if ok else "unbounded"
+
+    def direction(self, fixed: np.ndarray, phi2: float) -> None:
+        """The CG direction ``p`` in the face from the (preconditioned) free gradient.
+
+        Preconditioning in face: ``z = D_F M^{-1} D_F phi`` (``phi = D_F g`` already), kept if
+        a descent direction. ``p = r - (r^T H p / p^T H p) p`` continues the conjugate
+        direction, else ``p = r``; lost descent (the face changed under rounding) restarts.
+        """
+        x, p, phi, z, S = self.x, self.p, self.phi, self.z, self.S
+        r = phi
+        if self.prec is not None:
+            self.prec.apply(phi, z)
+            z.array[fixed] = 0.0
+            if self.tangent:
+                z.array[:] = S.tangential(x.array_r, z.array_r, self.rot)
+            if z.dot(phi) > _DESCENT_RTOL * math.sqrt(phi2 * z.dot(z)):
+                r = z
+        if not self.cg_pending:
+            r.copy(p)
+            return
+        p.aypx(-r.dot(self.Hp) / self.pHp, r)
+        if self.tangent:  # the face: interior blocks and the tangents of rotating pairs
+            pa = S.tangential(x.array_r, p.array_r, self.rot)
+            pa[fixed] = 0.0
+            p.array[:] = pa
+        if not self.g.dot(p) > 0.0:
+            r.copy(p)
+
+    def cg_step(self, t_cg: float, moves: bool) -> str | None:
+        """The feasible CG step ``x <- x - t_cg p``: ``'cg'``, or None if rejected.
+
+        Along the circles when pairs turn, kept unless the energy increased (else None,
+        counted in ``counts['rejected']``).
+        """
+        x, p = self.x, self.p
+        if not moves:
+            x.array[:] = self.S.step(x.array_r, p.array_r, t_cg)
+            self.g.axpy(-t_cg, self.Ap)
+            return "cg"
+        if self.turn(t_cg):
+            return "cg"
+        self.counts["rejected"] = self.counts.get("rejected", 0) + 1
+        return None
+
+    def turn(self, t: float) -> bool:
+        """A CG step that turns disc pairs along their circles: x <- P(x - t p), fresh gradient.
+
+        Kept unless the energy increased: f(x1) - f(x0) = ½ (x1 - x0)ᵀ(g0 + g1) for a
+        quadratic, without the cancellation of f(x1) - f(x0); the rounding of x on the
+        circles, where g is large, moves f by ~ eps Σ|x||g|: tolerated. On rejection x and g
+        are restored.
+        """
+        x, g = self.x, self.g
+        x0, g0 = x.array_r.copy(), g.copy()
+        x.array[:] = self.S.step(x.array_r, self.p.array_r, t)
+        self.fresh_gradient()
+        xa, ga = x.array_r, g.array_r
+        df, noise = self.comm.allreduce(np.array([
+            0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
+            float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga))]))
+        if df <= _ENERGY_NOISE * noise:
+            g0.destroy()
+            return True
+        x.array[:] = x0
+        g0.copy(g)
+        g0.destroy()
+        return False
+
+    # --- what the expansions are made of ---------------------------------------------------
+    def energy(self) -> float:
+        """``f(x) = 1/2 x^T (A x - b) - 1/2 b^T x`` from the gradient (no product)."""
+        return 0.5 * (self.x.dot(self.g) - self.x.dot(self.b))
+
+    def fresh_gradient(self) -> None:
+        """``g = A x - b`` (one product)."""
+        self.mult(self.x, self.g)
+        self.g.axpy(-1.0, self.b)
+
+    def half_step(self, t_f: float) -> None:
+        """To the boundary along ``p``: ``x <- x - t_f p``, ``g <- g - t_f A p``."""
+        self.x.array[:] = self.S.step(self.x.array_r, self.p.array_r, t_f)
+        self.g.axpy(-t_f, self.Ap)
+
+    def projected_step(self, step: float) -> None:
+        """``x <- P(x - step phi(x))`` with a fresh gradient."""
+        xa = self.x.array_r
+        phi_a = self.S.split(xa, self.g.array_r)[0]
+        self.x.array[:] = self.S.project(xa - step * phi_a)
+        self.fresh_gradient()
+
+    # --- the proportioning step and the result ---------------------------------------------
+    def proportioning(self, beta2: float) -> str:
+        """The proportioning step: ``'proportioning'``, or ``'unbounded'``.
+
+        The gradient projection ``x <- P(x - alpha_bar g)`` (MPGP's), or on a flat set with
+        ``proportioning='line'`` the exact line search along ``beta`` cut at the opposite
+        bound (MPRGP's).
+        """
+        x, g, beta, S = self.x, self.g, self.beta, self.S
+        if not self.line_search:
+            x.array[:] = S.project(x.array_r - self.alpha_bar * g.array_r)
+            self.fresh_gradient()
+            return "proportioning"
+        self.mult(beta, self.Ap)
+        bAb = beta.dot(self.Ap)
+        t_f = S.max_step(x.array_r, beta.array_r)
+        positive = bAb > CURVATURE_RTOL * self.scale_A * beta2
+        t = min(beta2 / bAb if positive else math.inf, t_f)
+        if not math.isfinite(t):
+            return "unbounded"
+        x.array[:] = S.step(x.array_r, beta.array_r, t)
+        g.axpy(-t, self.Ap)
+        return "proportioning"
+
+    def result(self, reason: str, gP: float, active: np.ndarray) -> QPResult:
+        """The record of the solve."""
+        if self.prec is not None:
+            self.counts["precond"] = self.prec.count
+        active_count = self.comm.allreduce(int(np.count_nonzero(active)))
+        return QPResult(x=self.x, converged=reason in ("rtol", "atol", "stop"), reason=reason,
+                        iterations=self.it, hessian_mults=self.mult.n, counts=self.counts,
+                        gP_norm=gP, b_norm=self.b_norm, active=active,
+                        active_count=active_count, history=self.history,
+                        objective=self.energy())
+
+
+__all__ = ["CURVATURE_RTOL", "MPGPSolve"]
