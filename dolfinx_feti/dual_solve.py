@@ -29,16 +29,18 @@ from .friction import FrictionSolve
 from .log import Progress
 from .options import PENALTY, SolverOptions
 from .qp import (
+    CG,
+    MPGP,
+    MPRGP,
+    QP,
+    SMALBE,
     ProjectedPreconditioner,
     QPResult,
-    cg,
-    mpgp,
-    mprgp,
+    QPSolver,
     projected_operator,
-    smalbe,
 )
-from .qp.mprgp import OPTIONS as MPRGP
-from .qp.smalbe import OPTIONS as SMALBE
+from .qp.mprgp import OPTIONS as MPRGP_OPTIONS
+from .qp.smalbe import OPTIONS as SMALBE_OPTIONS
 from .report import Report
 from .timing import Timer
 
@@ -146,55 +148,69 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     return QPSolve(result=res, x=x, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
 
 
+def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = False,
+              progress: Progress | None = None) -> QPSolver:
+    """The QP solver the dual QP needs, the least machinery first (the module docstring).
+
+    Args:
+        opts: The solver options (each solver's own under its prefix: ``opts.of(...)``).
+        dual: The dual QP (its coarse space decides between MPRGP alone and SMALBE).
+        n_ineq: Number of inequality rows of the whole problem (none: projected CG).
+        discs: Whether friction puts the tangential multipliers in discs (MPGP, 3D).
+        progress: Monitors of the inner and outer iterations.
+    """
+    inner_mon = None if progress is None else progress.inner
+    if n_ineq == 0:
+        # When only prescribed values drive the problem, P b can be pure round-off: the floor
+        # b_noise keeps CG from chasing it.
+        return CG(rtol=opts.rtol, atol=dual.b_noise, max_it=opts.max_it, monitor=inner_mon)
+    mprgp_opts = opts.of(MPRGP_OPTIONS)
+    inner = MPGP(gamma=mprgp_opts["gamma"], rtol=opts.rtol, max_it=opts.max_it,
+                 monitor=inner_mon) if discs else \
+        MPRGP(rtol=opts.rtol, max_it=opts.max_it, monitor=inner_mon, **mprgp_opts)
+    if dual.constraint.m == 0 or opts.qp == "penalty":
+        return inner
+    # rho and M relative to ||PFP||, eta to ||b||; ||G̃x|| is in units of λ, ||b|| in units
+    # of F λ: compare ||PFP|| ||G̃x||.
+    return SMALBE(inner, rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
+                  eq_scale=dual.norm_A, max_outer=opts.max_outer, max_it=opts.max_it,
+                  monitor=None if progress is None else progress.outer,
+                  **opts.of(SMALBE_OPTIONS))
+
+
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None,
             multiplier0=None):
-    """The least machinery the problem needs (see the module docstring).
+    """Build the QP of this solve (bounds, friction) and run the solver it needs.
 
     With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
     """
-    feti, ocon, A, Pb, norm_A = dual.feti, dual.constraint, dual.A, dual.b, dual.norm_A
-    if n_ineq == 0:
-        report.solver = "cg"
-        # When only prescribed values drive the problem, P b can be pure round-off: the floor
-        # b_noise keeps CG from chasing it.
-        return cg(A, Pb, x, projector=dual.projector, rtol=opts.rtol, atol=dual.b_noise,
-                  max_it=opts.max_it, monitor=progress.inner, preconditioner=precond)
-    lb = dual.lb
-    ub, multiplier = None, multiplier0
-    solver = mprgp
-    inner = opts.of(MPRGP)
-    if friction is not None:
+    feti, ocon, norm_A = dual.feti, dual.constraint, dual.norm_A
+    lb, ub, discs, multiplier = dual.lb, None, None, multiplier0
+    if friction is not None and n_ineq:
         lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
-        if discs is not None:  # MPGP: the fixed expansion only
-            solver, inner = mpgp, {"gamma": inner["gamma"], "discs": discs}
+    solver = qp_solver(opts, dual, n_ineq, discs is not None, progress)
+    report.solver = solver.name if not isinstance(solver, SMALBE) else \
+        f"smalbe{' (mpgp)' if discs is not None else ''}"
+    if isinstance(solver, CG):
+        return solver.solve(QP(dual.A, dual.b, eq=ocon, preconditioner=precond), x)
     if ocon.m == 0:
-        report.solver = solver.__name__
-        return solver(feti.F, feti.d, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
-                      norm_A=norm_A, monitor=progress.inner, preconditioner=precond, **inner)
+        return solver.solve(QP.create(feti.F, feti.d, lb=lb, ub=ub, discs=discs,
+                                      norm_A=norm_A, preconditioner=precond), x)
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
-        report.solver = f"{solver.__name__} (dual penalty)"
+        report.solver = f"{solver.name} (dual penalty)"
         rho = opts.of(PENALTY)["rho"] * norm_A
         Arho = projected_operator(feti.F, ocon, rho=rho)
         if precond is not None:
             precond = ProjectedPreconditioner(precond, ocon, rho)
-        res = solver(Arho, Pb, x, lb=lb, ub=ub, rtol=opts.rtol, max_it=opts.max_it,
-                     norm_A=max(norm_A, rho), monitor=progress.inner, preconditioner=precond,
-                     **inner)
+        res = solver.solve(QP.create(Arho, dual.b, lb=lb, ub=ub, discs=discs,
+                                     norm_A=max(norm_A, rho), preconditioner=precond), x)
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res
-    report.solver = "smalbe" if solver is mprgp else "smalbe (mpgp)"
-    o = opts.of(SMALBE)  # rho and M relative to ||PFP||, eta to ||b||
-    # ||G̃x|| is in units of λ, ||b|| in units of F λ: compare ||PFP|| ||G̃x||.
-    return smalbe(A, Pb, ocon, x, lb=lb, ub=ub, inner=solver.__name__, multiplier=multiplier,
-                  rtol=opts.rtol, eq_rtol=opts.eq_rtol or opts.rtol,
-                  eq_scale=norm_A, rho=o["rho"] * norm_A, M=o["M"] * norm_A,
-                  eta=None if o["eta"] is None else o["eta"] * Pb.norm(),
-                  beta=o["beta"], norm_A=norm_A,
-                  inner_options={**inner, "monitor": progress.inner}, preconditioner=precond,
-                  max_outer=opts.max_outer, max_it=opts.max_it, monitor=progress.outer,
-                  acceleration=o["acceleration"], depth=o["depth"])
+    return solver.solve(QP.create(dual.A, dual.b, lb=lb, ub=ub, discs=discs, eq=ocon,
+                                  norm_A=norm_A, preconditioner=precond), x,
+                        multiplier=multiplier)
 
 
 def warn_loose_stop(report: Report, rtol: float) -> None:
@@ -215,4 +231,4 @@ def warn_loose_stop(report: Report, rtol: float) -> None:
             "solution")
 
 
-__all__ = ["KKT_WARN", "QPSolve", "solve_qp", "warn_loose_stop"]
+__all__ = ["KKT_WARN", "QPSolve", "qp_solver", "solve_qp", "warn_loose_stop"]
