@@ -8,7 +8,11 @@ positions may differ.
 
 from __future__ import annotations
 
-from .errors import InputError
+import numpy as np
+from mpi4py import MPI
+
+from .errors import InputError, collective
+from .mesh.decompose import ByFunction
 from .problem import ContactProblem, Dirichlet, RigidObstacle
 
 
@@ -33,6 +37,37 @@ def stiffness_key(forms):
     return key() if callable(key) else forms
 
 
+def _same_decomposition(old, new) -> bool:
+    """Equal, or two ByFunction (whose labels :func:`check_same_labels` compares)."""
+    return new == old or (isinstance(old, ByFunction) and isinstance(new, ByFunction))
+
+
+def check_same_labels(how, share, comm: MPI.Comm) -> None:
+    """Refuse a ByFunction whose labels cut a subdomain of the set-up (collective).
+
+    The function of a new load case is another object (a new closure per step is usual), so
+    its labels are checked on each rank's cells: every subdomain of the set-up must get one
+    label. (Labels that join two subdomains are not detected: they would have given the same
+    subdomains, split into connected pieces, only if the pieces were separate.)
+    """
+    if not isinstance(how, ByFunction):
+        return
+    mesh, cell_sub = share.mesh, share.dec.cell_sub
+    with collective(comm, "decomposition"):
+        try:
+            labels = np.asarray(how.fn(mesh.x[mesh.cells].mean(axis=1)))
+        except Exception as e:  # a user's function: say which one failed
+            raise InputError(f"ByFunction.fn(midpoints) raised {type(e).__name__}: {e}") from e
+        if labels.shape != cell_sub.shape:
+            raise InputError("ByFunction: the function must return one label per cell")
+        order = np.lexsort((labels, cell_sub))
+        sub, lab = cell_sub[order], labels[order]
+        cut = np.any((sub[1:] == sub[:-1]) & (lab[1:] != lab[:-1]))
+    if comm.allreduce(bool(cut), op=MPI.LOR):
+        raise InputError("FetiSolver.update: the new problem's ByFunction decomposition cuts a "
+                         "subdomain of the set-up; the decomposition cannot change on one set-up")
+
+
 def check_same_structure(old: ContactProblem, new: ContactProblem, *,
                          stiffness: bool = True) -> None:
     """Refuse, by name, a new problem whose differences a set-up of ``old`` cannot reuse.
@@ -53,7 +88,7 @@ def check_same_structure(old: ContactProblem, new: ContactProblem, *,
         ("value_size", new.value_size == old.value_size, f"{new.value_size} components, not "
          f"{old.value_size}"),
         ("degree", new.degree == old.degree, f"degree {new.degree}, not {old.degree}"),
-        ("decomposition", new.decomposition == old.decomposition,
+        ("decomposition", _same_decomposition(old.decomposition, new.decomposition),
          f"{new.decomposition!r}, not {old.decomposition!r}"),
         ("gluing", new.gluing == old.gluing, f"{new.gluing!r}, not {old.gluing!r}"),
         ("ties", list(new.ties) == list(old.ties), "other ties"),
@@ -77,4 +112,4 @@ def check_same_structure(old: ContactProblem, new: ContactProblem, *,
                              "on one set-up; create a new FetiSolver for the rest")
 
 
-__all__ = ["check_same_structure", "stiffness_key"]
+__all__ = ["check_same_labels", "check_same_structure", "stiffness_key"]

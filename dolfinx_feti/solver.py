@@ -37,7 +37,7 @@ from .log import Progress
 from .mortar_report import mortar_warnings
 from .options import SolverOptions
 from .problem import ContactProblem
-from .problem_diff import check_same_structure
+from .problem_diff import check_same_labels, check_same_structure
 from .qp import ConvergedReason
 from .report import Report
 from .solution import Solution
@@ -112,6 +112,8 @@ class FetiSolver:
                 load that cannot be balanced.
         """
         check_same_structure(self.problem, problem, stiffness=not check_stiffness)
+        if problem.decomposition is not self.problem.decomposition:
+            check_same_labels(problem.decomposition, self._shared.share, self.comm)
         if check_stiffness:
             self._check_stiffness(problem)
         f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)

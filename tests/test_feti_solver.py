@@ -224,3 +224,20 @@ def test_update_on_a_distributed_mesh(root):
     cold.dirichlet = problem.dirichlet
     assert_same(b, df.solve(cold, rtol=RTOL, method="tfeti"))
     assert MPI.COMM_WORLD.allreduce(1) == MPI.COMM_WORLD.size
+
+
+def test_byfunction_may_be_a_new_closure(hertz_mesh):
+    def grid(h):
+        return df.ByFunction(lambda m: np.floor(m[:, 0] / h).astype(np.int64))
+
+    def problem(load, h):
+        p = hertz(hertz_mesh, load=load)
+        p.decomposition = grid(h)
+        return p
+
+    solver = df.FetiSolver(problem(10.0, 4.0), rtol=RTOL)
+    solver.solve()
+    solver.update(problem(11.0, 4.0))  # another closure, the same labels
+    assert_same(solver.solve(), df.solve(problem(11.0, 4.0), rtol=RTOL))
+    with pytest.raises(df.InputError, match="cuts a subdomain"):
+        solver.update(problem(11.0, 1.0))
