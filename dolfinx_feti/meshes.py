@@ -26,7 +26,7 @@ import math
 import gmsh
 import numpy as np
 
-from .mesh.topology import _row_keys
+from .mesh.topology import row_keys
 
 #: gmsh element types of first-order simplices by topological dimension.
 _SIMPLEX_TYPE = {1: 1, 2: 2, 3: 4}
@@ -46,12 +46,14 @@ def physical_groups() -> dict[str, tuple[int, int]]:
     return groups
 
 
-def _add_group(dim: int, entities: list[int], tag: int, name: str) -> None:
+def add_group(dim: int, entities: list[int], tag: int, name: str) -> None:
+    """A named physical group of the current gmsh model."""
     gmsh.model.addPhysicalGroup(dim, entities, tag)
     gmsh.model.setPhysicalName(dim, tag, name)
 
 
-def _set_output_options() -> None:
+def set_output_options() -> None:
+    """First-order elements and the .msh 4.1 format for the files these generators write."""
     gmsh.option.setNumber("Mesh.ElementOrder", 1)
     gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
 
@@ -99,7 +101,7 @@ def _boundary_facets(simplices: np.ndarray) -> np.ndarray:
     facets = np.concatenate(facets)
     # One int64 key per facet (its sorted nodes) and one sort, not np.unique on rows (a sort of
     # row views, the slowest step of building the seed's 2 M-triangle mesh).
-    keys = _row_keys(facets, int(simplices.max()) + 1)
+    keys = row_keys(facets, int(simplices.max()) + 1)
     order = np.argsort(keys)
     sk = keys[order]
     lone = np.ones(sk.size, dtype=bool)
@@ -190,14 +192,14 @@ def membranes(n: int) -> dict[str, tuple[int, int]]:
     if n < 1:
         raise ValueError(f"membranes: n must be >= 1, got {n}")
     gmsh.model.add(f"membranes_{n}")
-    _set_output_options()
+    set_output_options()
     left, left_sides, next_tag = _add_structured_box((0.0, 0.0), (1.0, 1.0), (n, n), 1)
     right, right_sides, _ = _add_structured_box((1.0, 0.0), (2.0, 1.0), (n, n), next_tag)
-    _add_group(2, [left], 1, "left")
-    _add_group(2, [right], 2, "right")
-    _add_group(1, [left_sides[0, 0]], 11, "dirichlet")
-    _add_group(1, [left_sides[0, 1]], 12, "contact_left")
-    _add_group(1, [right_sides[0, 0]], 13, "contact_right")
+    add_group(2, [left], 1, "left")
+    add_group(2, [right], 2, "right")
+    add_group(1, [left_sides[0, 0]], 11, "dirichlet")
+    add_group(1, [left_sides[0, 1]], 12, "contact_left")
+    add_group(1, [right_sides[0, 0]], 13, "contact_right")
     return physical_groups()
 
 
@@ -247,7 +249,7 @@ def blocks3d(
         return max(1, round(n * length))
 
     gmsh.model.add("blocks3d")
-    _set_output_options()
+    set_output_options()
     lower, lower_sides, next_tag = _add_structured_box(
         (0.0, 0.0, 0.0), (lx, ly, hb), (cells(lx), cells(ly), cells(hb)), 1
     )
@@ -255,14 +257,14 @@ def blocks3d(
         (0.0, 0.0, hb), (lx, ly, hb + ht), (cells(lx), cells(ly), cells(ht)), next_tag
     )
     lateral = [(0, 0), (0, 1), (1, 0), (1, 1)]
-    _add_group(3, [lower], 1, "lower")
-    _add_group(3, [upper], 2, "upper")
-    _add_group(2, [lower_sides[2, 0]], 11, "bottom")
-    _add_group(2, [upper_sides[2, 1]], 12, "top")
-    _add_group(2, [lower_sides[2, 1]], 13, "contact_lower")
-    _add_group(2, [upper_sides[2, 0]], 14, "contact_upper")
-    _add_group(2, [upper_sides[k] for k in lateral], 15, "sides_upper")
-    _add_group(2, [lower_sides[k] for k in lateral], 16, "sides_lower")
+    add_group(3, [lower], 1, "lower")
+    add_group(3, [upper], 2, "upper")
+    add_group(2, [lower_sides[2, 0]], 11, "bottom")
+    add_group(2, [upper_sides[2, 1]], 12, "top")
+    add_group(2, [lower_sides[2, 1]], 13, "contact_lower")
+    add_group(2, [upper_sides[2, 0]], 14, "contact_upper")
+    add_group(2, [upper_sides[k] for k in lateral], 15, "sides_upper")
+    add_group(2, [lower_sides[k] for k in lateral], 16, "sides_lower")
     return physical_groups()
 
 
@@ -367,7 +369,7 @@ def hertz2d(
     if h_far < h_contact or height <= 0:
         raise ValueError(f"hertz2d: need h_far >= h_contact and height > 0, got {h_far}, {height}")
     gmsh.model.add("hertz2d")
-    _set_output_options()
+    set_output_options()
     geo = gmsh.model.geo
     xs = _contact_abscissae(h_contact, contact_width)
     half = width / 2
@@ -404,13 +406,13 @@ def hertz2d(
     _contact_zone_sizes(disk_contact + block_contact, arc_points + top_points, contact_width,
                         h_contact, h_far)
 
-    _add_group(2, [disk], 1, "disk")
-    _add_group(2, [block], 2, "block")
-    _add_group(1, disk_contact, 11, "disk_contact")
-    _add_group(1, block_contact, 12, "block_contact")
-    _add_group(1, [load], 13, "load")
-    _add_group(1, [disk_symmetry, block_symmetry], 14, "symmetry")
-    _add_group(1, [bottom], 15, "bottom")
+    add_group(2, [disk], 1, "disk")
+    add_group(2, [block], 2, "block")
+    add_group(1, disk_contact, 11, "disk_contact")
+    add_group(1, block_contact, 12, "block_contact")
+    add_group(1, [load], 13, "load")
+    add_group(1, [disk_symmetry, block_symmetry], 14, "symmetry")
+    add_group(1, [bottom], 15, "bottom")
     gmsh.model.mesh.generate(2)
     return physical_groups()
 
@@ -443,7 +445,7 @@ def rigid_sphere_cube(
             f"{h}, {h_far}, {refine_radius}"
         )
     gmsh.model.add("rigid_sphere_cube")
-    _set_output_options()
+    set_output_options()
     occ = gmsh.model.occ
     cube = occ.addBox(0.0, 0.0, -1.0, 1.0, 1.0, 1.0)
     occ.synchronize()
@@ -457,11 +459,11 @@ def rigid_sphere_cube(
     origin = entities_in(0, (0, 0, 0), (0, 0, 0))
     _threshold_field(origin, h, h_far, refine_radius, refine_radius + 4 * (h_far - h))
 
-    _add_group(3, [cube], 1, "cube")
-    _add_group(2, entities_in(2, (0, 0, -1), (1, 1, -1)), 11, "bottom")
-    _add_group(2, entities_in(2, (0, 0, -1), (0, 1, 0)), 12, "symmetry_x")
-    _add_group(2, entities_in(2, (0, 0, -1), (1, 0, 0)), 13, "symmetry_y")
-    _add_group(2, entities_in(2, (0, 0, 0), (1, 1, 0)), 14, "top")
+    add_group(3, [cube], 1, "cube")
+    add_group(2, entities_in(2, (0, 0, -1), (1, 1, -1)), 11, "bottom")
+    add_group(2, entities_in(2, (0, 0, -1), (0, 1, 0)), 12, "symmetry_x")
+    add_group(2, entities_in(2, (0, 0, -1), (1, 0, 0)), 13, "symmetry_y")
+    add_group(2, entities_in(2, (0, 0, 0), (1, 1, 0)), 14, "top")
     gmsh.model.mesh.generate(3)
     return physical_groups()
 
@@ -512,7 +514,7 @@ def hertz2d_full(
             f"hertz2d_full: need h_far >= h_contact and height > 0, got {h_far}, {height}"
         )
     gmsh.model.add("hertz2d_full")
-    _set_output_options()
+    set_output_options()
     geo = gmsh.model.geo
     half = _contact_abscissae(h_contact, contact_width)
     xs = np.concatenate([-half[:0:-1], half])  # -cw ... 0 ... cw, symmetric
@@ -554,12 +556,12 @@ def hertz2d_full(
     _contact_zone_sizes(disk_contact + block_contact, arc_points + top_points, contact_width,
                         h_contact, h_far)
 
-    _add_group(2, [disk], 1, "disk")
-    _add_group(2, [block], 2, "block")
-    _add_group(1, disk_contact, 11, "disk_contact")
-    _add_group(1, block_contact, 12, "block_contact")
-    _add_group(1, [load], 13, "load")
-    _add_group(1, [bottom], 14, "bottom")
+    add_group(2, [disk], 1, "disk")
+    add_group(2, [block], 2, "block")
+    add_group(1, disk_contact, 11, "disk_contact")
+    add_group(1, block_contact, 12, "block_contact")
+    add_group(1, [load], 13, "load")
+    add_group(1, [bottom], 14, "bottom")
     gmsh.model.mesh.generate(2)
     return physical_groups()
 
@@ -605,7 +607,7 @@ def tresca2d(
         return max(1, round(n * length))
 
     gmsh.model.add("tresca2d")
-    _set_output_options()
+    set_output_options()
     lb, hb = (float(s) for s in block)
     next_tag = 1
     x0 = 0.0
@@ -617,15 +619,15 @@ def tresca2d(
         )
     blk, bsides, _ = _add_structured_box((x0, 0.0), (x0 + lb, hb), (cells(lb), cells(hb)), next_tag)
     if foundation is not None:
-        _add_group(2, [fnd], 1, "foundation")
-    _add_group(2, [blk], 2, "block")
+        add_group(2, [fnd], 1, "foundation")
+    add_group(2, [blk], 2, "block")
     if foundation is not None:
-        _add_group(1, [fsides[1, 0]], 11, "bottom")
-    _add_group(1, [bsides[1, 1]], 12, "top")
+        add_group(1, [fsides[1, 0]], 11, "bottom")
+    add_group(1, [bsides[1, 1]], 12, "top")
     if foundation is not None:
-        _add_group(1, [fsides[1, 1]], 13, "foundation_top")
-    _add_group(1, [bsides[1, 0]], 14, "block_bottom")
-    _add_group(1, [bsides[0, 0], bsides[0, 1]], 15, "block_sides")
+        add_group(1, [fsides[1, 1]], 13, "foundation_top")
+    add_group(1, [bsides[1, 0]], 14, "block_bottom")
+    add_group(1, [bsides[0, 0], bsides[0, 1]], 15, "block_sides")
     if foundation is not None:
-        _add_group(1, [fsides[0, 0], fsides[0, 1]], 16, "foundation_sides")
+        add_group(1, [fsides[0, 0], fsides[0, 1]], 16, "foundation_sides")
     return physical_groups()

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import gmsh
 
-from .meshes import _add_group, _set_output_options, physical_groups
+from .meshes import add_group, physical_groups, set_output_options
 
 _EPS = 1e-7
 
@@ -119,7 +119,7 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
         raise ValueError(f"stacked_blocks: bad sizes dim={dim}, h={h_lower}/{h_upper}, "
                          f"width={width}, height={height}, gap={gap}")
     gmsh.model.add("stacked_blocks")
-    _set_output_options()
+    set_output_options()
     occ = gmsh.model.occ
     z1 = height + gap
     if dim == 2:
@@ -145,21 +145,21 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
     def at(level: float) -> tuple[list[float], list[float]]:
         return [*z, level], [*w, level]
 
-    _add_group(dim, [lower], 1, "lower")
-    _add_group(dim, [upper], 2, "upper")
-    _add_group(dim - 1, _in_box(dim - 1, *at(0.0)), 11, "bottom")
-    _add_group(dim - 1, [e for e in _in_box(dim - 1, *at(height))
+    add_group(dim, [lower], 1, "lower")
+    add_group(dim, [upper], 2, "upper")
+    add_group(dim - 1, _in_box(dim - 1, *at(0.0)), 11, "bottom")
+    add_group(dim - 1, [e for e in _in_box(dim - 1, *at(height))
                          if (dim - 1, e) in gmsh.model.getBoundary([(dim, lower)])
                          or (dim - 1, -e) in gmsh.model.getBoundary([(dim, lower)])],
                12, "lower_top")
-    _add_group(dim - 1, [e for e in _in_box(dim - 1, *at(z1))
+    add_group(dim - 1, [e for e in _in_box(dim - 1, *at(z1))
                          if abs(e) in [abs(t) for _, t in gmsh.model.getBoundary([(dim, upper)])]],
                13, "upper_bottom")
-    _add_group(dim - 1, _in_box(dim - 1, *at(top)), 14, "top")
+    add_group(dim - 1, _in_box(dim - 1, *at(top)), 14, "top")
     lo, hi = [0.0] * dim, [0.0] + [width] * (dim - 2) + [top]
-    _add_group(dim - 1, _in_box(dim - 1, lo, hi), 15, "sym0")
+    add_group(dim - 1, _in_box(dim - 1, lo, hi), 15, "sym0")
     if dim == 3:
-        _add_group(2, _in_box(2, [0.0, 0.0, 0.0], [width, 0.0, top]), 16, "sym1")
+        add_group(2, _in_box(2, [0.0, 0.0, 0.0], [width, 0.0, top]), 16, "sym1")
     gmsh.model.mesh.generate(dim)
     return physical_groups()
 
@@ -181,7 +181,7 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     if not 0 < max(h_contact_disk, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("disk_on_block: need 0 < h_contact <= h_far and refine > 0")
     gmsh.model.add("disk_on_block")
-    _set_output_options()
+    set_output_options()
     occ = gmsh.model.occ
     disk_full = occ.addDisk(0.0, R, 0.0, R, R)
     quarter = occ.addRectangle(0.0, 0.0, 0.0, R, R)
@@ -204,13 +204,13 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     block_sym = [c for c in block_curves if abs(centre(c)[0]) < tol]
     bottom = [c for c in block_curves if abs(centre(c)[1] + height) < tol]
     _graded_sizes([(disk, h_contact_disk), (block, h_contact_block)], 2, h_far, refine)
-    _add_group(2, [disk], 1, "disk")
-    _add_group(2, [block], 2, "block")
-    _add_group(1, arc, 11, "disk_contact")
-    _add_group(1, top, 12, "block_contact")
-    _add_group(1, load, 13, "load")
-    _add_group(1, disk_sym + block_sym, 14, "symmetry")
-    _add_group(1, bottom, 15, "bottom")
+    add_group(2, [disk], 1, "disk")
+    add_group(2, [block], 2, "block")
+    add_group(1, arc, 11, "disk_contact")
+    add_group(1, top, 12, "block_contact")
+    add_group(1, load, 13, "load")
+    add_group(1, disk_sym + block_sym, 14, "symmetry")
+    add_group(1, bottom, 15, "bottom")
     gmsh.model.mesh.generate(2)
     return physical_groups()
 
@@ -233,7 +233,7 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     if not 0 < max(h_contact_sphere, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("sphere_on_block: need 0 < h_contact <= h_far and refine > 0")
     gmsh.model.add("sphere_on_block")
-    _set_output_options()
+    set_output_options()
     occ = gmsh.model.occ
     ball = occ.addSphere(0.0, 0.0, R, R)
     box = occ.addBox(0.0, 0.0, 0.0, R, R, R)
@@ -256,14 +256,14 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     top = [f for f in faces(block) if abs(centre(f)[2]) < tol]
     bottom = [f for f in faces(block) if abs(centre(f)[2] + height) < tol]
     _graded_sizes([(sphere, h_contact_sphere), (block, h_contact_block)], 3, h_far, refine)
-    _add_group(3, [sphere], 1, "sphere")
-    _add_group(3, [block], 2, "block")
-    _add_group(2, curved, 11, "sphere_contact")
-    _add_group(2, top, 12, "block_contact")
-    _add_group(2, load, 13, "load")
-    _add_group(2, sym_x, 14, "sym_x")
-    _add_group(2, sym_y, 15, "sym_y")
-    _add_group(2, bottom, 16, "bottom")
+    add_group(3, [sphere], 1, "sphere")
+    add_group(3, [block], 2, "block")
+    add_group(2, curved, 11, "sphere_contact")
+    add_group(2, top, 12, "block_contact")
+    add_group(2, load, 13, "load")
+    add_group(2, sym_x, 14, "sym_x")
+    add_group(2, sym_y, 15, "sym_y")
+    add_group(2, bottom, 16, "bottom")
     gmsh.model.mesh.generate(3)
     return physical_groups()
 
@@ -300,7 +300,7 @@ def slab_with_inclusions(h_matrix: float = 0.05, h_inclusion: float = 0.03,
             raise ValueError(f"slab_with_inclusions: inclusion {(xc, yc, r)} is not inside the "
                              "slab")
     gmsh.model.add("slab_with_inclusions")
-    _set_output_options()
+    set_output_options()
     occ = gmsh.model.occ
     # The outline as a polygon whose top is two curves: the loaded part and the rest.
     corners = [(0.0, 0.0), (length, 0.0), (length, thickness), (load_length, thickness),
@@ -351,17 +351,17 @@ def slab_with_inclusions(h_matrix: float = 0.05, h_inclusion: float = 0.03,
         _size_in([(2, t) for t in matrix], h_matrix)
         _size_in([(2, t) for t in inc], h_inclusion)
     _size_in([(2, block)], h_foundation)
-    _add_group(2, matrix, 1, "matrix")
-    _add_group(2, inc, 2, "inclusions")
-    _add_group(2, [block], 3, "foundation")
-    _add_group(1, load, 11, "load")
-    _add_group(1, on(straight, 1, 0.0), 12, "slab_bottom")
-    _add_group(1, on(b_curves, 1, 0.0), 13, "foundation_top")
-    _add_group(1, on(straight, 0, 0.0) + on(b_curves, 0, 0.0), 14, "symmetry")
-    _add_group(1, on(b_curves, 1, -foundation[1]), 15, "bottom")
+    add_group(2, matrix, 1, "matrix")
+    add_group(2, inc, 2, "inclusions")
+    add_group(2, [block], 3, "foundation")
+    add_group(1, load, 11, "load")
+    add_group(1, on(straight, 1, 0.0), 12, "slab_bottom")
+    add_group(1, on(b_curves, 1, 0.0), 13, "foundation_top")
+    add_group(1, on(straight, 0, 0.0) + on(b_curves, 0, 0.0), 14, "symmetry")
+    add_group(1, on(b_curves, 1, -foundation[1]), 15, "bottom")
     if not conforming:
-        _add_group(1, holes, 16, "holes")
-        _add_group(1, i_curves, 17, "inclusion_surface")
+        add_group(1, holes, 16, "holes")
+        add_group(1, i_curves, 17, "inclusion_surface")
     gmsh.model.mesh.generate(2)
     return physical_groups()
 

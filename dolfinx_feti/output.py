@@ -24,8 +24,8 @@ from . import compat
 from .errors import collective
 from .exchange import Blocks, RankNumbering, answer, exchange
 from .fem.dofmap import dof_points_of_space
+from .mesh.data import MeshData
 from .mesh.dofpoints import DofPoints, RootLookup, dof_points
-from .mesh.gmsh_input import MeshData
 
 #: The last parent mesh built: (the MeshData it was built from, communicator handle, mesh). The
 #: MeshData itself is held (not its id): an id is reused once an object is freed, and a later

@@ -29,7 +29,7 @@ import ufl
 from . import compat
 from .errors import InputError
 from .fem import Elasticity
-from .mesh.gmsh_input import MeshData
+from .mesh.data import MeshData
 
 
 @contextmanager

@@ -15,9 +15,9 @@ from .mesh.checks import (
     check_contact_surface,
     check_mesh,
 )
+from .mesh.data import MeshData
 from .mesh.decompose import ByFunction, ByTags, Parts
 from .mesh.dofpoints import facet_weights
-from .mesh.gmsh_input import MeshData
 from .validation import (
     Choice,
     Either,

@@ -27,10 +27,10 @@ from .constraints.rows import Rows
 from .errors import InputError, collective
 from .exchange import hand_out
 from .mesh.checks import boundary_group_verdicts
+from .mesh.data import MeshData
 from .mesh.decompose import Decomposition
 from .mesh.dofpoints import DofPoints, degree2_entities
-from .mesh.gmsh_input import MeshData
-from .mesh.topology import REFERENCE, _row_keys, locate_facets
+from .mesh.topology import REFERENCE, locate_facets, row_keys
 
 
 @dataclass
@@ -302,7 +302,7 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                          cells=np.ascontiguousarray(p["cell_points"][:, :nvc]),
                          cell_body=p["cell_body"], node_tags=p["node_tags"], counts={})
     nv = int(p["x"].shape[0])
-    entities = p["entities"] if "entities" in p else _local_entities(
+    entities = p["entities"] if "entities" in p else local_entities(
         mesh.cell_type, local_mesh.cells, nv, p["entity_first"])
     local_points = DofPoints(common["degree"], mesh.cell_type, p["point_x"], p["cell_points"],
                              nv, entities)
@@ -319,7 +319,7 @@ def share_out(mesh: MeshData, points: DofPoints | None, dec: Decomposition | Non
                      extra=p["extra"])
 
 
-def _local_entities(cell_type: str, cells: np.ndarray, nv: int, first: dict[int, int]
+def local_entities(cell_type: str, cells: np.ndarray, nv: int, first: dict[int, int]
                     ) -> dict[int, tuple[np.ndarray, int]]:
     """The entity index of the local dof points (degree 2), in local vertex numbers.
 
@@ -329,7 +329,7 @@ def _local_entities(cell_type: str, cells: np.ndarray, nv: int, first: dict[int,
     out: dict[int, tuple[np.ndarray, int]] = {}
     for dim, local in degree2_entities(cell_type) if first else ():
         v = cells[:, np.array(local)]
-        out[dim] = (np.unique(_row_keys(v.reshape(-1, v.shape[2]), nv)), first[dim])
+        out[dim] = (np.unique(row_keys(v.reshape(-1, v.shape[2]), nv)), first[dim])
     return out
 
 

@@ -34,17 +34,17 @@ from .exchange import answer, exchange
 from .mesh.distributed_decompose import decompose_distributed
 from .mesh.distributed_points import (
     SubdomainDirectory,
-    _ranges,
-    _unique,
+    index_ranges,
     migrate,
     number_points,
     owners,
     point_coordinates,
+    unique_sorted,
 )
 from .mesh.dofpoints import DofPoints, dof_points
 from .mesh.topology import REFERENCE, locate_few_facets
 from .problem import RigidObstacle
-from .share import LocalDecomposition, RankRows, RankShare, _local_entities, row_subset
+from .share import LocalDecomposition, RankRows, RankShare, local_entities, row_subset
 from .timing import Timer
 
 
@@ -193,7 +193,7 @@ def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree
     local_mesh = replace(mesh.names_only(), x=x, cells=local_cells, cell_body=cell_body,
                          node_tags=node_tags, counts={}, part=None)
     local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
-    entities = _local_entities(mesh.cell_type, local_cells, vids.size, local_first)
+    entities = local_entities(mesh.cell_type, local_cells, vids.size, local_first)
     points = DofPoints(degree, mesh.cell_type, point_x, local_points, vids.size, entities)
     return local_mesh, points, pids, vids
 
@@ -206,7 +206,7 @@ def _compact(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """
     lo, hi = (int(cells.min()), int(cells.max())) if cells.size else (0, -1)
     if hi - lo >= cells.size:
-        vids, _, inverse = _unique(cells.ravel())
+        vids, _, inverse = unique_sorted(cells.ravel())
         return vids, inverse.reshape(cells.shape)
     mark = np.zeros(hi - lo + 1, dtype=bool)
     mark[cells - lo] = True
@@ -295,7 +295,7 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
              "tags": local_mesh.node_tags[local_mesh.cells[sc]], "cp": cell_points[sc],
              "f_vert": f_vert, "f_group": f_group, "f_index": f_index,
              "points": pids[sp], "counts": counts, "fixed": nodes.fixed[sp],
-             "subs": nodes.subs[_ranges(nodes.ptr[sp], counts)]}
+             "subs": nodes.subs[index_ranges(nodes.ptr[sp], counts)]}
     pieces = comm.gather(piece, root=0)
     surface = out = None
     with collective(comm, "constraints"):
@@ -364,7 +364,7 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     _, first = np.unique(points, return_index=True)  # a point sent by several ranks
     at = first[np.searchsorted(points[first], gmap)]
     node_ptr = np.r_[0, np.cumsum(counts[at])].astype(np.int64)
-    node_subs = subs[_ranges(first_sub[at], counts[at])]
+    node_subs = subs[index_ranges(first_sub[at], counts[at])]
     return mesh, gmap, node_ptr, node_subs.astype(np.int32), fixed[at]
 
 

@@ -50,7 +50,12 @@ def imports(path: str, tree: ast.AST, known: set[str]) -> list[tuple[str, list[s
     here = module_name(path).split(".")
     package = here if path.endswith("__init__.py") else here[:-1]
     out = []
+    typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                   and getattr(block.test, "id", None) == "TYPE_CHECKING"
+                   for n in ast.walk(block)}
     for node in ast.walk(tree):
+        if id(node) in typing_only:  # annotations only: not an import at run time
+            continue
         if isinstance(node, ast.ImportFrom):
             base = package[:len(package) - node.level + 1] if node.level else []
             mod = ".".join(base + (node.module.split(".") if node.module else [])) \

@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti.mesh import topology
-from dolfinx_feti.mesh.decompose import ByFunction, ByTags, Parts, _assign_ranks, decompose, rcb
+from dolfinx_feti.mesh.decompose import ByFunction, ByTags, Parts, assign_ranks, decompose, rcb
 
 # ------------------------------------------------------------------------------------------
 # Small meshes built here
@@ -296,7 +296,7 @@ def test_unknown_decomposition():
 @pytest.mark.parametrize("nsub", [1, 3, 7, 12, 30])
 def test_rank_assignment(size, nsub):
     w = np.random.default_rng(nsub * 100 + size).integers(1, 50, nsub)
-    r = _assign_ranks(w, size)
+    r = assign_ranks(w, size)
     assert r.shape == (nsub,)
     assert r.min() >= 0 and r.max() < size
     assert np.all(np.diff(r) >= 0)  # contiguous blocks in subdomain order

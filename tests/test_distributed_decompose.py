@@ -306,7 +306,7 @@ def test_split_components_with_large_vertex_numbers(name):
     """Vertex numbers too large for int64 facet keys (the keys are then the rows' bytes)."""
     mesh = _mesh(name)
     cells = mesh.cells * 1_000_003 + 7
-    assert topology._row_keys(cells[:1, :4], int(cells.max()) + 1).dtype.kind == "V"
+    assert topology.row_keys(cells[:1, :4], int(cells.max()) + 1).dtype.kind == "V"
     label = np.random.default_rng(0).integers(0, 3, cells.shape[0])
     ref = _split_components(mesh.cells, label, mesh.cell_type)
     np.testing.assert_array_equal(_split_components(cells, label, mesh.cell_type), ref)

@@ -222,13 +222,13 @@ def test_local_vertex_numbers_are_those_of_unique(spread):
 
 def _unmatched_facets(mesh, owner, size):
     """The fraction of the blocks' facets that no other cell of the same block has."""
-    from dolfinx_feti.mesh.topology import _row_keys, cell_facets
+    from dolfinx_feti.mesh.topology import cell_facets, row_keys
 
     single = total = 0
     for r in range(size):
         cells = mesh.cells[owner == r]
         f = cell_facets(cells, mesh.cell_type)
-        keys = _row_keys(np.sort(f.reshape(-1, f.shape[-1]), axis=1), mesh.num_nodes)
+        keys = row_keys(np.sort(f.reshape(-1, f.shape[-1]), axis=1), mesh.num_nodes)
         _, count = np.unique(keys, return_counts=True)
         single += int(np.sum(count == 1))
         total += keys.size

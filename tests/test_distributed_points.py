@@ -22,7 +22,7 @@ from dolfinx_feti.errors import InputError
 from dolfinx_feti.mesh import distributed_points as dp
 from dolfinx_feti.mesh.decompose import Parts, decompose
 from dolfinx_feti.mesh.dofpoints import dof_points
-from dolfinx_feti.mesh.topology import REFERENCE, _row_keys
+from dolfinx_feti.mesh.topology import REFERENCE, row_keys
 
 COMM = MPI.COMM_WORLD
 
@@ -158,7 +158,7 @@ def check_directory(dec, points, ptr, subs, want_points):
     sptr, ssubs = dec.node_subdomains()
     start, stop = sptr[points], sptr[points + 1]
     assert np.array_equal(np.diff(ptr), stop - start)
-    assert np.array_equal(subs, ssubs[dp._ranges(start, stop - start)])
+    assert np.array_equal(subs, ssubs[dp.index_ranges(start, stop - start)])
 
 
 def test_hexahedron_keys_are_bytes_on_the_large_mesh():
@@ -166,10 +166,10 @@ def test_hexahedron_keys_are_bytes_on_the_large_mesh():
     whose order is bytewise (not that of the vertex numbers)."""
     mesh = serial("hexahedra, byte keys", 2)[0]
     faces = mesh.cells[:, np.array(REFERENCE["hexahedron"].facets)].reshape(-1, 4)
-    assert _row_keys(faces, mesh.num_nodes).dtype.kind == "V"
-    assert _row_keys(mesh.cells, mesh.num_nodes).dtype.kind == "V"
+    assert row_keys(faces, mesh.num_nodes).dtype.kind == "V"
+    assert row_keys(mesh.cells, mesh.num_nodes).dtype.kind == "V"
     edges = mesh.cells[:, np.array(REFERENCE["hexahedron"].edges)].reshape(-1, 2)
-    assert _row_keys(edges, mesh.num_nodes).dtype == np.int64
+    assert row_keys(edges, mesh.num_nodes).dtype == np.int64
 
 
 @pytest.mark.parametrize("kind", ["int64", "void"])
@@ -189,7 +189,7 @@ def test_sample_sort_ranks_keys_in_the_union(kind):
 def _keys(rng, kind, n):
     """Keys of random sorted rows of small integers: many repeats, skewed (squared) values."""
     rows = np.sort(rng.integers(0, 6, (n, 4)) ** 2, axis=1)
-    return _row_keys(rows, 36 if kind == "int64" else None)
+    return row_keys(rows, 36 if kind == "int64" else None)
 
 
 def test_bad_input_raises_on_every_rank():

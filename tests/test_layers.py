@@ -27,3 +27,19 @@ def test_import_contracts_hold():
     run = subprocess.run([str(exe), "--no-cache"], cwd=ROOT, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "0 broken" in run.stdout
+
+
+def _figures():
+    sys.path.insert(0, str(ROOT / "scripts"))
+    try:
+        import code_figures
+    finally:
+        sys.path.pop(0)
+    return code_figures.figures(code_figures.sources(None))
+
+
+@pytest.mark.serial
+def test_no_import_cycle_and_no_private_import_across_modules():
+    f = _figures()
+    assert f["import_cycles"] == []
+    assert f["private_imports"] == []

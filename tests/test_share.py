@@ -18,7 +18,7 @@ import dolfinx_feti as df
 from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.mesh.decompose import decompose
 from dolfinx_feti.mesh.dofpoints import degree2_entities
-from dolfinx_feti.mesh.topology import _row_keys
+from dolfinx_feti.mesh.topology import row_keys
 from dolfinx_feti.share import share_out
 
 COMM = MPI.COMM_WORLD
@@ -122,11 +122,11 @@ def test_entity_keys_sort_as_the_sorted_rows():
     rows = 13 * small + 7  # global ones: a monotone renumbering, crossing 256
     s = np.sort(rows, axis=1)
     want = np.lexsort(s.T[::-1])
-    keys = _row_keys(rows, int(rows.max()) + 1)
+    keys = row_keys(rows, int(rows.max()) + 1)
     assert keys.dtype.kind == "V"  # 1958**8 > 2**62: the rows' bytes
     assert np.array_equal(np.argsort(keys, kind="stable"), want)
-    assert np.array_equal(np.argsort(_row_keys(rows), kind="stable"), want)
-    local = _row_keys(small, 150)
+    assert np.array_equal(np.argsort(row_keys(rows), kind="stable"), want)
+    local = row_keys(small, 150)
     assert local.dtype.kind == "i"  # 150**8 < 2**62: int64 keys, the same order
     assert np.array_equal(np.argsort(local, kind="stable"), want)
 

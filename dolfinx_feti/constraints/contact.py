@@ -6,8 +6,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
-from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import surface_points
 from ..problem import NodeToNode, RigidObstacle
 from .rows import Kind, Rows

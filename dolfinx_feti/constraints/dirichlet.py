@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..mesh.gmsh_input import MeshData
+from ..mesh.data import MeshData
 from ..problem import ContactProblem, Dirichlet
 from ..validation import evaluate
 from .rows import Kind, Rows

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..mesh.gmsh_input import MeshData
+from ..mesh.data import MeshData
 from ..problem import ContactProblem, Coulomb, Tresca
 from ..validation import evaluate
 from .contact import surface

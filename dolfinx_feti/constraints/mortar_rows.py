@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.checks import boundary_facets
-from ..mesh.gmsh_input import MeshData
+from ..mesh.data import MeshData
 from ..problem import Mortar, Tie
 from .contact import surface
 from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim

@@ -28,8 +28,8 @@ from scipy.sparse.csgraph import connected_components
 
 from ..constraints.rows import Kind, Rows
 from ..mesh.checks import boundary_facets
+from ..mesh.data import MeshData
 from ..mesh.decompose import Decomposition
-from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import facet_neighbours
 from .rigid import rigid_motions
 

@@ -40,8 +40,8 @@ from mpi4py import MPI
 
 from ..errors import collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
-from ..mesh.distributed_points import _ranges
-from ..mesh.topology import REFERENCE, _row_keys, cell_facets
+from ..mesh.distributed_points import index_ranges
+from ..mesh.topology import REFERENCE, cell_facets, row_keys
 from .corners import (
     body_label,
     box_scale,
@@ -112,7 +112,7 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     facets = cell_facets(cells[near], ct).reshape(near.size * nf, nvf)
     keep = np.flatnonzero(inter[facets].any(axis=1))
     facets, facet_cell = facets[keep], near[keep // nf]
-    keys = _row_keys(facets, mesh.x.shape[0])
+    keys = row_keys(facets, mesh.x.shape[0])
     order = np.argsort(keys, kind="stable")
     same = keys[order][1:] == keys[order][:-1]
     sub = share.dec.cell_sub
@@ -126,7 +126,7 @@ def _facet_pairs_and_boundary(share, comm: MPI.Comm) -> tuple[np.ndarray, np.nda
     home = Blocks(share.num_points, comm.size).home(global_f.sum(axis=1) % share.num_points)
     (got, got_sub), order, counts, rcounts = exchange(
         comm, home, global_f, sub[facet_cell[f]].astype(np.int64))
-    _, inverse, count = np.unique(_row_keys(got, share.num_points), return_inverse=True,
+    _, inverse, count = np.unique(row_keys(got, share.num_points), return_inverse=True,
                                   return_counts=True)
     inverse = inverse.ravel()
     is_outer = count[inverse] == 1
@@ -267,7 +267,7 @@ def _floating_motions(share, comp: np.ndarray, bs: int, body_names, comm: MPI.Co
     p, c = dec.pair_node[sel], pc[sel]
     n_subs = np.diff(d.ptr)[p]
     e_pair = np.repeat(np.arange(sel.size), n_subs)
-    e_sub = d.subs[_ranges(d.ptr[p], n_subs)]
+    e_sub = d.subs[index_ranges(d.ptr[p], n_subs)]
     hit = np.flatnonzero(comp[e_sub] == c[e_pair])  # the subdomains of a point ascend
     _, first = np.unique(e_pair[hit], return_index=True)  # every pair's own one is a hit
     counted = e_sub[hit[first]] == pair_sub[sel]

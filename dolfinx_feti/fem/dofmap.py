@@ -17,7 +17,7 @@ from ..mesh.dofpoints import DofPoints
 from ..mesh.topology import REFERENCE
 
 
-def _local_entities(cell_type: str) -> dict[int, tuple[tuple[int, ...], ...]]:
+def local_entities(cell_type: str) -> dict[int, tuple[tuple[int, ...], ...]]:
     """dim → the reference entities of that dimension as lists of local vertices."""
     ref = REFERENCE[cell_type]
     out = {0: tuple((i,) for i in range(ref.num_vertices)), 1: ref.edges,
@@ -44,7 +44,7 @@ def cell_dof_points(V, vertex_id: np.ndarray, points: DofPoints
         ValueError: If an entity of the mesh has no dof point (the mesh is not the one the
             points were made for).
     """
-    local = _local_entities(points.cell_type)
+    local = local_entities(points.cell_type)
     nv = len(local[0])
     geom = compat.cell_geometry_nodes(compat.space_mesh(V))[:, :nv]  # the vertices come first
     cv = np.asarray(vertex_id, dtype=np.int64)[geom]

@@ -18,9 +18,9 @@ from ufl.corealg.traversal import unique_pre_traversal
 from .. import compat
 from ..errors import InputError
 from ..mesh.checks import check_boundary_group
+from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
-from ..mesh.gmsh_input import MeshData
-from ..mesh.topology import _row_keys
+from ..mesh.topology import row_keys
 from .dofmap import cell_dof_points
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
@@ -140,7 +140,7 @@ class Subdomain:
             return {}, None
         allf = np.concatenate([facets[n] for n in names])
         group = np.concatenate([np.full(facets[n].shape[0], i) for i, n in enumerate(names)])
-        keys = _row_keys(allf)
+        keys = row_keys(allf)
         ukeys, first, inv = np.unique(keys, return_index=True, return_inverse=True)
         member = np.zeros((ukeys.size, len(names)), dtype=bool)
         member[inv, group] = True

@@ -38,11 +38,11 @@ from .system import (
     EQUALITY,
     BlockSystem,
     PreconditionerOperands,
-    _Rows,
+    RowOperands,
     local_csr,
     petsc_aij,
 )
-from .transforms import _drop_small, recover_multipliers, row_max, select_rows
+from .transforms import drop_small, recover_multipliers, row_max, select_rows
 
 #: Entries of B̃ = B E below this times the largest entry of their row are cancellations
 #: (the two copies of a corner dof in a gluing row).
@@ -55,7 +55,7 @@ def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0, dtype)
 
 
-class CornerSystem(_Rows):
+class CornerSystem(RowOperands):
     """The primal problem after the corners are assembled (built by :class:`EliminateCorners`).
 
     Has what :class:`~dolfinx_feti.feti.dualize.Dualization` needs: ``B``, ``f``, ``c``,
@@ -148,7 +148,7 @@ class EliminateCorners:
 
         # B̃ = B E without the rows that vanished (gluing between copies of one corner dof)
         Bt = parent.B.matMult(self.E)
-        Bl = _drop_small(local_csr(Bt), CANCEL_RTOL, row_max(local_csr(parent.B)))
+        Bl = drop_small(local_csr(Bt), CANCEL_RTOL, row_max(local_csr(parent.B)))
         Bt.destroy()
         empty = np.diff(Bl.indptr) == 0
         self.kept = ~(empty & (parent.types == EQUALITY))

@@ -95,7 +95,7 @@ def nullspace_columns(M: np.ndarray, tol: float = KERNEL_TOL) -> np.ndarray:
     return Vt[sv <= tol * max(sv.max(initial=0.0), 1.0)].T
 
 
-class _Rows:
+class RowOperands:
     """The row and column layout of a primal system with constraint matrix B."""
 
     def _set_rows(self, B: PETSc.Mat, c: np.ndarray, types: np.ndarray) -> None:
@@ -131,7 +131,7 @@ class _Rows:
         return own
 
 
-class BlockSystem(_Rows):
+class BlockSystem(RowOperands):
     """A FETI primal problem with block-diagonal K, distributed by blocks over the ranks.
 
     Args:

@@ -33,7 +33,7 @@ def select_rows(B: PETSc.Mat, keep: np.ndarray, drop_below: float = 0.0) -> PETS
     """
     Bl = local_csr(B)
     if drop_below > 0:
-        Bl = _drop_small(Bl, drop_below)
+        Bl = drop_small(Bl, drop_below)
     Bl = Bl[np.flatnonzero(keep)]
     n = int(keep.sum())
     return petsc_aij(Bl, (n, B.getComm().tompi4py().allreduce(n)), B.getSizes()[1],
@@ -49,7 +49,7 @@ def row_max(A: sp.csr_matrix) -> np.ndarray:
     return out
 
 
-def _drop_small(A: sp.csr_matrix, rtol: float, scale: np.ndarray | None = None
+def drop_small(A: sp.csr_matrix, rtol: float, scale: np.ndarray | None = None
                 ) -> sp.csr_matrix:
     """A without the entries below rtol times ``scale`` of their row (default: the row's max).
 

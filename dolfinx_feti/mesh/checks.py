@@ -30,15 +30,15 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
-from .gmsh_input import MeshData
+from .data import MeshData
 from .topology import (
-    _facet_index,
-    _row_keys,
     cell_facets,
     cell_volumes,
     corner_jacobians,
+    facet_index,
     facets_per_cell,
     reference,
+    row_keys,
 )
 
 #: A cell with |volume| <= DEGENERATE_RTOL · (its longest edge)^tdim has no volume.
@@ -135,7 +135,7 @@ def _check_folds(mesh: MeshData) -> None:
     if cells.shape[0] < 2:
         return
     nf = facets_per_cell(cells, ct)
-    keys, order, _ = _facet_index(cells, ct)
+    keys, order, _ = facet_index(cells, ct)
     same = keys[1:] == keys[:-1]
     triple = same[1:] & same[:-1]
     if np.any(triple):
@@ -240,7 +240,7 @@ def boundary_facets(mesh: MeshData) -> tuple[np.ndarray, np.ndarray]:
     """The facets that belong to one cell only, and that cell: ``(facets (F, nvf), cell)``."""
     ct = mesh.cell_type
     nf = facets_per_cell(mesh.cells, ct)
-    keys, order, _ = _facet_index(mesh.cells, ct)
+    keys, order, _ = facet_index(mesh.cells, ct)
     n = keys.size
     single = np.ones(n, dtype=bool)
     same = keys[1:] == keys[:-1]
@@ -386,10 +386,10 @@ def check_boundary_group(mesh: MeshData, group: str, what: str = "boundary group
     """
     f = mesh.facets(group)
     nf = facets_per_cell(mesh.cells, mesh.cell_type)
-    keys, order, bound = _facet_index(mesh.cells, mesh.cell_type)
+    keys, order, bound = facet_index(mesh.cells, mesh.cell_type)
     if not f.size or f.max() >= bound:
         return
-    k = _row_keys(f, bound)
+    k = row_keys(f, bound)
     lo = np.searchsorted(keys, k, side="left")
     hi = np.searchsorted(keys, k, side="right")
     inner = np.flatnonzero(hi - lo >= 2)

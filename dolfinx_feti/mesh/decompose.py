@@ -17,8 +17,8 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
 from ..validation import Choice, Function, Integer, checked, per_body
+from .data import MeshData
 from .dofpoints import DofPoints
-from .gmsh_input import MeshData
 from .topology import cell_volumes, facet_neighbours
 
 #: The largest number of parts of one body that Parts accepts (it is also at most its cells).
@@ -228,7 +228,7 @@ def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int, cell_points: np
     sub_ptr = np.searchsorted(pair_sub, np.arange(nsub + 1)).astype(np.int64)
     sub_body = mesh.cell_body[first_of_each(cell_sub, nsub)]
     return Decomposition(cell_sub=cell_sub, sub_body=sub_body,
-                         sub_rank=_assign_ranks(np.diff(sub_ptr), comm_size),
+                         sub_rank=assign_ranks(np.diff(sub_ptr), comm_size),
                          pair_sub=pair_sub, pair_node=pair_node, sub_ptr=sub_ptr, num_nodes=N)
 
 
@@ -254,7 +254,7 @@ def first_of_each(labels: np.ndarray, k: int) -> np.ndarray:
     return by_label.indices[by_label.indptr[:-1]].astype(np.int64)
 
 
-def _assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
+def assign_ranks(weights: np.ndarray, comm_size: int) -> np.ndarray:
     """Contiguous blocks of subdomains with balanced total weight (node count).
 
     No rank is left without a subdomain when there are at least as many subdomains as ranks.

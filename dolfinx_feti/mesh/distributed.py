@@ -36,8 +36,8 @@ from .checks import (
     nonconforming_nodes,
     unfit_groups,
 )
+from .data import MeshData
 from .decompose import midpoints_of
-from .gmsh_input import MeshData
 from .topology import locate_facets
 
 

@@ -34,7 +34,7 @@ from ..distributed_graph import component_minima
 from ..errors import InputError, collective
 from ..exchange import Blocks, answer, exchange, exclusive_scan
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
-from .topology import _row_keys, cell_facets, cell_volumes, reference
+from .topology import cell_facets, cell_volumes, reference, row_keys
 
 #: The number of sample points that all ranks together propose per selection round (bounds
 #: the data of a round; each work item gets at most 64 per rank).
@@ -367,7 +367,7 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
     nf, nvf = len(ref.facets), len(ref.facets[0])
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
     facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
-    keys = _row_keys(facets, nv)
+    keys = row_keys(facets, nv)
     order = np.argsort(keys, kind="stable")
     same = keys[order][1:] == keys[order][:-1]
     pairs = np.stack([order[:-1][same] // nf, order[1:][same] // nf], axis=1)
@@ -387,7 +387,7 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
     rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
     home = Blocks(nv, comm.size).home(facets[f].sum(axis=1) % max(nv, 1))
     (got,), _, _, _ = exchange(comm, home, rows)
-    _, inv = np.unique(_row_keys(got[:, :nvf], nv), return_inverse=True)
+    _, inv = np.unique(row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
     inv = np.sort(inv.ravel())
     link = (inv[1:] == inv[:-1]) & (got[1:, nvf] == got[:-1, nvf])

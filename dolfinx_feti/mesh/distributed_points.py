@@ -7,7 +7,7 @@ restricted to the rank's cells, without any rank holding an array of the size of
 
 - :func:`number_points`: the global dof points of the local cells. For degree 2 the points of
   the edges, faces and interiors are numbered, per dimension, in the order of their keys
-  (:func:`.topology._row_keys`: int64 keys, or byte strings compared bytewise). A sample sort
+  (:func:`.topology.row_keys`: int64 keys, or byte strings compared bytewise). A sample sort
   routes each key to the rank whose key range holds it (splitters compared with NumPy's own
   ordering of the keys, so both kinds of key sort as in the serial ``np.unique``); that rank
   numbers its distinct keys, and the ranks' key ranges follow one another, so the number of a
@@ -30,9 +30,9 @@ from mpi4py import MPI
 
 from ..errors import InputError, collective
 from ..exchange import Blocks, answer, exchange
-from .decompose import _assign_ranks
+from .decompose import assign_ranks
 from .dofpoints import degree2_entities
-from .topology import REFERENCE, _row_keys
+from .topology import REFERENCE, row_keys
 
 #: Samples each rank contributes per rank of the communicator to choose the sort's splitters
 #: (more samples: key ranges of more even size).
@@ -73,7 +73,7 @@ def number_points(cells: np.ndarray, cell_type: str, degree: int, num_vertices: 
     local, inverse = [], []
     for _, vertex_lists in entities:
         v = cells.T[np.array(vertex_lists)]  # (ne, nve, C): entity by entity (longer sorted runs)
-        keys, _, inv = _unique(_row_keys(v.transpose(0, 2, 1).reshape(-1, v.shape[1]), N))
+        keys, _, inv = unique_sorted(row_keys(v.transpose(0, 2, 1).reshape(-1, v.shape[1]), N))
         local.append(keys)
         inverse.append(inv.reshape(v.shape[0], C).T)
     numbers, totals = _rank_in_union(local, comm)
@@ -113,7 +113,7 @@ def point_coordinates(cell_points: np.ndarray, cells: np.ndarray, cell_x: np.nda
                               (degree2_entities(cell_type) if degree == 2 else ())]
     points, xs, start = [], [], 0
     for width, local in groups:
-        values, first, _ = _unique(cell_points[:, start:start + width].T.ravel(), False)
+        values, first, _ = unique_sorted(cell_points[:, start:start + width].T.ravel(), False)
         cell, slot = first % max(C, 1), first // max(C, 1)  # one cell holding each point
         if local is None:
             xs.append(cell_x[cell, slot])
@@ -216,7 +216,7 @@ class SubdomainDirectory:
         # Each sender's points arrive in its (ascending) order and go back in it, whole lists
         # by point, then subdomain; the homes' blocks ascend with their ranks: the rows arrive
         # sorted.
-        rows = _ranges(self._start[at], n) if self._held.size else np.zeros(0, np.int64)
+        rows = index_ranges(self._start[at], n) if self._held.size else np.zeros(0, np.int64)
         (back,), _, _, _ = exchange(comm, np.repeat(sender, n),
                                     np.column_stack([np.repeat(asked, n), self._sub[rows]]))
         held, start = _starts(back[:, 0])
@@ -232,7 +232,7 @@ def owners(sub_size: np.ndarray, comm_size: int) -> np.ndarray:
     Contiguous blocks of subdomains of balanced point counts; ``owners(...)[cell_sub]`` is
     the rank each cell moves to (:func:`migrate`).
     """
-    return _assign_ranks(np.asarray(sub_size, dtype=np.int64), int(comm_size))
+    return assign_ranks(np.asarray(sub_size, dtype=np.int64), int(comm_size))
 
 
 def migrate(dest: np.ndarray, *arrays: np.ndarray, comm: MPI.Comm,
@@ -303,7 +303,7 @@ def _rank_in_union(key_sets: list[np.ndarray], comm: MPI.Comm
         else:
             dest = np.zeros(keys.size, dtype=np.int64)
         (rows,), order, counts, rcounts = exchange(comm, dest, _as_rows(keys))
-        mine, _, inv = _unique(_from_rows(rows, keys.dtype))
+        mine, _, inv = unique_sorted(_from_rows(rows, keys.dtype))
         received.append(inv)
         routes.append((order, counts, rcounts))
         distinct.append(mine.size)
@@ -333,7 +333,7 @@ def _from_rows(rows: np.ndarray, dtype: np.dtype) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 
 
-def _unique(a: np.ndarray, inverse: bool = True
+def unique_sorted(a: np.ndarray, inverse: bool = True
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """``np.unique(a, return_index=True, return_inverse=inverse)`` (any index of each value).
 
@@ -350,7 +350,7 @@ def _unique(a: np.ndarray, inverse: bool = True
 
 
 def _distinct(a: np.ndarray) -> np.ndarray:
-    """The sorted distinct values of ``a`` (a stable sort, as in :func:`_unique`)."""
+    """The sorted distinct values of ``a`` (a stable sort, as in :func:`unique_sorted`)."""
     return _starts(np.sort(a, kind="stable"))[0]
 
 
@@ -362,7 +362,7 @@ def _starts(sorted_values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return sorted_values[start], start
 
 
-def _ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
+def index_ranges(start: np.ndarray, length: np.ndarray) -> np.ndarray:
     """The concatenated index ranges ``start[i]:start[i] + length[i]``."""
     total = int(length.sum())
     shift = np.repeat(start - (np.cumsum(length) - length), length)

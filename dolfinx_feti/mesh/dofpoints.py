@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from .gmsh_input import MeshData, answered_by_root
-from .topology import FACET_TYPE, REFERENCE, _row_keys, locate_facets
+from .data import MeshData, answered_by_root
+from .topology import FACET_TYPE, REFERENCE, locate_facets, row_keys
 
 
 def degree2_entities(cell_type: str) -> tuple[tuple[int, tuple[tuple[int, ...], ...]], ...]:
@@ -102,7 +102,7 @@ class DofPoints:
         if dim not in self.entities or vertices.shape[0] == 0:
             return np.full(vertices.shape[0], -1, dtype=np.int64)
         keys, first = self.entities[dim]
-        k = _row_keys(vertices, self.num_vertices)
+        k = row_keys(vertices, self.num_vertices)
         pos = np.minimum(np.searchsorted(keys, k), keys.size - 1)
         return np.where(keys[pos] == k, first + pos, -1)
 
@@ -209,7 +209,7 @@ def _build(mesh: MeshData, degree: int) -> DofPoints:
     for dim, local in _DEGREE2_ENTITIES[mesh.cell_type]:
         v = cells[:, np.array(local)]  # (C, ne, nve)
         flat = v.reshape(-1, v.shape[2])
-        keys, first, inv = np.unique(_row_keys(flat, N), return_index=True, return_inverse=True)
+        keys, first, inv = np.unique(row_keys(flat, N), return_index=True, return_inverse=True)
         parts.append(offset + inv.reshape(C, v.shape[1]))
         xs.append(_positions(mesh, dim, flat[first], keys))
         entities[dim] = (keys, offset)
@@ -229,7 +229,7 @@ def _positions(mesh: MeshData, dim: int, vertices: np.ndarray, keys: np.ndarray)
         return mesh.x[np.sort(vertices, axis=1)].mean(axis=1)
     ent, pos = mesh.high_order.get(dim, (np.zeros((0, vertices.shape[1]), dtype=np.int64),
                                          np.zeros((0, mesh.gdim))))
-    k = _row_keys(ent, mesh.num_nodes)
+    k = row_keys(ent, mesh.num_nodes)
     order = np.argsort(k)
     at = np.searchsorted(k[order], keys)
     at = np.minimum(at, max(k.size - 1, 0))

@@ -25,9 +25,9 @@ from mpi4py import MPI
 from .. import compat
 from ..errors import InputError, collective
 from ..exchange import answer, exchange
+from .data import MeshData, answered_by_root
 from .dofpoints import degree2_entities
-from .gmsh_input import MeshData, answered_by_root
-from .topology import REFERENCE, _row_keys, cell_facets, locate_facets
+from .topology import REFERENCE, cell_facets, locate_facets, row_keys
 
 
 @dataclass(frozen=True)
@@ -316,7 +316,7 @@ def _global(parts: list[LocalPart], mesh, cell_type: str,
             raise InputError("from_dolfinx: tagged facets have vertices in no cell")
         # One facet per (tag, vertex set) (a facet on a rank boundary is tagged on both
         # ranks), in the vertex order of the facet in its cell: the same for any ranks.
-        keys = _row_keys(pos, used.size)
+        keys = row_keys(pos, used.size)
         key_rank = np.searchsorted(np.unique(keys), keys)
         one = np.unique(np.stack([fval, key_rank], axis=1), axis=0, return_index=True)[1]
         fglob, fval_u = pos[one], fval[one]
@@ -337,7 +337,7 @@ def _global(parts: list[LocalPart], mesh, cell_type: str,
             ents = cells[:, np.array(local)]  # (C, ne, nve)
             ne = ents.shape[1]
             flat = ents.reshape(-1, ents.shape[2])
-            _, one = np.unique(_row_keys(flat, used.size), return_index=True)
+            _, one = np.unique(row_keys(flat, used.size), return_index=True)
             high_order[dim] = (flat[one], hx[:, col:col + ne].reshape(-1, hx.shape[2])[one])
             col += ne
 

@@ -13,7 +13,7 @@ from mpi4py import MPI
 
 from ..exchange import answer, exchange
 from .dofpoints import degree2_entities
-from .topology import _row_keys
+from .topology import row_keys
 
 
 def _home(vertices: np.ndarray, size: int) -> np.ndarray:
@@ -54,7 +54,7 @@ class PointDirectory:
             column += len(local)
             flat = v.reshape(-1, v.shape[2])
             (rv, rp), *_ = exchange(comm, _home(flat, comm.size), flat, pts.ravel())
-            keys = _row_keys(rv, num_vertices)
+            keys = row_keys(rv, num_vertices)
             keys, first = np.unique(keys, return_index=True)
             self._tables[dim] = (keys, rp[first])
 
@@ -74,7 +74,7 @@ class PointDirectory:
         flat = np.sort(vertices, axis=1)
         (asked,), order, counts, rcounts = exchange(self.comm, _home(flat, self.comm.size), flat)
         keys, pts = self._tables.get(dim, (np.zeros(0, dtype=np.int64), np.zeros(0, np.int64)))
-        k = _row_keys(asked, self.num_vertices)
+        k = row_keys(asked, self.num_vertices)
         if keys.size:
             pos = np.minimum(np.searchsorted(keys, k), keys.size - 1)
             found = np.where(keys[pos] == k, pts[pos], -1)

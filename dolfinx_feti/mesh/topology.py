@@ -58,7 +58,7 @@ def reference(cells: np.ndarray, cell_type: str | None = None) -> ReferenceCell:
     return ref
 
 
-def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
+def row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
     """One sortable scalar per row of a non-negative integer array, the same for permuted rows.
 
     With ``bound`` (all entries < bound) and bound**width < 2**63 the key is an int64 (fast to
@@ -81,7 +81,7 @@ def _row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
 _FACET_INDEX: list = []  # (cells, sorted keys, order): one mesh's facet index, kept for reuse
 
 
-def _facet_index(cells: np.ndarray, cell_type: str | None = None
+def facet_index(cells: np.ndarray, cell_type: str | None = None
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """Sorted keys of all cell facets and their positions (cached for the last cells array).
 
@@ -91,7 +91,7 @@ def _facet_index(cells: np.ndarray, cell_type: str | None = None
         return _FACET_INDEX[0][1:]
     f = cell_facets(cells, cell_type)
     bound = int(cells.max()) + 1 if cells.size else 1
-    keys = _row_keys(f.reshape(-1, f.shape[2]), bound)
+    keys = row_keys(f.reshape(-1, f.shape[2]), bound)
     order = np.argsort(keys, kind="stable")
     _FACET_INDEX[:] = [(cells, keys[order], order, bound)]
     return keys[order], order, bound
@@ -113,7 +113,7 @@ def facets_per_cell(cells: np.ndarray, cell_type: str | None = None) -> int:
 def facet_neighbours(cells: np.ndarray, cell_type: str | None = None) -> np.ndarray:
     """Pairs of cells that share a facet, shape (P, 2)."""
     nf = facets_per_cell(cells, cell_type)
-    sorted_keys, order, _ = _facet_index(cells, cell_type)
+    sorted_keys, order, _ = facet_index(cells, cell_type)
     same = sorted_keys[1:] == sorted_keys[:-1]
     owner = order // nf
     return np.stack([owner[:-1][same], owner[1:][same]], axis=1)
@@ -143,11 +143,11 @@ def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None =
     Returns ``(cell, local)``; both are -1 for a facet that is no facet of any cell.
     """
     nf = facets_per_cell(cells, cell_type)
-    sorted_keys, order, bound = _facet_index(cells, cell_type)
+    sorted_keys, order, bound = facet_index(cells, cell_type)
     facets = np.asarray(facets)
     if facets.size and facets.max() >= bound:
         return np.full(facets.shape[0], -1), np.full(facets.shape[0], -1)
-    keys = _row_keys(facets, bound)
+    keys = row_keys(facets, bound)
     pos = np.searchsorted(sorted_keys, keys)
     pos = np.minimum(pos, order.size - 1)
     hit = sorted_keys[pos] == keys if order.size else np.zeros(keys.size, dtype=bool)
