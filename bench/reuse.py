@@ -47,7 +47,8 @@ SOLVE_PHASES = ("iterations", "recovery", "total")
 
 def hertz2d(mesh, scale: float) -> df.ContactProblem:
     return df.ContactProblem(
-        mesh, df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -scale * 10.0 / 2 / 8.0)}),
+        mesh, df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -10.0 / 2 / 8.0)},
+                            load_factor=scale),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
         contact=[df.Mortar(slave="disk_contact", master="block_contact")],
         decomposition=df.Parts(2))
@@ -64,7 +65,7 @@ def sphere3d(mesh, scale: float, parts: int) -> df.ContactProblem:
 
 def b1(mesh, scale: float, H: float) -> df.ContactProblem:
     return df.ContactProblem(
-        mesh, df.Poisson(source=lambda x: scale * P.b1_source(x)),
+        mesh, df.Poisson(source=P.b1_source, load_factor=scale),
         dirichlet=[df.Dirichlet("dirichlet")],
         contact=[df.NodeToNode("contact_left", "contact_right")], decomposition=P.grid(H))
 

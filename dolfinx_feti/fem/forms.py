@@ -34,10 +34,11 @@ _VECTOR = Either(Vector(), Function(), what="a sequence of numbers (one per coor
 _SCALAR = Either(Real(finite=False), Function(), what="a number or a function of the UFL "
                  "spatial coordinate x")
 _DEGREE = Maybe(Integer(ge=1, le=2))
+_FACTOR = Real()
 ELASTICITY = {"E": _NUMBER, "nu": _NUMBER, "tractions": MappingOf(Text(), _VECTOR),
-              "body_force": Maybe(_VECTOR), "degree": _DEGREE}
+              "body_force": Maybe(_VECTOR), "degree": _DEGREE, "load_factor": _FACTOR}
 POISSON = {"source": _SCALAR, "flux": MappingOf(Text(), _SCALAR), "k": _NUMBER,
-           "degree": _DEGREE}
+           "degree": _DEGREE, "load_factor": _FACTOR}
 
 Scalar = float | Mapping[str, float]
 
@@ -53,6 +54,13 @@ def _per_body(value, mesh, what: str) -> dict[str, float]:
             raise InputError(f"{what}: no value for bodies {sorted(missing)}")
         return {k: float(v) for k, v in value.items()}
     return dict.fromkeys(mesh.body_names, float(value))
+
+
+def _scaled(L, factor: float, V):
+    """``factor · L`` with the factor a runtime constant (None for no linear form)."""
+    if not isinstance(L, ufl.Form):
+        return None if L is None or L == 0 else L
+    return L if L.empty() else compat.constant(compat.space_mesh(V), factor) * L
 
 
 def _frozen(value):
@@ -85,6 +93,10 @@ class Elasticity:
         body_force: A constant vector, or ``body_force(x)`` of the UFL spatial coordinate.
         degree: Degree of the Lagrange space of the displacement (1 or 2); by default the
             degree of the mesh's geometry (2 on a curved second-order mesh, else 1).
+        load_factor: Multiplies every load (tractions and body force). A runtime constant of
+            the compiled form, as the numbers given for the loads are: load steps and load
+            cases of one shape (``FetiSolver.update``) compile nothing, also when the loads
+            are functions of x.
     """
 
     value_size = "vector"
@@ -92,10 +104,11 @@ class Elasticity:
     def __init__(self, E: Scalar, nu: Scalar, *,
                  tractions: Mapping[str, Sequence[float]] | None = None,
                  body_force: Sequence[float] | Callable | None = None,
-                 degree: int | None = None) -> None:
+                 degree: int | None = None, load_factor: float = 1.0) -> None:
         args = check_arguments("Elasticity", ELASTICITY, {
             "E": E, "nu": nu, "tractions": tractions or {}, "body_force": body_force,
-            "degree": degree})
+            "degree": degree, "load_factor": load_factor})
+        self.load_factor = args["load_factor"]
         self.E, self.nu = args["E"], args["nu"]
         self.tractions = args["tractions"]
         self.body_force = args["body_force"]
@@ -162,7 +175,7 @@ class Elasticity:
                 tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
                                                               [float(c) for c in t])
                 L += ufl.inner(tv, v) * sub.ds(name)
-        return a, L or None
+        return a, _scaled(L, self.load_factor, V)
 
 
 class Poisson:
@@ -173,14 +186,18 @@ class Poisson:
         flux: Boundary group → g (a number or a function of x).
         k: Conductivity: a number or body name → number (positive).
         degree: Degree of the Lagrange space (1 or 2); by default that of the mesh's geometry.
+        load_factor: Multiplies the source and the fluxes, as a runtime constant (see
+            :class:`Elasticity`).
     """
 
     value_size = 1
 
     def __init__(self, source: float | Callable = 0.0, *, flux: Mapping | None = None,
-                 k: Scalar = 1.0, degree: int | None = None) -> None:
+                 k: Scalar = 1.0, degree: int | None = None, load_factor: float = 1.0) -> None:
         args = check_arguments("Poisson", POISSON, {"source": source, "flux": flux or {}, "k": k,
-                                                  "degree": degree})
+                                                  "degree": degree,
+                                                  "load_factor": load_factor})
+        self.load_factor = args["load_factor"]
         self.source, self.flux, self.k = args["source"], args["flux"], args["k"]
         self.degree = args["degree"]
         self._k = None
@@ -212,4 +229,4 @@ class Poisson:
         for name, g in self.flux.items():
             if sub.has_facets(name):
                 L += (g(x) if callable(g) else compat.constant(msh, g)) * v * sub.ds(name)
-        return a, L
+        return a, _scaled(L, self.load_factor, V)
