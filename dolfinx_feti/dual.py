@@ -202,8 +202,11 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     Raises:
         InputError: When the load on a floating body cannot be balanced (``e ∉ Im G``).
     """
-    if method not in (*METHODS, "auto"):
-        raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
+    if method not in (*METHODS, "auto", "tbeti"):
+        raise InputError(f"method must be one of {(*METHODS, 'auto', 'tbeti')}, got {method!r}")
+    if method == "tbeti":  # Total BETI (dolfinx_feti/bem): refuse what it cannot take, early
+        from .bem.tbeti import check_problem
+        check_problem(problem)
     timer = Timer() if timer is None else timer
     bs = problem.value_size
     held = problem.mesh.root_only
@@ -244,6 +247,9 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
 def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, factor,
                  norm_rtol: float, timer: Timer, mortar: list, fdata, surface=None) -> DualQP:
     """Assemble this rank's subdomains and chain the method's transforms (collective)."""
+    if method == "tbeti":  # boundary element subdomains (dolfinx_feti/bem/tbeti.py)
+        from .bem.tbeti import tbeti_qp
+        return tbeti_qp(problem, share, comm, factor, norm_rtol, timer, mortar, fdata, surface)
     data = assemble_subdomains(problem, share, comm, timer)
     info: dict = {}
     with timer.phase("constraints"):

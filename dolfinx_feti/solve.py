@@ -110,7 +110,8 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                     "equality": rows.size - n_ineq - n_tang, "subdomains": dec.num_subdomains,
                     "coarse": int(feti.coarse_size), "coarse_rank": int(qp.constraint.m),
                     "ranks": comm.size}
-    report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP"}[qp.method]
+    report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP",
+                     "tbeti": "TBETI"}[qp.method]
     if qp.method != "tfeti":
         report.sizes["dual_method"] = int(feti.dual_size[1])
     report.sizes.update(qp.info)

@@ -1,0 +1,56 @@
+"""gmsh models of the Total BETI tests and benchmarks (structured triangles, no volume loads).
+
+Run them through :func:`dolfinx_feti.build_mesh`.
+"""
+
+from __future__ import annotations
+
+import gmsh
+
+from ..meshes import _add_group, _add_structured_box, _set_output_options, physical_groups
+
+
+def two_squares(n: int, m: int | None = None, *, stacked: bool = False
+                ) -> dict[str, tuple[int, int]]:
+    """Two unit squares with their own nodes on the common side, n (and m) cells a side.
+
+    Side by side (default): "left" = (0,1)², "right" = (1,2)×(0,1), groups "dirichlet" (x = 0),
+    "contact_left", "contact_right" (x = 1 of each), "top_left", "top_right" (y = 1), "end"
+    (x = 2). Stacked: "lower" = (0,1)², "upper" = (0,1)×(1,2), groups "bottom" (y = 0),
+    "contact_lower", "contact_upper" (y = 1 of each), "top" (y = 2), "left" (x = 0 of both).
+
+    Args:
+        n: Cells along a side of the first square.
+        m: Cells along a side of the second square (default n; m ≠ n: non-matching meshes).
+        stacked: Whether the second square is above the first.
+    """
+    m = n if m is None else m
+    if min(n, m) < 1:
+        raise ValueError(f"two_squares: cell counts must be >= 1, got {n}, {m}")
+    gmsh.model.add(f"two_squares_{n}_{m}")
+    _set_output_options()
+    a, sa, tag = _add_structured_box((0.0, 0.0), (1.0, 1.0), (n, n), 1)
+    hi = (1.0, 2.0) if stacked else (2.0, 1.0)
+    lo = (0.0, 1.0) if stacked else (1.0, 0.0)
+    b, sb, _ = _add_structured_box(lo, hi, (m, m), tag)
+    if stacked:
+        _add_group(2, [a], 1, "lower")
+        _add_group(2, [b], 2, "upper")
+        _add_group(1, [sa[1, 0]], 11, "bottom")
+        _add_group(1, [sa[1, 1]], 12, "contact_lower")
+        _add_group(1, [sb[1, 0]], 13, "contact_upper")
+        _add_group(1, [sb[1, 1]], 14, "top")
+        _add_group(1, [sa[0, 0], sb[0, 0]], 15, "left")
+    else:
+        _add_group(2, [a], 1, "left")
+        _add_group(2, [b], 2, "right")
+        _add_group(1, [sa[0, 0]], 11, "dirichlet")
+        _add_group(1, [sa[0, 1]], 12, "contact_left")
+        _add_group(1, [sb[0, 0]], 13, "contact_right")
+        _add_group(1, [sa[1, 1]], 14, "top_left")
+        _add_group(1, [sb[1, 1]], 15, "top_right")
+        _add_group(1, [sb[0, 1]], 16, "end")
+    return physical_groups()
+
+
+__all__ = ["two_squares"]

@@ -1,0 +1,81 @@
+"""The discrete Steklov–Poincaré operator and the representation formula inside a subdomain.
+
+Symmetric Galerkin form (Steinbach 2008, Langer & Steinbach 2003):
+
+    S = D + (½M + K)ᵀ V⁻¹ (½M + K) = D + YᵀY,   Y = L⁻¹(½M + K),   V = L Lᵀ,
+
+symmetric by construction and positive semidefinite, with the kernel of the continuous
+operator: the constants (Laplace) or the rigid motions (Lamé), exactly up to round-off since
+the inner integrals are in closed form (D kills them through ∂_s, ½M + K through the angle sum
+of the double layer).
+
+Inside, u(x) = ∫ G t − ∫ ∂G/∂n_y u with t = V⁻¹(½M + K) u: the map from the boundary values to
+the values at interior points is one dense matrix per subdomain.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import SolveError
+from .galerkin import BoundaryMesh, point_fields
+from .operators import J_ROT, Operators, _blocked, _kron, incidence
+
+
+def steklov(op: Operators, label: str = "subdomain") -> np.ndarray:
+    """S = D + (½M + K)ᵀ V⁻¹ (½M + K) of one subdomain."""
+    try:
+        L = scipy.linalg.cholesky(op.V, lower=True)
+    except np.linalg.LinAlgError:
+        raise SolveError(f"TBETI: the single layer matrix of {label} is not positive definite") \
+            from None
+    Y = scipy.linalg.solve_triangular(L, 0.5 * op.M + op.K, lower=True)
+    return op.D + Y.T @ Y
+
+
+def neumann_map(op: Operators) -> np.ndarray:
+    """V⁻¹(½M + K): the Neumann data (P0) of given Dirichlet data (P1)."""
+    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(op.V, lower=True),
+                                  0.5 * op.M + op.K)
+
+
+def interior_maps(bm: BoundaryMesh, ops: list[Operators], X: np.ndarray, sub: np.ndarray,
+                  bs: int, mu=None, nu=None) -> list[np.ndarray]:
+    """Per subdomain, the matrix from its boundary values to its values at points ``X``.
+
+    ``X`` are scaled points (as ``bm``), ``sub`` their subdomain (ascending); ``bs`` 1
+    (Laplace) or 2 (Lamé, with ``mu``, ``nu`` per subdomain). Rows follow the points.
+    """
+    if np.any(np.diff(sub) < 0):
+        raise ValueError("interior_maps: the points must be sorted by subdomain")
+    fields = ("ln", "dl") if bs == 1 else ("ln", "rr", "dl", "edl")
+    _, _, f = point_fields(bm, X, sub, fields)
+    ne = np.diff(bm.elem_off)
+    count = np.bincount(sub, minlength=bm.count)
+    poff = np.r_[0, np.cumsum(count * ne)]  # the pairs, point by point, so by subdomain
+    out = []
+    eye = np.eye(2)
+    for s in range(bm.count):  # dense per-subdomain algebra
+        m, n = int(count[s]), int(ne[s])
+        g = {k: v[poff[s]:poff[s + 1]].reshape(m, n, *v.shape[1:]) for k, v in f.items()}
+        inc0, inc1 = incidence(bm, s)
+        L = bm.length[bm.elem_off[s]:bm.elem_off[s + 1]]
+        C = inc1 / L[:, None] - inc0 / L[:, None]
+        if bs == 1:
+            SL = -g["ln"] / (2 * np.pi)
+            DL = (g["dl"][..., 0] @ inc0 + g["dl"][..., 1] @ inc1) / (2 * np.pi)
+        else:
+            v = float(nu[s])
+            lnI = g["ln"][..., None, None] * eye
+            SL = _blocked((-(3 - 4 * v) * lnI + g["rr"]) / (8 * np.pi * float(mu[s]) * (1 - v)))
+            T = ((1 - 2 * v) * g["dl"][..., None, None] * eye + 2 * g["edl"]) / \
+                (4 * np.pi * (1 - v))
+            DL = _blocked(np.einsum("ijkab,jn->inab", T[:, :, :1], inc0)
+                          + np.einsum("ijkab,jn->inab", T[:, :, 1:], inc1))
+            DL -= (1 - 2 * v) / (4 * np.pi * (1 - v)) * _kron(g["ln"] @ C, J_ROT)
+        out.append(SL @ neumann_map(ops[s]) - DL)
+    return out
+
+
+__all__ = ["interior_maps", "neumann_map", "steklov"]
