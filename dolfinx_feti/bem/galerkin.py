@@ -33,7 +33,7 @@ FAR_POINTS = 8
 #: Composite rule of near pairs: panels × points.
 NEAR_PANELS, NEAR_POINTS = 4, 8
 #: Graded rule of identical and adjacent pairs: ratio, levels, points per panel.
-GRADING, LEVELS, GRADED_POINTS = 0.15, 10, 6
+GRADING, LEVELS, GRADED_POINTS = 0.25, 14, 10
 #: Points × pairs per chunk of arrays (memory bound).
 CHUNK = 400_000
 

@@ -60,6 +60,19 @@ def incidence(bm: BoundaryMesh, s: int) -> tuple[np.ndarray, np.ndarray]:
     return inc[0], inc[1]
 
 
+def to_nodes(T: np.ndarray, bm: BoundaryMesh, s: int) -> np.ndarray:
+    """(m, elements, 2 ends, ...) integrals against the ends' hat functions → (m, nodes, ...).
+
+    On closed polygons every node starts exactly one element and ends one: two permutations.
+    """
+    e0, e1 = bm.elem_off[s], bm.elem_off[s + 1]
+    ends = bm.elem[e0:e1] - bm.node_off[s]
+    out = np.empty((T.shape[0], bm.node_off[s + 1] - bm.node_off[s], *T.shape[3:]))
+    out[:, ends[:, 0]] = T[:, :, 0]
+    out[:, ends[:, 1]] += T[:, :, 1]
+    return out
+
+
 def _blocks(bm: BoundaryMesh, fields):
     """Per subdomain: its slice of elements and its pair fields as (ne, ne, ...) arrays."""
     _, _, f = pair_integrals(bm, fields)
@@ -70,7 +83,9 @@ def _blocks(bm: BoundaryMesh, fields):
         yield s, {k: v[off[s]:off[s + 1]].reshape(n, n, *v.shape[1:]) for k, v in f.items()}
 
 
-def _mass_and_derivative(bm: BoundaryMesh, s: int, inc0, inc1):
+def mass_and_derivative(bm: BoundaryMesh, s: int) -> tuple[np.ndarray, np.ndarray]:
+    """P0 × P1 mass and the P1 → P0 tangential derivative of subdomain ``s``."""
+    inc0, inc1 = incidence(bm, s)
     L = bm.length[bm.elem_off[s]:bm.elem_off[s + 1]]
     return 0.5 * L[:, None] * (inc0 + inc1), inc1 / L[:, None] - inc0 / L[:, None]
 
@@ -79,10 +94,9 @@ def laplace_operators(bm: BoundaryMesh) -> list[Operators]:
     """V, K, D, M of the Laplace operator on every subdomain of ``bm`` (conductivity 1)."""
     out = []
     for s, f in _blocks(bm, ("ln", "dl")):
-        inc0, inc1 = incidence(bm, s)
-        M, C = _mass_and_derivative(bm, s, inc0, inc1)
+        M, C = mass_and_derivative(bm, s)
         V = -f["ln"] / (2 * np.pi)
-        K = (f["dl"][..., 0] @ inc0 + f["dl"][..., 1] @ inc1) / (2 * np.pi)
+        K = to_nodes(f["dl"], bm, s) / (2 * np.pi)
         out.append(Operators(V=_sym(V), K=K, D=_sym(C.T @ V @ C), M=M))
     return out
 
@@ -104,8 +118,7 @@ def lame_operators(bm: BoundaryMesh, mu: np.ndarray, nu: np.ndarray) -> list[Ope
     eye = np.eye(2)
     for s, f in _blocks(bm, ("ln", "rr", "dl", "edl")):
         m, v = float(mu[s]), float(nu[s])
-        inc0, inc1 = incidence(bm, s)
-        M, C = _mass_and_derivative(bm, s, inc0, inc1)
+        M, C = mass_and_derivative(bm, s)
         A, RR = f["ln"], f["rr"]
         lnI = A[..., None, None] * eye
         V = _blocked((-(3 - 4 * v) * lnI + RR) / (8 * np.pi * m * (1 - v)))
@@ -114,8 +127,7 @@ def lame_operators(bm: BoundaryMesh, mu: np.ndarray, nu: np.ndarray) -> list[Ope
         D = Ck.T @ Q @ Ck
         # the double layer without its Cauchy part, (P0 elem, P0 elem, node k, 2, 2) → P1 nodes
         T = ((1 - 2 * v) * f["dl"][..., None, None] * eye + 2 * f["edl"]) / (4 * np.pi * (1 - v))
-        K = _blocked(np.einsum("ijkab,jn->inab", T[:, :, :1], inc0)
-                     + np.einsum("ijkab,jn->inab", T[:, :, 1:], inc1))
+        K = _blocked(to_nodes(T, bm, s))
         K -= (1 - 2 * v) / (4 * np.pi * (1 - v)) * _kron(A @ C, J_ROT)
         out.append(Operators(V=_sym(V), K=K, D=_sym(D), M=_kron(M, eye)))
     return out
@@ -126,4 +138,5 @@ def _sym(A: np.ndarray) -> np.ndarray:
     return 0.5 * (A + A.T)
 
 
-__all__ = ["Operators", "incidence", "lame_operators", "laplace_operators"]
+__all__ = ["Operators", "incidence", "lame_operators", "laplace_operators", "mass_and_derivative",
+           "to_nodes"]

@@ -20,7 +20,7 @@ import scipy.linalg
 
 from ..errors import SolveError
 from .galerkin import BoundaryMesh, point_fields
-from .operators import J_ROT, Operators, _blocked, _kron, incidence
+from .operators import J_ROT, Operators, _blocked, _kron, mass_and_derivative, to_nodes
 
 
 def steklov(op: Operators, label: str = "subdomain") -> np.ndarray:
@@ -59,20 +59,17 @@ def interior_maps(bm: BoundaryMesh, ops: list[Operators], X: np.ndarray, sub: np
     for s in range(bm.count):  # dense per-subdomain algebra
         m, n = int(count[s]), int(ne[s])
         g = {k: v[poff[s]:poff[s + 1]].reshape(m, n, *v.shape[1:]) for k, v in f.items()}
-        inc0, inc1 = incidence(bm, s)
-        L = bm.length[bm.elem_off[s]:bm.elem_off[s + 1]]
-        C = inc1 / L[:, None] - inc0 / L[:, None]
+        _, C = mass_and_derivative(bm, s)
         if bs == 1:
             SL = -g["ln"] / (2 * np.pi)
-            DL = (g["dl"][..., 0] @ inc0 + g["dl"][..., 1] @ inc1) / (2 * np.pi)
+            DL = to_nodes(g["dl"], bm, s) / (2 * np.pi)
         else:
             v = float(nu[s])
             lnI = g["ln"][..., None, None] * eye
             SL = _blocked((-(3 - 4 * v) * lnI + g["rr"]) / (8 * np.pi * float(mu[s]) * (1 - v)))
             T = ((1 - 2 * v) * g["dl"][..., None, None] * eye + 2 * g["edl"]) / \
                 (4 * np.pi * (1 - v))
-            DL = _blocked(np.einsum("ijkab,jn->inab", T[:, :, :1], inc0)
-                          + np.einsum("ijkab,jn->inab", T[:, :, 1:], inc1))
+            DL = _blocked(to_nodes(T, bm, s))
             DL -= (1 - 2 * v) / (4 * np.pi * (1 - v)) * _kron(g["ln"] @ C, J_ROT)
         out.append(SL @ neumann_map(ops[s]) - DL)
     return out
