@@ -53,4 +53,27 @@ def two_squares(n: int, m: int | None = None, *, stacked: bool = False
     return physical_groups()
 
 
-__all__ = ["two_squares"]
+def split_square(cells: int) -> dict[str, tuple[int, int]]:
+    """The unit square as two bodies, "left" = (0,½)×(0,1) and "right" = (½,1)×(0,1).
+
+    Each body has its own nodes on x = ½; ``cells`` (even) cells along a unit length. Groups:
+    "dirichlet" (x = 0), "contact_left", "contact_right" (x = ½ of each), "top_left",
+    "top_right" (y = 1), "end" (x = 1).
+    """
+    if cells < 2 or cells % 2:
+        raise ValueError(f"split_square: cells must be even and >= 2, got {cells}")
+    gmsh.model.add(f"split_square_{cells}")
+    _set_output_options()
+    half = cells // 2
+    a, sa, tag = _add_structured_box((0.0, 0.0), (0.5, 1.0), (half, cells), 1)
+    b, sb, _ = _add_structured_box((0.5, 0.0), (1.0, 1.0), (half, cells), tag)
+    _add_group(2, [a], 1, "left")
+    _add_group(2, [b], 2, "right")
+    for dim_tag, (side, name) in enumerate(((sa[0, 0], "dirichlet"), (sa[0, 1], "contact_left"),
+                                            (sb[0, 0], "contact_right"), (sa[1, 1], "top_left"),
+                                            (sb[1, 1], "top_right"), (sb[0, 1], "end"))):
+        _add_group(1, [side], 11 + dim_tag, name)
+    return physical_groups()
+
+
+__all__ = ["split_square", "two_squares"]
