@@ -142,3 +142,46 @@ def test_3d_refused_by_name(root):
                                 dirichlet=[df.Dirichlet(sorted(mesh.facet_groups)[0])])
     with pytest.raises(df.InputError, match="2D only"):
         df.solve(problem, method="tbeti")
+
+
+def test_tresca_friction_tbeti_vs_tfeti():
+    """B4 (a block pressed and sheared on a foundation) with Tresca friction, node-to-node and
+    on a rigid plane: the total normal and friction forces of TBETI approach TFETI's."""
+    import test_friction as tf
+
+    from dolfinx_feti import meshes
+
+    gaps = {}
+    plane = df.Plane((0.0, 0.0), (0.0, 1.0))
+    for n in (6, 12):
+        mesh = df.build_mesh(meshes.tresca2d, n=n)
+        problems = {
+            "pair": lambda mesh=mesh: tf.b4(mesh, df.Tresca(tf.G), df.Parts(4)),
+            "plane": lambda mesh=mesh: df.ContactProblem(
+                mesh, df.Elasticity(tf.E, tf.NU), decomposition=df.Parts(2),
+                dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("foundation_sides"),
+                           df.Dirichlet("foundation_top"), df.Dirichlet("top", value=tf.SHIFT)],
+                contact=[df.RigidObstacle("block_bottom", plane, friction=df.Tresca(tf.G))])}
+        for name, make in problems.items():
+            runs = both(make)
+            forces = {}
+            for m, s in runs.items():
+                assert s.report.converged
+                c = s.contact
+                slip = c.state == df.ContactData.SLIP  # |λ_T| = g there
+                assert np.allclose(np.abs(c.tangential_force[slip, 0]), c.slip_bound[slip])
+                assert 0 < np.sum(c.state == df.ContactData.STICK) < c.node.size
+                forces[m] = np.array([c.force.sum(), c.tangential_force[:, 0].sum()])
+            gaps[name, n] = np.abs(forces["tbeti"] / forces["tfeti"] - 1).max()
+    for name in ("pair", "plane"):
+        assert gaps[name, 12] < 0.01
+        assert gaps[name, 12] < gaps[name, 6]
+
+
+def test_distributed_mesh_same_solution():
+    """A mesh spread over the ranks (``distribute=True``) gives the replicated mesh's solve."""
+    runs = [df.solve(scalar_problem(df.build_mesh(two_squares, 8, distribute=d)),
+                     method="tbeti", rtol=1e-10) for d in (False, True)]
+    assert runs[0].report.hessian_mults == runs[1].report.hessian_mults
+    assert runs[0].energy == pytest.approx(runs[1].energy, rel=1e-9)
+    np.testing.assert_allclose(runs[1].multipliers(), runs[0].multipliers(), atol=1e-9)
