@@ -185,3 +185,21 @@ def test_distributed_mesh_same_solution():
     assert runs[0].report.hessian_mults == runs[1].report.hessian_mults
     assert runs[0].energy == pytest.approx(runs[1].energy, rel=1e-9)
     np.testing.assert_allclose(runs[1].multipliers(), runs[0].multipliers(), atol=1e-9)
+
+
+@pytest.mark.parametrize("quads", [False, True])
+def test_unstructured_patch_test_exact(quads):
+    """Uniaxial tension of a rectangle on rollers, unstructured triangles or quadrilaterals:
+    TBETI gives the linear solution (the subdomains' polygons are general here)."""
+    import element_models as em
+
+    mesh = df.build_mesh(em.rectangle, quads=quads, h=0.2)
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E, NU, tractions={"right": (P, 0.0)}),
+        dirichlet=[df.Dirichlet("left", 0.0, components=(0,)),
+                   df.Dirichlet("bottom", 0.0, components=(1,))], decomposition=df.Parts(4))
+    s = df.solve(problem, method="tbeti", rtol=1e-12)
+    assert s.report.converged
+    x = mesh.x
+    exact = np.stack([(1 - NU ** 2) * P / E * x[:, 0], -NU * (1 + NU) * P / E * x[:, 1]], 1)
+    assert np.abs(s.nodal_values() - exact).max() <= 1e-9 * np.abs(exact).max()
