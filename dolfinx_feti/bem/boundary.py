@@ -43,6 +43,13 @@ class Boundaries:
         return (X - self.centre[sub]) * self.scale[sub, None]
 
 
+def pair_keys(share) -> np.ndarray:
+    """A sorted key per (subdomain, point) pair of the rank: local subdomain × points + point."""
+    dec = share.dec
+    return np.repeat(np.arange(dec.subs.size), np.diff(dec.pair_ptr)) * share.points.x.shape[0] \
+        + dec.pair_node
+
+
 def subdomain_boundaries(share) -> Boundaries:
     """The boundary polygon of every local subdomain of a :class:`~dolfinx_feti.share.RankShare`.
 
@@ -89,8 +96,7 @@ def subdomain_boundaries(share) -> Boundaries:
                          "polygons (it touches itself at a vertex); choose another decomposition")
     elem_off = np.r_[0, np.cumsum(np.bincount(fs, minlength=nsub))].astype(np.int64)
     node_off = np.r_[0, np.cumsum(np.bincount(node_sub, minlength=nsub))].astype(np.int64)
-    pair_key = np.repeat(np.arange(nsub), np.diff(dec.pair_ptr)) * npts + dec.pair_node
-    pair = np.searchsorted(pair_key, node_key)
+    pair = np.searchsorted(pair_keys(share), node_key)
     xb = x[node_pt]
     lo_box = np.minimum.reduceat(xb, node_off[:-1], axis=0)
     hi_box = np.maximum.reduceat(xb, node_off[:-1], axis=0)
@@ -101,4 +107,4 @@ def subdomain_boundaries(share) -> Boundaries:
                       centre=centre, scale=scale)
 
 
-__all__ = ["Boundaries", "subdomain_boundaries"]
+__all__ = ["Boundaries", "pair_keys", "subdomain_boundaries"]

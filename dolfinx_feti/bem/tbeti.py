@@ -25,7 +25,7 @@ from ..fem.rigid import rigid_modes
 from ..feti.system import BlockSystem
 from ..problem import ContactProblem
 from ..timing import Timer
-from .boundary import Boundaries, subdomain_boundaries
+from .boundary import Boundaries, pair_keys, subdomain_boundaries
 from .operators import lame_operators, laplace_operators
 from .reduction import BoundaryReduction
 from .steklov import interior_maps, steklov
@@ -65,14 +65,6 @@ def _materials(problem: ContactProblem, share) -> dict[str, np.ndarray]:
     return {"mu": E / (2 * (1 + nu)), "nu": nu}
 
 
-def _pair_of(share, local_sub: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """The rank's pair index of (local subdomain, local point)."""
-    dec, npts = share.dec, share.points.x.shape[0]
-    key = np.repeat(np.arange(dec.subs.size), np.diff(dec.pair_ptr)) * npts + dec.pair_node
-    pos = np.searchsorted(key, local_sub * npts + point)
-    return pos
-
-
 def _evaluate(g, X: np.ndarray, bs: int, group: str) -> np.ndarray:
     """A load (number, vector or function of x) at points X (m, 2) → (m, bs)."""
     if callable(g):
@@ -98,6 +90,7 @@ def load_vector(problem: ContactProblem, share, n_pairs: int) -> np.ndarray:
     s_q, w_q = np.polynomial.legendre.leggauss(LOAD_POINTS)
     s_q, w_q = 0.5 * (s_q + 1), 0.5 * w_q
     x = share.points.x[:, :2]
+    keys, npts = pair_keys(share), x.shape[0]
     for i, s in enumerate(share.dec.subs):  # per subdomain and loaded group: arrays of facets
         for group, g in loads.items():
             fac = share.facets.get(int(s), {}).get(group)
@@ -108,10 +101,9 @@ def load_vector(problem: ContactProblem, share, n_pairs: int) -> np.ndarray:
             X = (p[:, None, :] + s_q[None, :, None] * (q - p)[:, None, :]).reshape(-1, 2)
             val = _evaluate(g, X, bs, group).reshape(fac.shape[0], s_q.size, bs)
             w = (w_q[None, :] * L[:, None])[..., None]
-            pair0 = _pair_of(share, np.full(fac.shape[0], i), fac[:, 0])
-            pair1 = _pair_of(share, np.full(fac.shape[0], i), fac[:, 1])
-            np.add.at(f, pair0, ((1 - s_q)[None, :, None] * val * w).sum(axis=1))
-            np.add.at(f, pair1, (s_q[None, :, None] * val * w).sum(axis=1))
+            pairs = np.searchsorted(keys, i * npts + fac)
+            np.add.at(f, pairs[:, 0], ((1 - s_q)[None, :, None] * val * w).sum(axis=1))
+            np.add.at(f, pairs[:, 1], (s_q[None, :, None] * val * w).sum(axis=1))
     return f.ravel()
 
 
