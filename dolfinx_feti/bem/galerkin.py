@@ -4,9 +4,11 @@ The inner integral (over the trial element) is in closed form (:mod:`.segments`)
 (over the test element) by Gauss rules chosen per pair class:
 
 - far pairs (midpoints more than :data:`NEAR` element lengths apart): :data:`FAR_POINTS`
-  Gauss points — the outer integrand is smooth there;
+  Gauss points, :data:`DISTANT_POINTS` beyond :data:`DISTANT` lengths — the outer integrand is
+  smooth there;
 - identical and adjacent pairs: the outer integrand is as singular as s ln s at the element's
-  ends (the shared vertex), so a composite rule graded geometrically towards both ends;
+  ends (identical) or at the shared vertex (adjacent), so a composite rule graded geometrically
+  towards both ends or that one;
 - near pairs: a composite uniform rule.
 
 No Python loop runs over element pairs: the pairs of a class are processed in chunks of arrays.
@@ -28,8 +30,8 @@ from .segments import (
 
 #: A pair is far when its midpoints are more than NEAR times the longer element apart.
 NEAR = 4.0
-#: Gauss points of the outer integral of a far pair.
-FAR_POINTS = 8
+#: Gauss points of the outer integral of a far pair, and of one more than DISTANT lengths apart.
+FAR_POINTS, DISTANT, DISTANT_POINTS = 8, 12.0, 4
 #: Composite rule of near pairs: panels × points.
 NEAR_PANELS, NEAR_POINTS = 4, 8
 #: Graded rule of identical and adjacent pairs: ratio, levels, points per panel.
@@ -51,16 +53,23 @@ def composite(breaks: np.ndarray, q: int) -> tuple[np.ndarray, np.ndarray]:
     return (lo + (hi - lo) * s).ravel(), ((hi - lo) * w).ravel()
 
 
-def graded_rule() -> tuple[np.ndarray, np.ndarray]:
-    """A composite rule on [0, 1] graded geometrically towards both ends."""
-    half = 0.5 * GRADING ** np.arange(LEVELS, -1, -1, dtype=float)
-    breaks = np.r_[0.0, half, 1.0 - half[::-1][1:], 1.0]
-    return composite(breaks, GRADED_POINTS)
+def graded_rule(both: bool) -> tuple[np.ndarray, np.ndarray]:
+    """A composite rule on [0, 1] graded geometrically towards 0 (and 1 if ``both``)."""
+    steps = GRADING ** np.arange(LEVELS, -1, -1, dtype=float)
+    if not both:
+        return composite(np.r_[0.0, steps], GRADED_POINTS)
+    half = 0.5 * steps
+    return composite(np.r_[0.0, half, 1.0 - half[::-1][1:], 1.0], GRADED_POINTS)
 
 
-RULES = {"far": gauss(FAR_POINTS),
+def _mirrored(rule: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    return 1.0 - rule[0], rule[1]
+
+
+RULES = {"distant": gauss(DISTANT_POINTS), "far": gauss(FAR_POINTS),
          "near": composite(np.linspace(0.0, 1.0, NEAR_PANELS + 1), NEAR_POINTS),
-         "singular": graded_rule()}
+         "identical": graded_rule(True), "at_start": graded_rule(False),
+         "at_end": _mirrored(graded_rule(False))}
 
 
 @dataclass
@@ -117,12 +126,20 @@ def element_pairs(bm: BoundaryMesh) -> tuple[np.ndarray, np.ndarray]:
 
 
 def pair_classes(bm: BoundaryMesh, I: np.ndarray, J: np.ndarray) -> dict[str, np.ndarray]:
-    """Masks of the pairs per quadrature class: singular (identical, adjacent), near, far."""
+    """Masks of the pairs per quadrature class (the keys of :data:`RULES`).
+
+    identical; adjacent at the start or at the end of the test element; near; far; distant.
+    """
     ei, ej = bm.elem[I], bm.elem[J]
-    touch = (ei[:, :1] == ej).any(axis=1) | (ei[:, 1:] == ej).any(axis=1)
-    dist = np.linalg.norm(bm.mid[I] - bm.mid[J], axis=1)
-    near = dist <= NEAR * np.maximum(bm.length[I], bm.length[J])
-    return {"singular": touch, "near": near & ~touch, "far": ~near & ~touch}
+    same = I == J
+    start = (ei[:, :1] == ej).any(axis=1) & ~same
+    end = (ei[:, 1:] == ej).any(axis=1) & ~same & ~start
+    touch = same | start | end
+    dist = np.linalg.norm(bm.mid[I] - bm.mid[J], axis=1) / np.maximum(bm.length[I],
+                                                                        bm.length[J])
+    near, distant = dist <= NEAR, dist > DISTANT
+    return {"identical": same, "at_start": start, "at_end": end, "near": near & ~touch,
+            "far": ~near & ~distant & ~touch, "distant": distant & ~touch}
 
 
 def frame_tensor(tt, tn, nn, tau: np.ndarray, nrm: np.ndarray) -> np.ndarray:
