@@ -90,26 +90,42 @@ def mass_and_derivative(bm: BoundaryMesh, s: int) -> tuple[np.ndarray, np.ndarra
     return 0.5 * L[:, None] * (inc0 + inc1), inc1 / L[:, None] - inc0 / L[:, None]
 
 
+def _blocked(T: np.ndarray) -> np.ndarray:
+    """(n, m, 2, 2) → (2n, 2m), components inside."""
+    n, m = T.shape[:2]
+    return T.transpose(0, 2, 1, 3).reshape(2 * n, 2 * m)
+
+
+def layers(f: dict, bm: BoundaryMesh, s: int, C: np.ndarray, mu: float | None = None,
+           nu: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The single layer (P0 trial) and double layer (P1 trial) from the integrals ``f``.
+
+    ``f`` holds the fields of :func:`.galerkin.pair_integrals` (Galerkin: rows are P0 test
+    functions) or of :func:`.galerkin.point_fields` reshaped to (points, elements, ...)
+    (potentials at points); ``C`` is the subdomain's P1 → P0 derivative. Laplace without
+    ``mu``, Lamé (plane strain) with the shear modulus and Poisson's ratio.
+    """
+    if mu is None:
+        return -f["ln"] / (2 * np.pi), to_nodes(f["dl"], bm, s) / (2 * np.pi)
+    eye = np.eye(2)
+    lnI = f["ln"][..., None, None] * eye
+    single = _blocked((-(3 - 4 * nu) * lnI + f["rr"]) / (8 * np.pi * mu * (1 - nu)))
+    # the double layer without its Cauchy part, (rows, elements, end k, 2, 2) → P1 nodes ...
+    T = ((1 - 2 * nu) * f["dl"][..., None, None] * eye + 2 * f["edl"]) / (4 * np.pi * (1 - nu))
+    double = _blocked(to_nodes(T, bm, s))
+    # ... and the Cauchy part, integrated by parts onto the trial function's derivative
+    double -= (1 - 2 * nu) / (4 * np.pi * (1 - nu)) * np.kron(f["ln"] @ C, J_ROT)
+    return single, double
+
+
 def laplace_operators(bm: BoundaryMesh) -> list[Operators]:
     """V, K, D, M of the Laplace operator on every subdomain of ``bm`` (conductivity 1)."""
     out = []
     for s, f in _blocks(bm, ("ln", "dl")):
         M, C = mass_and_derivative(bm, s)
-        V = -f["ln"] / (2 * np.pi)
-        K = to_nodes(f["dl"], bm, s) / (2 * np.pi)
+        V, K = layers(f, bm, s, C)
         out.append(Operators(V=_sym(V), K=K, D=_sym(C.T @ V @ C), M=M))
     return out
-
-
-def _kron(A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """A ⊗ B with the components inside: (n, m) ⊗ (2, 2) → (2n, 2m)."""
-    return np.kron(A, B)
-
-
-def _blocked(T: np.ndarray) -> np.ndarray:
-    """(n, m, 2, 2) → (2n, 2m), components inside."""
-    n, m = T.shape[:2]
-    return T.transpose(0, 2, 1, 3).reshape(2 * n, 2 * m)
 
 
 def lame_operators(bm: BoundaryMesh, mu: np.ndarray, nu: np.ndarray) -> list[Operators]:
@@ -119,17 +135,10 @@ def lame_operators(bm: BoundaryMesh, mu: np.ndarray, nu: np.ndarray) -> list[Ope
     for s, f in _blocks(bm, ("ln", "rr", "dl", "edl")):
         m, v = float(mu[s]), float(nu[s])
         M, C = mass_and_derivative(bm, s)
-        A, RR = f["ln"], f["rr"]
-        lnI = A[..., None, None] * eye
-        V = _blocked((-(3 - 4 * v) * lnI + RR) / (8 * np.pi * m * (1 - v)))
-        Q = _blocked((-lnI + RR) * (m / (2 * np.pi * (1 - v))))
-        Ck = _kron(C, eye)
-        D = Ck.T @ Q @ Ck
-        # the double layer without its Cauchy part, (P0 elem, P0 elem, node k, 2, 2) → P1 nodes
-        T = ((1 - 2 * v) * f["dl"][..., None, None] * eye + 2 * f["edl"]) / (4 * np.pi * (1 - v))
-        K = _blocked(to_nodes(T, bm, s))
-        K -= (1 - 2 * v) / (4 * np.pi * (1 - v)) * _kron(A @ C, J_ROT)
-        out.append(Operators(V=_sym(V), K=K, D=_sym(D), M=_kron(M, eye)))
+        V, K = layers(f, bm, s, C, m, v)
+        Q = _blocked((-f["ln"][..., None, None] * eye + f["rr"]) * (m / (2 * np.pi * (1 - v))))
+        Ck = np.kron(C, eye)
+        out.append(Operators(V=_sym(V), K=K, D=_sym(Ck.T @ Q @ Ck), M=np.kron(M, eye)))
     return out
 
 
@@ -138,5 +147,6 @@ def _sym(A: np.ndarray) -> np.ndarray:
     return 0.5 * (A + A.T)
 
 
-__all__ = ["Operators", "incidence", "lame_operators", "laplace_operators", "mass_and_derivative",
+__all__ = ["Operators", "incidence", "lame_operators", "laplace_operators", "layers",
+           "mass_and_derivative",
            "to_nodes"]

@@ -20,7 +20,7 @@ import scipy.linalg
 
 from ..errors import SolveError
 from .galerkin import BoundaryMesh, point_fields
-from .operators import J_ROT, Operators, _blocked, _kron, mass_and_derivative, to_nodes
+from .operators import Operators, layers, mass_and_derivative
 
 
 def steklov(op: Operators, label: str = "subdomain") -> np.ndarray:
@@ -55,23 +55,12 @@ def interior_maps(bm: BoundaryMesh, ops: list[Operators], X: np.ndarray, sub: np
     count = np.bincount(sub, minlength=bm.count)
     poff = np.r_[0, np.cumsum(count * ne)]  # the pairs, point by point, so by subdomain
     out = []
-    eye = np.eye(2)
     for s in range(bm.count):  # dense per-subdomain algebra
         m, n = int(count[s]), int(ne[s])
         g = {k: v[poff[s]:poff[s + 1]].reshape(m, n, *v.shape[1:]) for k, v in f.items()}
         _, C = mass_and_derivative(bm, s)
-        if bs == 1:
-            SL = -g["ln"] / (2 * np.pi)
-            DL = to_nodes(g["dl"], bm, s) / (2 * np.pi)
-        else:
-            v = float(nu[s])
-            lnI = g["ln"][..., None, None] * eye
-            SL = _blocked((-(3 - 4 * v) * lnI + g["rr"]) / (8 * np.pi * float(mu[s]) * (1 - v)))
-            T = ((1 - 2 * v) * g["dl"][..., None, None] * eye + 2 * g["edl"]) / \
-                (4 * np.pi * (1 - v))
-            DL = _blocked(to_nodes(T, bm, s))
-            DL -= (1 - 2 * v) / (4 * np.pi * (1 - v)) * _kron(g["ln"] @ C, J_ROT)
-        out.append(SL @ neumann_map(ops[s]) - DL)
+        single, double = layers(g, bm, s, C, *(() if bs == 1 else (float(mu[s]), float(nu[s]))))
+        out.append(single @ neumann_map(ops[s]) - double)
     return out
 
 
