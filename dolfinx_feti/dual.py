@@ -25,32 +25,25 @@ problem.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from .constraints import Kind, build_rows
 from .constraints.dirichlet import dirichlet_mask
 from .constraints.friction import friction_data
-from .errors import InputError, SolveError, collective
+from .errors import InputError, collective
 from .fem.assembly import assemble_subdomains
 from .fem.corners import choose_corners, floating_motions, primal_components
+from .feti.chain import DualQP, chain_qp
 from .feti.corners import EliminateCorners
-from .feti.dualize import Dualization
-from .feti.homogenize import Homogenize, Project
-from .feti.system import INEQUALITY, BlockSystem
+from .feti.system import BlockSystem
 from .feti.transforms import EliminateDirichlet
 from .mesh.decompose import decompose
 from .problem import ContactProblem
-from .qp import Projector, RowBlockConstraint, orthonormalize
 from .share import share_out
 from .timing import Timer
-
-#: A load component along a free rigid motion above this, relative to the size of the load
-#: (:func:`_unbalanced`), means the load cannot be balanced (e ∉ Im G).
-BALANCE_TOL = 1e-8
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
 CORNERS_ON_CONTACT = True
@@ -64,206 +57,6 @@ METHODS = ("tfeti", "feti1", "fetidp")
 
 
 @dataclass
-class DualQP:
-    """The homogenized, projected dual QP of one problem and the chain of transforms behind it.
-
-    The chain is ``steps`` (the primal transforms: eliminate Dirichlet, eliminate corners),
-    ``feti`` (dualize), ``hom`` (homogenize) and ``proj`` (project); each maps a solution of its
-    child back (:meth:`map_back`). The QP itself: ``A``, ``b``, ``lb``, ``constraint``.
-
-    Attributes:
-        feti: The dual operators (``F``, ``B``, ``d``, ``e``, kernels, primal recovery) of the
-            last primal problem of the chain.
-        system: The Total FETI system of the problem (all rows; what the solution is checked
-            against).
-        steps: The primal transforms (eliminate Dirichlet, eliminate corners), in order.
-        method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"``.
-        row_index: Local indices, into the rows of ``system`` owned by this rank, of the rows
-            of this QP.
-        hom: The homogenization (:class:`.feti.homogenize.Homogenize`: λ̂, the bounds).
-        proj: The projection (:class:`.feti.homogenize.Project`: P, P F P, b, ‖P F P‖).
-        ineq: Local mask of the inequality rows.
-        warnings: Notes for the report (e.g. an unloaded rigid motion nothing fixes).
-        info: Sizes of the method (e.g. FETI-DP's corners).
-        dec: This rank's part of the decomposition (:class:`.share.LocalDecomposition`).
-        rows: This rank's rows and the contact rows (:class:`.share.RankRows`).
-        mortar: What the contact search found for each mortar condition
-            (:class:`.constraints.mortar_rows.MortarInfo`).
-        copy_weight: Per local entry of ``system``'s primal vector, 1 / the number of subdomain
-            copies of its node (None: all ones).
-        friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
-        share: What this rank holds of the problem (:class:`.share.RankShare`).
-        surface: On a distributed mesh with contact, the cells along the contact surfaces
-            gathered on rank 0 (:class:`.share_distributed.Surface`; None elsewhere).
-    """
-
-    feti: Dualization
-    system: BlockSystem
-    steps: list
-    method: str
-    row_index: np.ndarray
-    hom: Homogenize
-    proj: Project
-    ineq: np.ndarray
-    warnings: list[str]
-    info: dict = field(default_factory=dict)
-    dec: object = None
-    rows: object = None
-    mortar: list = field(default_factory=list)
-    copy_weight: np.ndarray | None = None
-    friction: object = None
-    share: object = None
-    surface: object = None
-
-    # --- the QP --------------------------------------------------------------------------
-    @property
-    def constraint(self):
-        """G̃ with orthonormal rows (:class:`.qp.equality.OrthonormalConstraint`)."""
-        return self.hom.constraint
-
-    @property
-    def projector(self) -> Projector:
-        """P = I − G̃ᵀG̃."""
-        return self.proj.projector
-
-    @property
-    def A(self) -> PETSc.Mat:  # noqa: N802  (the QP's Hessian)
-        """P F P."""
-        return self.proj.A
-
-    @property
-    def b(self) -> PETSc.Vec:
-        """P (d − F λ̂)."""
-        return self.proj.b
-
-    @property
-    def lb(self) -> PETSc.Vec:
-        """Lower bound of x: −λ̂ on the inequality rows, −inf elsewhere."""
-        return self.hom.lb
-
-    @property
-    def lam_hat(self) -> PETSc.Vec:
-        """The particular solution λ̂ of G λ = e."""
-        return self.hom.lam_hat
-
-    @property
-    def norm_A(self) -> float:  # noqa: N802
-        """The Lanczos estimate of ‖P F P‖."""
-        return self.proj.norm_A
-
-    @property
-    def b_noise(self) -> float:
-        """Round-off level of b (a floor for absolute tolerances)."""
-        return self.hom.b_noise
-
-    @property
-    def primal(self):
-        """The primal problem that was dualized (the last of the chain)."""
-        return self.feti.primal
-
-    def start(self, out: PETSc.Vec | None = None) -> PETSc.Vec:
-        """A feasible start ``x = max(0, lb)`` (λ = λ̂ where that is feasible).
-
-        Written into ``out`` if given, else into a new Vec.
-        """
-        x = self.b.duplicate() if out is None else out
-        x.array[:] = np.maximum(0.0, self.lb.array_r)
-        return x
-
-    def warm_start(self, lam: PETSc.Vec, out: PETSc.Vec) -> float:
-        """A start near the multipliers ``lam`` of an earlier load case, feasible for the bounds.
-
-        x = max(s·w, lb), w = P lam: the earlier homogenized solution scaled by s, where
-
-        - s = (G lam)ᵀe / ‖G lam‖², the load factor along the coarse space (G lam is the old
-          e), when the load acts on floating subdomains: for a proportional load with the
-          same contact set the start is the new solution itself (λ = λ̂ + s·P lam = s·lam);
-        - else (e = 0, so λ̂ = 0 and x = λ) the best multiple of lam for the new cost,
-          s = bᵀw / wᵀAw (one multiplication by A).
-
-        Returns:
-            The factor s (for SMALBE's multiplier too, which scales with the load).
-        """
-        Glam = self.constraint.base.mult(lam)
-        e = self.feti.e
-        g2, e2 = float(Glam @ Glam), float(e @ e)
-        self.projector.apply(lam, out)
-        if e2 > 0 and g2 > 1e-24 * e2:
-            s = float(Glam @ e) / g2
-        else:
-            Aw = out.duplicate()
-            self.A.mult(out, Aw)
-            curvature = float(Aw.dot(out))
-            s = float(self.b.dot(out)) / curvature if curvature > 0 else 1.0
-            Aw.destroy()
-        s = max(s, 0.0)
-        out.array[:] = np.maximum(s * out.array_r, self.lb.array_r)
-        return s
-
-    def objective(self, x: PETSc.Vec) -> float:
-        """``1/2 xᵀ A x − bᵀ x`` (one multiplication by ``A``; collective)."""
-        y = x.duplicate()
-        self.A.mult(x, y)
-        value = 0.5 * y.dot(x) - self.b.dot(x)
-        y.destroy()
-        return float(value)
-
-    def multipliers(self, x: PETSc.Vec) -> PETSc.Vec:
-        """λ = λ̂ + x."""
-        return self.hom.map_back(x, None)
-
-    # --- the way back --------------------------------------------------------------------
-    def free_motions(self, N: np.ndarray) -> np.ndarray:
-        """The motions R n_k (columns of ``N``: coarse vectors) in the layout of ``system``."""
-        Z = self.feti.R @ N
-        for step in reversed(self.steps):
-            Z = step.map_primal(Z)
-        return Z
-
-    def map_back(self, lam: PETSc.Vec, alpha: np.ndarray) -> tuple[PETSc.Vec, PETSc.Vec]:
-        """(u, λ) of the original problem from the multipliers λ of this QP and α (collective).
-
-        ``u`` is the primal solution subdomain by subdomain (Dirichlet values included), ``λ``
-        the multipliers of all rows of ``system`` (those a transform removed recovered from
-        equilibrium).
-        """
-        u = self.feti.primal_solution(lam, alpha)
-        lam = lam.copy()
-        for step in reversed(self.steps):
-            u_new, lam_new = step.map_back(u, lam)
-            u.destroy()
-            lam.destroy()
-            u, lam = u_new, lam_new
-        return u, lam
-
-    # --- a new load case -----------------------------------------------------------------
-    def for_load(self, system: BlockSystem) -> DualQP:
-        """The dual QP of ``system``, a new load case of this one's (same K and B).
-
-        Each transform of the chain is applied to the new right-hand sides and shares its
-        operators: the factorizations, F, G, the coarse factor, P F P and ‖P F P‖ are kept;
-        d, e, λ̂, b and the bounds are new (one K⁺ application and one F application).
-
-        Raises:
-            InputError: When the new load cannot be balanced (``e ∉ Im G``).
-        """
-        steps, parent = [], system
-        for step in self.steps:
-            steps.append(step.for_load(parent))
-            parent = steps[-1].child
-        feti = self.feti.for_load(parent)
-        warnings = _check_balance(self.constraint, feti)
-        hom = self.hom.for_load(feti)
-        return replace(self, feti=feti, system=system, steps=steps, hom=hom,
-                       proj=self.proj.for_load(hom), warnings=warnings)
-
-    def destroy_load(self) -> None:
-        """Free the vectors of this load case (not the shared operators)."""
-        self.hom.destroy()
-        self.proj.b.destroy()
-
-
-@dataclass
 class SharedProblem:
     """What the set-up hands each rank before assembly: its share and what the rows found.
 
@@ -274,6 +67,7 @@ class SharedProblem:
         friction: The friction rows (:class:`.constraints.friction.FrictionData`) or None.
         surface: On a distributed mesh with contact, the cells along the contact surfaces
             gathered on rank 0; None elsewhere.
+        comm: The ranks.
     """
 
     share: object
@@ -281,6 +75,7 @@ class SharedProblem:
     mortar: list
     friction: object = None
     surface: object = None
+    comm: MPI.Comm | None = None
 
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
@@ -309,15 +104,19 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     """
     timer = Timer() if timer is None else timer
     shared = share_problem(problem, comm, method, timer)
-    data = assemble_subdomains(problem, shared.share, comm, timer)
+    data = None if shared.method == "tbeti" else \
+        assemble_subdomains(problem, shared.share, comm, timer)
     return qp_of_share(problem, shared, data, factor=factor, norm_rtol=norm_rtol, timer=timer)
 
 
 def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: Timer
                   ) -> SharedProblem:
     """Decompose ``problem``, build its rows and give every rank its share (collective)."""
-    if method not in (*METHODS, "auto"):
-        raise InputError(f"method must be one of {(*METHODS, 'auto')}, got {method!r}")
+    if method not in (*METHODS, "auto", "tbeti"):
+        raise InputError(f"method must be one of {(*METHODS, 'auto', 'tbeti')}, got {method!r}")
+    if method == "tbeti":  # Total BETI (dolfinx_feti/bem): refuse what it cannot take, early
+        from .bem.tbeti import check_problem
+        check_problem(problem)
     held = problem.mesh.root_only
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
@@ -349,7 +148,7 @@ def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: T
     with timer.phase("distribution"):
         share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
                           rows, problem.value_size, comm, extra)
-    return SharedProblem(share, method, mortar, fdata)
+    return SharedProblem(share, method, mortar, fdata, comm=comm)
 
 
 def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
@@ -358,15 +157,20 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     """Chain the method's transforms on this rank's assembled subdomains (collective).
 
     ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
-    are taken over instead of factoring again.
+    are taken over instead of factoring again. Total BETI (``data`` None) builds its own
+    boundary element subdomains (:mod:`.bem.tbeti`).
     """
     timer = Timer() if timer is None else timer
+    if shared.method == "tbeti":
+        from .bem.tbeti import tbeti_qp
+        return tbeti_qp(problem, shared.share, shared.comm, factor, norm_rtol, timer,
+                        shared.mortar, shared.friction, shared.surface)
     with timer.phase("constraints"):
         total = BlockSystem.from_rows(data, shared.share.rows)
         steps = method_steps(total, shared)
-        if factors_of is not None:
-            adopt_factors(steps[-1] if steps else total,
-                          factors_of.steps[-1] if factors_of.steps else factors_of.system)
+        if factors_of is not None:  # the last factored object of each chain
+            last = steps[-1] if steps else total
+            last.adopt_factors(factors_of.steps[-1] if factors_of.steps else factors_of.system)
     qp = chain_qp(total, steps, method=shared.method, factor=factor,
                   norm_rtol=norm_rtol, timer=timer, dec=shared.share.dec,
                   rows=shared.share.rows,
@@ -375,25 +179,6 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     qp.share, qp.surface = shared.share, shared.surface
     qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)
     return qp
-
-
-def adopt_factors(new, old) -> None:
-    """Give ``new`` (a system, or the last primal step) the factorizations of ``old``.
-
-    Both act on the same subdomain matrices; the rows may differ. Raises SolveError when
-    what the factors were built on differs (other eliminated dofs or corners).
-    """
-    comm = (new.comm if isinstance(new, BlockSystem) else new.parent.comm)
-    if isinstance(new, BlockSystem):
-        new.Kplus = old.Kplus
-        return
-    same = (np.array_equal(getattr(new, "fixed", None), getattr(old, "fixed", None))
-            if isinstance(new, EliminateDirichlet) else
-            np.array_equal(new.coarse, old.coarse))
-    if not comm.allreduce(bool(same), op=MPI.LAND):
-        raise SolveError("the new rows eliminate other dofs or corners than the set-up's: "
-                         "create a new FetiSolver")
-    new.adopt_factors(old)
 
 
 def method_steps(total: BlockSystem, shared: SharedProblem) -> list:
@@ -433,7 +218,7 @@ def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, me
             if comm.rank == 0:  # from the contact rows, on the cells along the surfaces
                 fdata = surface_friction(surface, share.rows)
         fdata = comm.bcast(fdata, root=0)
-    return SharedProblem(share, method, mortar, fdata, surface)
+    return SharedProblem(share, method, mortar, fdata, surface, comm)
 
 
 def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
@@ -486,80 +271,6 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
                                [(none, none, none)], problem.dof_points.x,
                                primal_components(problem.mesh, dec))
     return "tfeti" if free else "fetidp"
-
-
-def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
-             factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
-             dec=None, rows=None, info: dict | None = None) -> DualQP:
-    """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
-
-    Args:
-        total: The first system of the chain (Total FETI form: every row).
-        steps: The primal transforms applied to it, in order (each ``steps[i].parent`` is the
-            previous one's ``child``); may be empty.
-        method: The name of the method (for the report).
-        factor: Sparse Cholesky package.
-        norm_rtol: Relative tolerance of the Lanczos estimate of ``||P F P||``.
-        timer: Phase timers (a new one if None).
-        dec: The decomposition behind ``total``, if any.
-        rows: The constraint rows behind ``total``, if any.
-        info: Sizes of the method for the report.
-    """
-    timer = Timer() if timer is None else timer
-    comm = total.comm
-    system = steps[-1].child if steps else total
-    row_index = np.arange(total.dual_size[0])
-    for step in steps:
-        row_index = row_index[step.kept]
-    if not system.factored:
-        with timer.phase("factorization"):
-            system.factorize(factor, site="factorization")  # guarded inside (collective)
-    with timer.phase("dual operators"):
-        feti = Dualization(system)
-    ineq = system.types == INEQUALITY
-    with timer.phase("coarse problem"):
-        ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))
-        warnings = _check_balance(ocon, feti)
-        hom = Homogenize(feti, ocon, ineq)
-        proj = Project(hom, norm_rtol)
-    return DualQP(feti=feti, system=total, steps=steps, method=method, dec=dec, rows=rows,
-                  row_index=row_index, hom=hom, proj=proj, ineq=ineq, warnings=warnings,
-                  info=info or {})
-
-
-def _check_balance(ocon, feti: Dualization) -> list[str]:
-    """Refuse a load that the constraints cannot balance; note undetermined motions."""
-    N = ocon.null_space
-    if N.shape[1] == 0:
-        return []
-    weight = np.abs(N).max(axis=1)
-    cols = np.flatnonzero(weight > 1e-6 * weight.max())
-    bodies = sorted({feti.kernel_bodies[i] for i in cols})
-    ratio = _unbalanced(N, feti)
-    if ratio > BALANCE_TOL:
-        raise InputError(
-            f"the load cannot be balanced: bodies {bodies} can move rigidly without meeting any "
-            "Dirichlet or contact condition, and the load has a component along that motion "
-            f"(relative size {ratio:.2e}), so the problem has no solution (e is "
-            "not in Im G). Add a Dirichlet condition or a contact surface that stops it, or "
-            "remove that load component")
-    return [f"{N.shape[1]} rigid motion(s) of bodies {bodies} are not fixed by any condition "
-            "(and not loaded); of the solutions, which differ by these motions, the one "
-            "returned is orthogonal to them (zero nodal mean along each, in the nodal l2 inner "
-            "product): the same for every decomposition and number of ranks"]
-
-
-def _unbalanced(N: np.ndarray, feti: Dualization) -> float:
-    """The largest load component along a free rigid motion, relative to the load's size.
-
-    ``|n_kᵀ e|`` against ``|n_k|ᵀ ẽ + ||e||`` with ``ẽ = |R|ᵀ |f|`` (the size of the terms
-    summed in e = Rᵀf; ``||e||`` for the round-off of n_k itself): a self-equilibrated load
-    has ``n_kᵀ e`` at round-off of ẽ, not of ``||e||``, which is itself round-off then.
-    """
-    e_abs = feti.comm.allreduce(abs(feti.R).T @ np.abs(feti.f.array_r), op=MPI.SUM)
-    scale = np.abs(N).T @ e_abs + np.linalg.norm(feti.e)
-    along = np.abs(N.T @ feti.e)
-    return float(np.max(along / np.maximum(scale, 1e-300), initial=0.0))
 
 
 __all__ = ["METHODS", "DualQP", "SharedProblem", "chain_qp", "dual_qp", "qp_of_share",

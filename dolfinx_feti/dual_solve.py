@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-from .dual import DualQP
+from .feti.chain import DualQP
 from .feti.free_motions import remove_free_motions
 from .feti.precond import make_preconditioner
 from .friction import FrictionSolve

@@ -110,7 +110,7 @@ def _boundary_facets(simplices: np.ndarray) -> np.ndarray:
     return facets[np.sort(order[lone])]
 
 
-def _add_structured_box(
+def add_structured_box(
     lo: tuple[float, ...], hi: tuple[float, ...], cells: tuple[int, ...], first_node_tag: int
 ) -> tuple[int, dict[tuple[int, int], int], int]:
     """Add a box meshed by Kuhn simplices as discrete gmsh entities.
@@ -193,8 +193,8 @@ def membranes(n: int) -> dict[str, tuple[int, int]]:
         raise ValueError(f"membranes: n must be >= 1, got {n}")
     gmsh.model.add(f"membranes_{n}")
     set_output_options()
-    left, left_sides, next_tag = _add_structured_box((0.0, 0.0), (1.0, 1.0), (n, n), 1)
-    right, right_sides, _ = _add_structured_box((1.0, 0.0), (2.0, 1.0), (n, n), next_tag)
+    left, left_sides, next_tag = add_structured_box((0.0, 0.0), (1.0, 1.0), (n, n), 1)
+    right, right_sides, _ = add_structured_box((1.0, 0.0), (2.0, 1.0), (n, n), next_tag)
     add_group(2, [left], 1, "left")
     add_group(2, [right], 2, "right")
     add_group(1, [left_sides[0, 0]], 11, "dirichlet")
@@ -250,10 +250,10 @@ def blocks3d(
 
     gmsh.model.add("blocks3d")
     set_output_options()
-    lower, lower_sides, next_tag = _add_structured_box(
+    lower, lower_sides, next_tag = add_structured_box(
         (0.0, 0.0, 0.0), (lx, ly, hb), (cells(lx), cells(ly), cells(hb)), 1
     )
-    upper, upper_sides, _ = _add_structured_box(
+    upper, upper_sides, _ = add_structured_box(
         (0.0, 0.0, hb), (lx, ly, hb + ht), (cells(lx), cells(ly), cells(ht)), next_tag
     )
     lateral = [(0, 0), (0, 1), (1, 0), (1, 1)]
@@ -614,10 +614,10 @@ def tresca2d(
     if foundation is not None:
         lf, hf = (float(s) for s in foundation)
         x0 = 0.5 * (lf - lb)
-        fnd, fsides, next_tag = _add_structured_box(
+        fnd, fsides, next_tag = add_structured_box(
             (0.0, -hf), (lf, 0.0), (cells(lf), cells(hf)), 1
         )
-    blk, bsides, _ = _add_structured_box((x0, 0.0), (x0 + lb, hb), (cells(lb), cells(hb)), next_tag)
+    blk, bsides, _ = add_structured_box((x0, 0.0), (x0 + lb, hb), (cells(lb), cells(hb)), next_tag)
     if foundation is not None:
         add_group(2, [fnd], 1, "foundation")
     add_group(2, [blk], 2, "block")

@@ -61,12 +61,13 @@ _COUNT = Integer(ge=1, le=10**9)
 #: The options of the FETI solve (no solver prefix: ``-feti_rtol``).
 FETI = OptionSet(
     "", "the FETI solve",
-    method=Option("tfeti", Choice("tfeti", "feti1", "fetidp", "auto"), "the FETI method: "
-                  "'tfeti' (Total FETI: Dirichlet conditions as rows of B, every subdomain "
-                  "floats), 'feti1' (Dirichlet conditions eliminated, kernels only for the "
-                  "floating subdomains), 'fetidp' (FETI-DP: corner dofs primal too, no coarse "
-                  "space when every body is held) or 'auto' (the rule of "
-                  "dolfinx_feti.dual.choose_method, docs/solvers.md)"),
+    method=Option("tfeti", Choice("tfeti", "feti1", "fetidp", "auto", "tbeti"), "the FETI "
+                  "method: 'tfeti' (Total FETI: Dirichlet conditions as rows of B, every "
+                  "subdomain floats), 'feti1' (Dirichlet conditions eliminated, kernels only for "
+                  "the floating subdomains), 'fetidp' (FETI-DP: corner dofs primal too, no "
+                  "coarse space when every body is held), 'auto' (the rule of "
+                  "dolfinx_feti.dual.choose_method, docs/solvers.md) or 'tbeti' (Total BETI: "
+                  "boundary element subdomains, 2D, no volume loads; docs/beti.md)"),
     rtol=Option(1e-6, _TOL, "stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term)"),
     eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
                    "None: rtol"),

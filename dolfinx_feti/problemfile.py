@@ -591,7 +591,8 @@ class _Reader:
             title = c.string(title, "title") or self.path.stem
         method = None
         if "method" in data:  # the FETI method: the solver option ``method``, at the top
-            method = c.string(data["method"], "method", ("tfeti", "feti1", "fetidp", "auto"))
+            method = c.string(data["method"], "method",
+                              ("tfeti", "feti1", "fetidp", "auto", "tbeti"))
         mesh_source = self._mesh()
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \

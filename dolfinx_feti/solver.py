@@ -79,8 +79,8 @@ class FetiSolver:
         self._progress = Progress(comm, opts.verbose)
         self._timer = Timer(self._progress.phase)
         self._shared: SharedProblem = share_problem(problem, comm, opts.method, self._timer)
-        self._data = assemble_subdomains(problem, self._shared.share, comm, self._timer,
-                                         keep=keep_meshes)
+        self._data = None if self._shared.method == "tbeti" else \
+            assemble_subdomains(problem, self._shared.share, comm, self._timer, keep=keep_meshes)
         self._loads = LoadRows(self._shared.share, problem.value_size)
         self.qp: DualQP = qp_of_share(problem, self._shared, self._data, factor=opts.factor,
                                       norm_rtol=opts.norm_rtol, timer=self._timer)
@@ -111,6 +111,7 @@ class FetiSolver:
                 set-up (another mesh, decomposition, condition, group or material), or a new
                 load that cannot be balanced.
         """
+        self._refuse_boundary_elements("update")
         check_same_structure(self.problem, problem, stiffness=not check_stiffness)
         if problem.decomposition is not self.problem.decomposition:
             check_same_labels(problem.decomposition, self._shared.share, self.comm)
@@ -141,6 +142,7 @@ class FetiSolver:
         B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the
         subdomain factorizations are kept.
         """
+        self._refuse_boundary_elements("update_rows")
         old = self.qp
         self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
@@ -162,6 +164,7 @@ class FetiSolver:
             problem: The problem with the new forms (same mesh, groups and conditions);
                 default: the current problem's forms assembled again.
         """
+        self._refuse_boundary_elements("update_stiffness")
         if problem is not None:
             check_same_structure(self.problem, problem, stiffness=False)
             self.problem = problem
@@ -176,6 +179,12 @@ class FetiSolver:
                          norm_rtol=self.options.norm_rtol, timer=self._timer)
         self._adopt(qp, rows)
         self._new_preconditioner()
+
+    def _refuse_boundary_elements(self, what: str) -> None:
+        if self._data is None:
+            raise InputError(f"FetiSolver.{what}: not available for method='tbeti' (its "
+                             "boundary element subdomains are set up per problem); create a "
+                             "new FetiSolver")
 
     def _adopt(self, qp: DualQP, rows) -> None:
         """Make ``qp`` (with ``rows``) the current QP; keep what the set-up found."""
@@ -312,7 +321,8 @@ class FetiSolver:
                         "inequality": n_ineq, "equality": rows.size - n_ineq - n_tang,
                         "subdomains": qp.dec.num_subdomains, "coarse": int(feti.coarse_size),
                         "coarse_rank": int(qp.constraint.m), "ranks": comm.size}
-        report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP"}[qp.method]
+        report.method = {"tfeti": "TFETI", "feti1": "FETI-1", "fetidp": "FETI-DP",
+                         "tbeti": "TBETI"}[qp.method]
         if qp.method != "tfeti":
             report.sizes["dual_method"] = int(feti.dual_size[1])
         report.sizes.update(qp.info)

@@ -19,11 +19,11 @@ def test_block_diagonal_is_scipys():
              for i, n in enumerate([5, 1, 7, 3])]
     for p in parts:
         p.sort_indices()
-    got, want = assembly._block_diagonal(parts), sp.block_diag(parts, format="csr")
+    got, want = assembly.block_diagonal(parts), sp.block_diag(parts, format="csr")
     assert got.shape == want.shape
     for name in ("indptr", "indices", "data"):
         assert np.array_equal(getattr(got, name), getattr(want, name))
-    assert assembly._block_diagonal([]).shape == (0, 0)
+    assert assembly.block_diagonal([]).shape == (0, 0)
 
 
 def test_runs_end_at_the_cell_limit():

@@ -114,7 +114,7 @@ def _runs_of_equal_bodies(mesh, subs, cells_of, limit: int = CELLS_PER_MESH
     return runs
 
 
-def _block_diagonal(parts: list[sp.csr_matrix]) -> sp.csr_matrix:
+def block_diagonal(parts: list[sp.csr_matrix]) -> sp.csr_matrix:
     """``sp.block_diag(parts, format="csr")`` of CSR blocks, by concatenating their arrays."""
     if not parts:
         return sp.csr_matrix((0, 0))
@@ -161,7 +161,7 @@ def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Com
                 kept.append(sub)
             K_parts.append(K)
             f_parts.append(f)
-        K = _block_diagonal(K_parts)
+        K = block_diagonal(K_parts)
         nodes = [dec.nodes(s) for s in local_subs]
         # The rigid motions are linear: their nodal interpolation at the dof points is exact.
         x = share.points.x

@@ -202,7 +202,15 @@ class EliminateCorners:
         return f, c[self.kept]
 
     def adopt_factors(self, other: EliminateCorners) -> None:
-        """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other`` (same matrices and corners)."""
+        """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other``: same matrices and corners (collective).
+
+        Raises:
+            SolveError: When ``other`` has other corners (its factors are of another K̃).
+        """
+        same = np.array_equal(self.coarse, other.coarse)
+        if not self.parent.comm.allreduce(bool(same), op=MPI.LAND):
+            raise SolveError("the new rows give other corners than the set-up's: create a new "
+                             "FetiSolver")
         for name in ("Krr_plus", "Psi", "S", "S_plus", "_t", "_blocks_of"):
             if hasattr(other, name):
                 setattr(self, name, getattr(other, name))

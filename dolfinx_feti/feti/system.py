@@ -196,6 +196,10 @@ class BlockSystem(RowOperands):
         """Whether K⁺ is there (:meth:`factorize` done, or a factor adopted)."""
         return self.Kplus is not None
 
+    def adopt_factors(self, other: BlockSystem) -> None:
+        """Take the factor of ``other``, a system of the same K (other rows)."""
+        self.Kplus = other.Kplus
+
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K⁺ x (the local solves)."""
         self.Kplus.solve(x.array_r, y.array)

@@ -180,7 +180,15 @@ class EliminateDirichlet:
         return values, f, c[self.kept]
 
     def adopt_factors(self, other: EliminateDirichlet) -> None:
-        """Take the factor of ``other``'s child (the same held K: same matrices and dofs)."""
+        """Take the factor of ``other``'s child: the same K held on the same dofs (collective).
+
+        Raises:
+            SolveError: When ``other`` eliminated other dofs (its factor is of another K).
+        """
+        same = np.array_equal(self.fixed, other.fixed)
+        if not self.parent.comm.allreduce(bool(same), op=MPI.LAND):
+            raise SolveError("the new rows eliminate other Dirichlet dofs than the set-up's: "
+                             "create a new FetiSolver")
         self.child.Kplus = other.child.Kplus
 
     def for_load(self, parent: BlockSystem) -> EliminateDirichlet:
