@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import NamedTuple
+
 import numpy as np
 
 from ..errors import InputError
 from ..mesh.decompose import Decomposition
-from ..problem import ContactProblem, Mortar, NodeToNode, RigidObstacle
+from ..problem import ContactProblem, Mortar, NodeToNode, RigidObstacle, Tie
 from .contact import node_to_node_rows, obstacle_rows
 from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows
@@ -15,12 +18,64 @@ from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
 from .rows import Rows
 
 
+class SurfaceCondition(NamedTuple):
+    """What a row builder gets: the problem, the condition and where its rows go."""
+
+    problem: ContactProblem
+    spec: object
+    index: int
+    node_ptr: np.ndarray
+    node_subs: np.ndarray
+    fixed: np.ndarray
+
+
+#: Condition type → its row builder, ``builder(SurfaceCondition) -> (Rows, MortarInfo | None)``
+#: (the info for the report's search summary of mortar conditions). A new kind of contact
+#: or tie is a dataclass in ``problem.py`` and a builder registered here by :func:`rows_of`.
+ROW_BUILDERS: dict[type, Callable[[SurfaceCondition], tuple[Rows, MortarInfo | None]]] = {}
+
+
+def rows_of(kind: type):
+    """Register the decorated function as the row builder of conditions of type ``kind``."""
+    def register(builder):
+        ROW_BUILDERS[kind] = builder
+        return builder
+    return register
+
+
+@rows_of(Mortar)
+def _mortar(c: SurfaceCondition):
+    p = c.problem
+    return mortar_contact_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.value_size)
+
+
+@rows_of(Tie)
+def _tie(c: SurfaceCondition):
+    p = c.problem
+    return tie_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, c.fixed, p.value_size)
+
+
+@rows_of(NodeToNode)
+def _node_to_node(c: SurfaceCondition):
+    p = c.problem
+    return node_to_node_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.value_size,
+                             p.dof_points), None
+
+
+@rows_of(RigidObstacle)
+def _obstacle(c: SurfaceCondition):
+    p = c.problem
+    return obstacle_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.dof_points), None
+
+
 def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.ndarray,
                  fixed: np.ndarray, mortar: list[MortarInfo] | None = None) -> list[Rows]:
     """The rows of the ties and the contact conditions, in the problem's order.
 
     They read only the contact surfaces, so ``problem`` may be a problem on a mesh of the
-    cells along them (a distributed mesh gathers those on one rank).
+    cells along them (a distributed mesh gathers those on one rank). Each condition's rows
+    come from the builder registered for its type (:data:`ROW_BUILDERS`); a condition with
+    friction gets its tangential rows next to its normal ones.
 
     Args:
         problem: The problem.
@@ -29,24 +84,17 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
         fixed: (points, bs) mask of the Dirichlet-constrained components.
         mortar: Receives what the search found for each mortar condition, when given.
     """
-    mesh, bs, points = problem.mesh, problem.value_size, problem.dof_points
     blocks = []
     found = [] if mortar is None else mortar
-    for i, t in enumerate(problem.ties):
-        block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs)
-        blocks.append(block)
-        found.append(info)
-    for i, c in enumerate(problem.contact):
-        if isinstance(c, Mortar):
-            block, info = mortar_contact_rows(mesh, c, i, node_ptr, node_subs, bs)
+    for conditions in (problem.ties, problem.contact):
+        for i, spec in enumerate(conditions):
+            block, info = ROW_BUILDERS[type(spec)](
+                SurfaceCondition(problem, spec, i, node_ptr, node_subs, fixed))
+            if info is not None:
+                found.append(info)
+            if getattr(spec, "friction", None) is not None:  # tangential rows beside normal
+                block = with_tangential_rows(block)
             blocks.append(block)
-            found.append(info)
-        elif isinstance(c, NodeToNode):
-            blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs, points))
-        elif isinstance(c, RigidObstacle):
-            blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
-        if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
-            blocks[-1] = with_tangential_rows(blocks[-1])
     return blocks
 
 
