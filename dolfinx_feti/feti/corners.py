@@ -31,7 +31,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InputError, SolveError, collective
-from .kplus import FixingNodesInverse
+from .kplus import CornerCoarse, FixingNodesInverse, LocalInverse
 from .system import (
     EQUALITY,
     BlockSystem,
@@ -79,6 +79,12 @@ class CornerSystem(_Rows):
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K̃⁺ x."""
         self._step.apply_kplus(x.array_r, y.array)
+
+    def local_inverse(self) -> LocalInverse:
+        """K̃⁺ as K_rr⁺ by subdomains plus the corner correction (for :mod:`.explicit`)."""
+        step = self._step
+        coarse = CornerCoarse(step.Psi, step.S_plus, step.n_coarse) if step.n_coarse else None
+        return LocalInverse(step.Krr_plus, step.parent.offsets, coarse)
 
     def kernel_matrix(self):
         """The rigid motions of the floating bodies in the new layout, and their bodies."""

@@ -20,7 +20,7 @@ from petsc4py import PETSc
 
 from ..constraints.rows import Kind, Rows
 from ..errors import collective
-from .kplus import FixingNodesInverse
+from .kplus import FixingNodesInverse, LocalInverse
 
 #: Singular values of R_s restricted to its held dofs at or below this (R_s has orthonormal
 #: columns, so they are at most 1) count as zero: that rigid motion is not held there.
@@ -172,6 +172,10 @@ class BlockSystem(_Rows):
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K⁺ x (the local solves)."""
         self.Kplus.solve(x.array_r, y.array)
+
+    def local_inverse(self) -> LocalInverse:
+        """K⁺ = diag(K_s⁺) on this rank, by blocks (for :mod:`.explicit`; after factorize)."""
+        return LocalInverse(self.Kplus, self.offsets)
 
     def kernel_matrix(self) -> tuple[sp.csr_matrix, list[str]]:
         """R as local rows with global columns (k_s columns per block, in block order).

@@ -1,0 +1,256 @@
+"""Explicit local dual operators: F = B K⁺ Bᵀ as one dense matrix per subdomain.
+
+The implicit F (:class:`.dualize.ImplicitDual`) applies Bᵀ, one sparse Cholesky solve of the
+rank's block-diagonal K and B per multiplication. Since K⁺ = diag(K_s⁺) (Total FETI and
+FETI-1),
+
+    F = Σ_s B_s K_s⁺ B_sᵀ = Σ_s Π_s F_s Π_sᵀ,   F_s = B_s K_s⁺ B_sᵀ  (m_s × m_s, dense),
+
+where B_s holds the m_s rows of B that touch subdomain s, restricted to its columns, and Π_s
+picks those rows of a dual vector. Formed once, F_s makes a multiplication one dense GEMV per
+subdomain between a gather of the rows a rank's subdomains touch and a scatter-add of the
+results to their owners (Homola et al., SC 2025: explicit local dual operators). FETI-DP's
+K̃⁺ = K_rr⁺ + Ψ-part adds a rank-n_c correction,
+
+    F = Σ_s B_s,r K_s,rr⁺ B_s,rᵀ + H S_cc⁺ Hᵀ,   H = B̃_c − B̃_r Ψ,
+
+applied as in the implicit operator (one allreduce of n_c numbers and the replicated S_cc⁺
+solve), with B̃_r Ψ formed once per rank as a sparse matrix.
+
+Set-up: the columns of the B_sᵀ of all subdomains of a rank are solved together, the j-th
+column of every subdomain in one right-hand side (K⁺ is block diagonal, so they do not mix):
+max_s m_s right-hand sides in batches of :data:`BATCH` (one MatMatSolve of the rank's factor
+each), then F_s = B_s Y_s by one sparse product per batch.
+
+When it pays (``dual_operator="auto"``, :func:`choose`): with t_I the measured time of an
+implicit multiplication, t_E the predicted time of an explicit one and T the predicted set-up,
+
+    explicit  ⇔  T < N (t_I − t_E)   and   8 Σ_s m_s² bytes ≤ :data:`MEMORY_MAX` on every rank,
+
+N the expected number of F-multiplications (:data:`EXPECTED_MULTS`). t_I is the median of
+three implicit multiplications (not counted as F-multiplications), T = (max_s m_s) t_c with
+t_c the measured time per column of a batched solve of a few random columns, and
+t_E = c_e Σ_s m_s² + c_b (subdomains) + c_0 with the constants :data:`NS_PER_ENTRY`,
+:data:`US_PER_BLOCK`, :data:`US_FIXED` measured by ``bench/explicit_dual.py``. Each time is
+the slowest rank's (every multiplication waits for it), so the choice is the same on every
+rank.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse as sp
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .kplus import LocalInverse
+
+#: Right-hand sides per batched solve of the set-up (memory: n_local × BATCH doubles).
+BATCH = 64
+#: The expected number of F-multiplications of a solve, N of the cost model: the lower end of
+#: the counts measured on the benchmark problems (docs/benchmarks.md: 40–4 000 for contact).
+EXPECTED_MULTS = 100
+#: Most memory the explicit blocks may take per rank for ``"auto"`` to pick them [bytes].
+MEMORY_MAX = 2 * 1024**3
+#: Measured time of a dense GEMV per matrix entry [ns] (bench/explicit_dual.py; memory bound).
+NS_PER_ENTRY = 0.35
+#: Measured overhead per subdomain of an explicit multiplication [µs] (slicing, BLAS call).
+US_PER_BLOCK = 2.0
+#: Measured fixed cost of an explicit multiplication [µs] (gather, scatter-add, shell).
+US_FIXED = 60.0
+#: Columns of the batched solve timed for the set-up estimate.
+_PROBE = 8
+
+
+class ExplicitDual:
+    """y = F x with F = B K⁺ Bᵀ held as dense blocks per subdomain (collective set-up).
+
+    Args:
+        primal: A factored primal system with ``B`` and ``local_inverse()``
+            (:class:`.system.BlockSystem`, :class:`.corners.CornerSystem`).
+    """
+
+    name = "explicit"
+
+    def __init__(self, primal) -> None:
+        inv: LocalInverse = primal.local_inverse()
+        self.comm: MPI.Comm = primal.comm
+        p = self.pattern = DualPattern(primal.B, inv)
+        n, E = p.n_blocked, p.pair_g.size
+        Bexp = sp.csr_matrix((p.vals, (p.pair_of_entry, p.dof)), shape=(E, n))
+        # Z[:, j] = Σ over the pairs at position j of their row of B: one column per subdomain
+        # in each right-hand side (K⁺ is block diagonal, so the subdomains do not mix).
+        Z = (Bexp.T @ sp.csr_matrix((np.ones(E), (np.arange(E), p.pos)),
+                                    shape=(E, p.m_max))).tocsc()
+        blk_size = p.sizes[p.pair_blk]
+        flat = np.zeros(int(np.sum(p.sizes.astype(np.int64) ** 2)))
+        base = p.block_start[p.pair_blk] + p.pos * blk_size  # (pair, column 0) in ``flat``
+        for j0 in range(0, p.m_max, BATCH):
+            j1 = min(j0 + BATCH, p.m_max)
+            W = Bexp @ inv.kplus.solve_matrix(Z[:, j0:j1].toarray())  # E × (j1 − j0)
+            J = np.arange(j0, j1)
+            inside = J[None, :] < blk_size[:, None]
+            flat[(base[:, None] + J[None, :])[inside]] = W[inside]
+        self.blocks = []
+        for s, m in enumerate(p.sizes):  # set-up only: one symmetrized view per subdomain
+            Fs = flat[p.block_start[s]:p.block_start[s] + m * m].reshape(m, m)
+            Fs += Fs.T.copy()
+            Fs *= 0.5
+            first = int(p.pair_start[s])
+            self.blocks.append((Fs, slice(first, first + int(m))))
+        self.blocks = [(Fs, sl) for Fs, sl in self.blocks if sl.stop > sl.start]
+        self.memory = flat.nbytes
+        self._flat = flat
+        self._coarse = None
+        if inv.coarse is not None:
+            c = inv.coarse
+            C = (Bexp @ c.Psi).tocsr()  # B̃_r Ψ on this rank's pairs
+            Bc = sp.csr_matrix((p.c_vals, (p.c_dof, p.c_g)), shape=(c.n_coarse, p.ghosts.size))
+            self._coarse = (C, Bc, c.S_plus, np.empty(c.n_coarse), np.empty(c.n_coarse))
+        self._xe = np.empty(E)
+        self._ye = np.empty(E)
+        self._xg = PETSc.Vec().createSeq(p.ghosts.size, comm=PETSc.COMM_SELF)
+        self._yg = self._xg.duplicate()
+        template = primal.B.createVecLeft()
+        iset = PETSc.IS().createGeneral(p.ghosts.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        self._scatter = PETSc.Scatter().create(template, iset, self._xg, None)
+        iset.destroy()
+        template.destroy()
+
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = F x (collective)."""
+        p = self.pattern
+        self._scatter.scatter(x, self._xg, addv=PETSc.InsertMode.INSERT_VALUES,
+                              mode=PETSc.ScatterMode.FORWARD)
+        xg = self._xg.array_r
+        xe, ye = self._xe, self._ye
+        np.take(xg, p.pair_g, out=xe)
+        for Fs, sl in self.blocks:
+            np.dot(Fs, xe[sl], out=ye[sl])
+        yg = np.bincount(p.pair_g, ye, minlength=xg.size) if ye.size else np.zeros(xg.size)
+        if self._coarse is not None:
+            C, Bc, S_plus, t, yc = self._coarse
+            self.comm.Allreduce(np.ascontiguousarray(Bc @ xg - C.T @ xe), t, op=MPI.SUM)
+            S_plus.solve(t, yc)
+            if ye.size:
+                yg -= np.bincount(p.pair_g, C @ yc, minlength=xg.size)
+            yg += Bc.T @ yc
+        self._yg.array[:] = yg
+        y.set(0.0)
+        self._scatter.scatter(self._yg, y, addv=PETSc.InsertMode.ADD_VALUES,
+                              mode=PETSc.ScatterMode.REVERSE)
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self._scatter, self._xg, self._yg):
+            obj.destroy()
+
+
+class DualPattern:
+    """Which dual rows touch which local subdomain: the layout of the explicit blocks.
+
+    From the local rows of Bᵀ (this rank's primal entries, global dual columns): the ghosts
+    (the dual rows any local subdomain touches, sorted), and the pairs (subdomain, ghost)
+    sorted by subdomain then row: pair e is row ``pair_pos[e]`` of its subdomain's block.
+
+    Attributes:
+        ghosts: Global dual rows touched by this rank's subdomains (sorted).
+        sizes: m_s per local subdomain.
+        m_max: The largest m_s on this rank.
+        pair_blk, pair_g, pos: Per pair: subdomain, index into ``ghosts``, position.
+        pair_start: First pair of each subdomain; ``block_start``: offset of its block in a
+            flat array of all blocks (row-major).
+        n_blocked: Local primal entries in the blocks (FETI-DP's corner unknowns follow).
+        dof, vals, pair_of_entry: The nonzeros of B in the blocks: primal entry, value, pair.
+        c_dof, c_g, c_vals: The nonzeros in FETI-DP's corner columns (rank 0).
+    """
+
+    def __init__(self, B: PETSc.Mat, inv: LocalInverse) -> None:
+        Bt = B.transpose(PETSc.Mat())  # a new matrix (no argument: in place)
+        indptr, cols, vals = Bt.getValuesCSR()
+        Bt.destroy()
+        offsets = np.asarray(inv.offsets, dtype=np.int64)
+        n = self.n_blocked = int(offsets[-1]) if offsets.size else 0
+        nb = max(offsets.size - 1, 0)
+        dof = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+        self.ghosts, g = np.unique(cols.astype(np.int64), return_inverse=True)
+        ng = max(self.ghosts.size, 1)
+        blocked = dof < n
+        corner = ~blocked
+        self.c_dof, self.c_g, self.c_vals = dof[corner] - n, g[corner], vals[corner]
+        blk = np.repeat(np.arange(nb), np.diff(offsets))[dof[blocked]]
+        pairs, self.pair_of_entry = np.unique(blk * ng + g[blocked], return_inverse=True)
+        self.dof, self.vals = dof[blocked], vals[blocked]
+        self.pair_blk, self.pair_g = pairs // ng, pairs % ng
+        self.sizes = np.bincount(self.pair_blk, minlength=nb).astype(np.int64)
+        self.pair_start = np.concatenate([[0], np.cumsum(self.sizes)])
+        self.block_start = np.concatenate([[0], np.cumsum(self.sizes ** 2)])
+        self.pos = np.arange(pairs.size) - self.pair_start[self.pair_blk]
+        self.m_max = int(self.sizes.max(initial=0))
+
+    @property
+    def entries(self) -> int:
+        """Σ_s m_s²: the entries of the explicit blocks."""
+        return int(self.block_start[-1])
+
+
+def predicted_mult_time(pattern: DualPattern) -> float:
+    """t_E of the cost model: the predicted time of one explicit multiplication [s]."""
+    blocks = int(np.count_nonzero(pattern.sizes))
+    return 1e-9 * NS_PER_ENTRY * pattern.entries + 1e-6 * (US_PER_BLOCK * blocks + US_FIXED)
+
+
+def choose(setup: float, t_implicit: float, t_explicit: float, memory: float,
+           expected_mults: float = EXPECTED_MULTS) -> bool:
+    """Whether the explicit operator pays: set-up < N × saving per multiplication, in memory.
+
+    All arguments are the slowest rank's (times in seconds, memory in bytes).
+    """
+    saving = t_implicit - t_explicit
+    return bool(memory <= MEMORY_MAX and saving > 0 and setup < expected_mults * saving)
+
+
+def measured_costs(primal, implicit, expected_mults: float = EXPECTED_MULTS) -> dict:
+    """The cost model's figures on this problem, the slowest rank's (collective).
+
+    Args:
+        primal: The factored primal system.
+        implicit: The implicit operator (its ``mult(x, y)`` is timed, not counted).
+        expected_mults: N of the model.
+
+    Returns:
+        ``t_implicit``, ``t_explicit`` (predicted), ``setup`` (predicted), ``memory`` and
+        ``explicit`` (the choice), the same on every rank.
+    """
+    comm = primal.comm
+    inv = primal.local_inverse()
+    pattern = DualPattern(primal.B, inv)
+    x = primal.B.createVecLeft()
+    x.array[:] = np.random.default_rng(comm.rank).standard_normal(x.getLocalSize())
+    y = x.duplicate()
+    times = []
+    for _ in range(3):
+        comm.Barrier()
+        t0 = time.perf_counter()
+        implicit.mult(x, y)
+        times.append(time.perf_counter() - t0)
+    x.destroy()
+    y.destroy()
+    k = min(_PROBE, pattern.m_max)
+    t_col = 0.0
+    if k:
+        Z = np.random.default_rng(1).standard_normal((pattern.n_blocked, k))
+        t0 = time.perf_counter()
+        inv.kplus.solve_matrix(Z)
+        t_col = (time.perf_counter() - t0) / k
+    local = np.array([float(np.median(times)), predicted_mult_time(pattern),
+                      pattern.m_max * t_col, 8.0 * pattern.entries])
+    worst = np.empty_like(local)
+    comm.Allreduce(local, worst, op=MPI.MAX)
+    out = dict(zip(("t_implicit", "t_explicit", "setup", "memory"), map(float, worst),
+                   strict=True))
+    out["explicit"] = choose(out["setup"], out["t_implicit"], out["t_explicit"],
+                             out["memory"], expected_mults)
+    return out
