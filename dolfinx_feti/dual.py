@@ -183,7 +183,8 @@ class DualQP:
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             factor: str | None = None, norm_rtol: float = 1e-4,
-            timer: Timer | None = None, method: str = "tfeti") -> DualQP:
+            timer: Timer | None = None, method: str = "tfeti",
+            dual_operator: str = "implicit") -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
 
     Args:
@@ -195,6 +196,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             shares handed out), ``assembly``, ``factorization``, ``dual operators`` and
             ``coarse problem``; a new one if None.
         method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"`` (see the module docstring).
+        dual_operator: How F is applied (:class:`.feti.dualize.Dualization`).
 
     Returns:
         The dual QP (collective objects on ``comm``).
@@ -211,7 +213,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
                          "(read_gmsh(..., replicate=False)): solve on that communicator")
     if problem.mesh.part is not None:
-        return _dual_qp_distributed(problem, comm, factor, norm_rtol, timer, method)
+        return _dual_qp_distributed(problem, comm, factor, norm_rtol, timer, method,
+                                    dual_operator)
     dec = rows = extra = common = None
     # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
     # arrays; every rank then keeps only its share (:mod:`.share`).
@@ -238,11 +241,13 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
         share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
                           rows, bs, comm, extra)
         del dec, rows
-    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata)
+    return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata,
+                        dual_operator=dual_operator)
 
 
 def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, factor,
-                 norm_rtol: float, timer: Timer, mortar: list, fdata, surface=None) -> DualQP:
+                 norm_rtol: float, timer: Timer, mortar: list, fdata, surface=None,
+                 dual_operator: str = "implicit") -> DualQP:
     """Assemble this rank's subdomains and chain the method's transforms (collective)."""
     data = assemble_subdomains(problem, share, comm, timer)
     info: dict = {}
@@ -257,14 +262,15 @@ def _qp_of_share(problem: ContactProblem, share, comm: MPI.Comm, method: str, fa
                                           part["modes"], part["bodies"]))
             info = part["info"]
     qp = chain_qp(total, steps, method=method, factor=factor, norm_rtol=norm_rtol,
-                  timer=timer, dec=share.dec, rows=share.rows, info=info)
+                  timer=timer, dec=share.dec, rows=share.rows, info=info,
+                  dual_operator=dual_operator)
     qp.mortar, qp.friction, qp.share, qp.surface = mortar, fdata, share, surface
     qp.copy_weight = 1.0 / np.repeat(share.dec.multiplicity, problem.value_size)
     return qp
 
 
 def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_rtol: float,
-                         timer: Timer, method: str) -> DualQP:
+                         timer: Timer, method: str, dual_operator: str = "implicit") -> DualQP:
     """:func:`dual_qp` of a problem on a distributed mesh: every rank builds its own share."""
     from .fem.distributed_corners import fetidp_share
     from .share_distributed import share_from_parts, surface_friction
@@ -289,7 +295,7 @@ def _dual_qp_distributed(problem: ContactProblem, comm: MPI.Comm, factor, norm_r
                 fdata = surface_friction(surface, share.rows)
         fdata = comm.bcast(fdata, root=0)
     return _qp_of_share(problem, share, comm, method, factor, norm_rtol, timer, mortar, fdata,
-                        surface)
+                        surface, dual_operator)
 
 
 def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
@@ -346,7 +352,8 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
 
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
-             dec=None, rows=None, info: dict | None = None) -> DualQP:
+             dec=None, rows=None, info: dict | None = None,
+             dual_operator: str = "implicit") -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 
     Args:
@@ -360,6 +367,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         dec: The decomposition behind ``total``, if any.
         rows: The constraint rows behind ``total``, if any.
         info: Sizes of the method for the report.
+        dual_operator: How F is applied (:class:`.feti.dualize.Dualization`).
     """
     timer = Timer() if timer is None else timer
     comm = total.comm
@@ -370,7 +378,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
     with timer.phase("factorization"):
         system.factorize(factor, site="factorization")  # guarded inside (collective phases)
     with timer.phase("dual operators"):
-        feti = Dualization(system)
+        feti = Dualization(system, dual_operator)
     ineq = system.types == INEQUALITY
     with timer.phase("coarse problem"):
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm), rhs=feti.e)

@@ -84,7 +84,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     timer = Timer(progress.phase)
     report = Report()
     qp = dual_qp(problem, comm, factor=opts.factor, norm_rtol=opts.norm_rtol, timer=timer,
-                 method=opts.method)
+                 method=opts.method, dual_operator=opts.dual_operator)
     report.warnings.extend(qp.warnings)
     feti, dec, rows, system = qp.feti, qp.dec, qp.rows, qp.system
     n_ineq = int(rows.contact.inequality.sum())

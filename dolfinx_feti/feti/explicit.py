@@ -94,10 +94,10 @@ class ExplicitDual:
             inside = J[None, :] < blk_size[:, None]
             flat[(base[:, None] + J[None, :])[inside]] = W[inside]
         self.blocks = []
-        for s, m in enumerate(p.sizes):  # set-up only: one symmetrized view per subdomain
+        # One view per subdomain, as formed: symmetrizing F_s changes nothing but the round-off,
+        # yet that alone moved CG's count by 3 of 39 on FETI-1 (tests/test_explicit_dual.py).
+        for s, m in enumerate(p.sizes):
             Fs = flat[p.block_start[s]:p.block_start[s] + m * m].reshape(m, m)
-            Fs += Fs.T.copy()
-            Fs *= 0.5
             first = int(p.pair_start[s])
             self.blocks.append((Fs, slice(first, first + int(m))))
         self.blocks = [(Fs, sl) for Fs, sl in self.blocks if sl.stop > sl.start]
