@@ -32,6 +32,8 @@ import numpy as np
 from mpi4py import MPI
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fmult_split import timed  # noqa: E402  (median over repeats of the slowest rank's time)
+
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
 from dolfinx_feti import meshes_occ  # noqa: E402
@@ -39,17 +41,6 @@ from dolfinx_feti.feti import explicit  # noqa: E402
 from dolfinx_feti.feti.dualize import ImplicitDual  # noqa: E402
 
 COMM = MPI.COMM_WORLD
-
-
-def timed(fn, repeat: int) -> float:
-    """Median over repeats of the slowest rank's time of ``fn()``."""
-    times = []
-    for _ in range(repeat):
-        COMM.Barrier()
-        t0 = time.perf_counter()
-        fn()
-        times.append(COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX))
-    return float(np.median(times))
 
 
 @functools.cache
