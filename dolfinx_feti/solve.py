@@ -203,7 +203,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
 
     with timer.phase("preconditioner"):
         precond = make_preconditioner(opts.preconditioner, qp.primal, opts.factor,
-                                      opts.preconditioner_scaling)
+                                      opts.preconditioner_scaling,
+                                      explicit=feti.operator == "explicit")
         report.warnings.extend(getattr(precond, "notes", []))
     x = qp.b.duplicate()
     x.set(0.0)

@@ -95,7 +95,8 @@ class CornerSystem(_Rows):
         step = self._step
         blocks = step.parent.blocks
         return PreconditionerOperands(step.parent.K, step.B_parent, step.is_corner,
-                                      None if blocks is None else blocks[step.kept])
+                                      None if blocks is None else blocks[step.kept],
+                                      step.parent.offsets)
 
     def assembled(self) -> PETSc.Mat:
         """K̃ = Eᵀ K E as an MPIAIJ matrix (for checks)."""

@@ -70,7 +70,88 @@ US_FIXED = 15.0
 _PROBE = 8
 
 
-class ExplicitDual:
+class LocalBlocks:
+    """y = Σ_s Π_s B_s A_s B_sᵀ Π_sᵀ x with the local blocks formed once, dense (collective).
+
+    A = diag(A_s) is a rank's block-diagonal operator on its primal entries, given by its action
+    on the columns of a dense array; B_s the rows of B touching block s, restricted to its
+    columns, optionally scaled by columns (B Δ). The blocks are formed by max_s m_s applications
+    of A in batches of :data:`BATCH` columns, the j-th column of every block in one column.
+
+    Args:
+        B: The rows (MPIAIJ: owned dual rows × the primal layout).
+        offsets: Local offsets of the blocks of A.
+        apply_matrix: A applied to the columns of a dense (n × k) array of the first
+            ``offsets[-1]`` local primal entries.
+        scale: Per local primal entry, a column scaling of B (Δ), or None.
+    """
+
+    def __init__(self, B: PETSc.Mat, offsets: np.ndarray, apply_matrix,
+                 scale: np.ndarray | None = None) -> None:
+        self.comm: MPI.Comm = B.getComm().tompi4py()
+        p = self.pattern = DualPattern(B, offsets)
+        n, E = p.n_blocked, p.pair_g.size
+        vals = p.vals if scale is None else p.vals * scale[p.dof]
+        self._Bexp = Bexp = sp.csr_matrix((vals, (p.pair_of_entry, p.dof)), shape=(E, n))
+        # Z[:, j] = Σ over the pairs at position j of their row of B: one column per block in
+        # each right-hand side (A is block diagonal, so the blocks do not mix).
+        Z = (Bexp.T @ sp.csr_matrix((np.ones(E), (np.arange(E), p.pos)),
+                                    shape=(E, p.m_max))).tocsc()
+        blk_size = p.sizes[p.pair_blk]
+        flat = np.zeros(p.entries)
+        base = p.block_start[p.pair_blk] + p.pos * blk_size  # (pair, column 0) in ``flat``
+        for j0 in range(0, p.m_max, BATCH):
+            j1 = min(j0 + BATCH, p.m_max)
+            W = Bexp @ apply_matrix(Z[:, j0:j1].toarray())  # E × (j1 − j0)
+            J = np.arange(j0, j1)
+            inside = J[None, :] < blk_size[:, None]
+            flat[(base[:, None] + J[None, :])[inside]] = W[inside]
+        # One view per block, as formed: symmetrizing F_s changes nothing but the round-off,
+        # yet that alone moved CG's count by 3 of 39 on FETI-1 (tests/test_explicit_dual.py).
+        self.blocks = []
+        for s, m in enumerate(p.sizes):
+            if m:
+                first = int(p.pair_start[s])
+                self.blocks.append((flat[p.block_start[s]:p.block_start[s] + m * m]
+                                    .reshape(m, m), slice(first, first + int(m))))
+        self.memory = flat.nbytes
+        self._flat = flat
+        self._xe = np.empty(E)
+        self._ye = np.empty(E)
+        self._xg = PETSc.Vec().createSeq(p.ghosts.size, comm=PETSc.COMM_SELF)
+        self._yg = self._xg.duplicate()
+        template = B.createVecLeft()
+        iset = PETSc.IS().createGeneral(p.ghosts.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
+        self._scatter = PETSc.Scatter().create(template, iset, self._xg, None)
+        iset.destroy()
+        template.destroy()
+
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = the operator times x (collective)."""
+        self._scatter.scatter(x, self._xg, addv=PETSc.InsertMode.INSERT_VALUES,
+                              mode=PETSc.ScatterMode.FORWARD)
+        xg = self._xg.array_r
+        np.take(xg, self.pattern.pair_g, out=self._xe)
+        self._yg.array[:] = self._apply(xg, self._xe)
+        y.set(0.0)
+        self._scatter.scatter(self._yg, y, addv=PETSc.InsertMode.ADD_VALUES,
+                              mode=PETSc.ScatterMode.REVERSE)
+
+    def _apply(self, xg: np.ndarray, xe: np.ndarray) -> np.ndarray:
+        """The local contributions to the ghost rows: one GEMV per block, summed per row."""
+        ye = self._ye
+        for Fs, sl in self.blocks:
+            np.dot(Fs, xe[sl], out=ye[sl])
+        return np.bincount(self.pattern.pair_g, ye, minlength=xg.size) if ye.size else \
+            np.zeros(xg.size)
+
+    def destroy(self) -> None:
+        """Free the PETSc objects."""
+        for obj in (self._scatter, self._xg, self._yg):
+            obj.destroy()
+
+
+class ExplicitDual(LocalBlocks):
     """y = F x with F = B K⁺ Bᵀ held as dense blocks per subdomain (collective set-up).
 
     Args:
@@ -82,76 +163,25 @@ class ExplicitDual:
 
     def __init__(self, primal) -> None:
         inv: LocalInverse = primal.local_inverse()
-        self.comm: MPI.Comm = primal.comm
-        p = self.pattern = DualPattern(primal.B, inv)
-        n, E = p.n_blocked, p.pair_g.size
-        Bexp = sp.csr_matrix((p.vals, (p.pair_of_entry, p.dof)), shape=(E, n))
-        # Z[:, j] = Σ over the pairs at position j of their row of B: one column per subdomain
-        # in each right-hand side (K⁺ is block diagonal, so the subdomains do not mix).
-        Z = (Bexp.T @ sp.csr_matrix((np.ones(E), (np.arange(E), p.pos)),
-                                    shape=(E, p.m_max))).tocsc()
-        blk_size = p.sizes[p.pair_blk]
-        flat = np.zeros(int(np.sum(p.sizes.astype(np.int64) ** 2)))
-        base = p.block_start[p.pair_blk] + p.pos * blk_size  # (pair, column 0) in ``flat``
-        for j0 in range(0, p.m_max, BATCH):
-            j1 = min(j0 + BATCH, p.m_max)
-            W = Bexp @ inv.kplus.solve_matrix(Z[:, j0:j1].toarray())  # E × (j1 − j0)
-            J = np.arange(j0, j1)
-            inside = J[None, :] < blk_size[:, None]
-            flat[(base[:, None] + J[None, :])[inside]] = W[inside]
-        self.blocks = []
-        # One view per subdomain, as formed: symmetrizing F_s changes nothing but the round-off,
-        # yet that alone moved CG's count by 3 of 39 on FETI-1 (tests/test_explicit_dual.py).
-        for s, m in enumerate(p.sizes):
-            Fs = flat[p.block_start[s]:p.block_start[s] + m * m].reshape(m, m)
-            first = int(p.pair_start[s])
-            self.blocks.append((Fs, slice(first, first + int(m))))
-        self.blocks = [(Fs, sl) for Fs, sl in self.blocks if sl.stop > sl.start]
-        self.memory = flat.nbytes
-        self._flat = flat
+        super().__init__(primal.B, inv.offsets, inv.kplus.solve_matrix)
+        p = self.pattern
         self._coarse = None
         if inv.coarse is not None:
             c = inv.coarse
-            C = (Bexp @ c.Psi).tocsr()  # B̃_r Ψ on this rank's pairs
+            C = (self._Bexp @ c.Psi).tocsr()  # B̃_r Ψ on this rank's pairs
             Bc = sp.csr_matrix((p.c_vals, (p.c_dof, p.c_g)), shape=(c.n_coarse, p.ghosts.size))
             self._coarse = (C, Bc, c.S_plus, np.empty(c.n_coarse), np.empty(c.n_coarse))
-        self._xe = np.empty(E)
-        self._ye = np.empty(E)
-        self._xg = PETSc.Vec().createSeq(p.ghosts.size, comm=PETSc.COMM_SELF)
-        self._yg = self._xg.duplicate()
-        template = primal.B.createVecLeft()
-        iset = PETSc.IS().createGeneral(p.ghosts.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
-        self._scatter = PETSc.Scatter().create(template, iset, self._xg, None)
-        iset.destroy()
-        template.destroy()
 
-    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        """y = F x (collective)."""
-        p = self.pattern
-        self._scatter.scatter(x, self._xg, addv=PETSc.InsertMode.INSERT_VALUES,
-                              mode=PETSc.ScatterMode.FORWARD)
-        xg = self._xg.array_r
-        xe, ye = self._xe, self._ye
-        np.take(xg, p.pair_g, out=xe)
-        for Fs, sl in self.blocks:
-            np.dot(Fs, xe[sl], out=ye[sl])
-        yg = np.bincount(p.pair_g, ye, minlength=xg.size) if ye.size else np.zeros(xg.size)
-        if self._coarse is not None:
+    def _apply(self, xg: np.ndarray, xe: np.ndarray) -> np.ndarray:
+        yg = super()._apply(xg, xe)
+        if self._coarse is not None:  # + H S_cc⁺ Hᵀ x, H = B̃_c − B̃_r Ψ
             C, Bc, S_plus, t, yc = self._coarse
             self.comm.Allreduce(np.ascontiguousarray(Bc @ xg - C.T @ xe), t, op=MPI.SUM)
             S_plus.solve(t, yc)
-            if ye.size:
-                yg -= np.bincount(p.pair_g, C @ yc, minlength=xg.size)
+            if xe.size:
+                yg -= np.bincount(self.pattern.pair_g, C @ yc, minlength=xg.size)
             yg += Bc.T @ yc
-        self._yg.array[:] = yg
-        y.set(0.0)
-        self._scatter.scatter(self._yg, y, addv=PETSc.InsertMode.ADD_VALUES,
-                              mode=PETSc.ScatterMode.REVERSE)
-
-    def destroy(self) -> None:
-        """Free the PETSc objects."""
-        for obj in (self._scatter, self._xg, self._yg):
-            obj.destroy()
+        return yg
 
 
 class DualPattern:
@@ -173,11 +203,11 @@ class DualPattern:
         c_dof, c_g, c_vals: The nonzeros in FETI-DP's corner columns (rank 0).
     """
 
-    def __init__(self, B: PETSc.Mat, inv: LocalInverse) -> None:
+    def __init__(self, B: PETSc.Mat, offsets: np.ndarray) -> None:
         Bt = B.transpose(PETSc.Mat())  # a new matrix (no argument: in place)
         indptr, cols, vals = Bt.getValuesCSR()
         Bt.destroy()
-        offsets = np.asarray(inv.offsets, dtype=np.int64)
+        offsets = np.asarray(offsets, dtype=np.int64)
         n = self.n_blocked = int(offsets[-1]) if offsets.size else 0
         nb = max(offsets.size - 1, 0)
         dof = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
@@ -252,7 +282,7 @@ def measured_costs(primal, implicit, expected_mults: float = EXPECTED_MULTS) -> 
     """
     comm = primal.comm
     inv = primal.local_inverse()
-    pattern = DualPattern(primal.B, inv)
+    pattern = DualPattern(primal.B, inv.offsets)
     x = primal.B.createVecLeft()
     x.array[:] = np.random.default_rng(comm.rank).standard_normal(x.getLocalSize())
     y = x.duplicate()

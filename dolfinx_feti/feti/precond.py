@@ -242,7 +242,9 @@ class LumpedPreconditioner:
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
                              f"{scaling!r}")
-        self.K, self.B, self.left_out, self.row_blocks = PreconditionerOperands(*operands)
+        ops = PreconditionerOperands(*operands)
+        self.K, self.B, self.left_out, self.row_blocks = ops[:4]
+        self.offsets = ops.offsets
         self.count = 0
         self._w = self.B.createVecRight()
         self._v = self.B.createVecRight()
@@ -341,10 +343,12 @@ class DirichletPreconditioner(LumpedPreconditioner):
 
 
 def make_preconditioner(kind: str, primal, factor: str | None = None,
-                        scaling: str = "multiplicity"):
+                        scaling: str = "multiplicity", explicit: bool = False):
     """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module).
 
     ``primal`` is a primal system (its ``preconditioner_operands()``) or the operands.
+    ``explicit``: the Dirichlet preconditioner with its local blocks B_s S_s B_sᵀ formed once
+    (:mod:`.precond_explicit`; with the explicit dual operator).
     """
     if kind == "none":
         return None
@@ -352,6 +356,10 @@ def make_preconditioner(kind: str, primal, factor: str | None = None,
         else primal
     if kind == "lumped":
         return LumpedPreconditioner(operands, scaling, factor)
+    if kind == "dirichlet" and explicit:
+        from .precond_explicit import ExplicitDirichletPreconditioner  # it builds on this one
+
+        return ExplicitDirichletPreconditioner(operands, factor, scaling)
     if kind == "dirichlet":
         return DirichletPreconditioner(operands, factor, scaling)
     raise ValueError(f"unknown preconditioner {kind!r}: use 'none', 'lumped' or 'dirichlet'")

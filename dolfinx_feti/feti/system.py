@@ -77,12 +77,15 @@ class PreconditionerOperands(NamedTuple):
             or None.
         row_blocks: Per local row of ``B``, a label of its block of B diag(K)⁻¹ Bᵀ (see
             :func:`row_blocks`), or None (then no stiffness scaling).
+        offsets: Local offsets of the blocks (subdomains) of ``K``, or None (then no
+            explicit local blocks, :mod:`.precond_explicit`).
     """
 
     K: sp.csr_matrix
     B: PETSc.Mat
     left_out: np.ndarray | None = None
     row_blocks: np.ndarray | None = None
+    offsets: np.ndarray | None = None
 
 
 def nullspace_columns(M: np.ndarray, tol: float = KERNEL_TOL) -> np.ndarray:
@@ -245,7 +248,7 @@ class BlockSystem(_Rows):
 
     def preconditioner_operands(self) -> PreconditionerOperands:
         """K, B and the row blocks: what the lumped and Dirichlet preconditioners act with."""
-        return PreconditionerOperands(self.K, self.B, None, self.blocks)
+        return PreconditionerOperands(self.K, self.B, None, self.blocks, self.offsets)
 
     def destroy(self) -> None:
         """Free the PETSc objects."""
