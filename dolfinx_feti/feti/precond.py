@@ -327,11 +327,14 @@ class DirichletPreconditioner(LumpedPreconditioner):
                              "constrained dofs of a subdomain do not fix it)") from e
 
     def _local(self, w: np.ndarray) -> np.ndarray:
+        """S w for a vector, or for the columns of an array (:mod:`.precond_explicit`)."""
         out = np.zeros_like(w)
         wb = w[self._b]
         sb = self._Kbb @ wb
         if self._chol is not None:
-            sb -= self._Kib.T @ self._chol.solve(self._Kib @ wb)
+            t = self._Kib @ wb
+            sb -= self._Kib.T @ (self._chol.solve(t) if t.ndim == 1 else
+                                 self._chol.solve_matrix(t))
         out[self._b] = sb
         return out
 

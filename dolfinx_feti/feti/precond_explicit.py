@@ -12,7 +12,6 @@ solve against a K⁺ solve), so it is used when F is explicit (``dual_operator``
 
 from __future__ import annotations
 
-import numpy as np
 from petsc4py import PETSc
 
 from ..errors import SolveError
@@ -30,18 +29,8 @@ class ExplicitDirichletPreconditioner(DirichletPreconditioner):
             raise SolveError("the explicit Dirichlet preconditioner needs the offsets of the "
                              "subdomain blocks (PreconditionerOperands.offsets)")
         delta = None if self._scale is None else self._scale.delta
-        self._blocks = LocalBlocks(self.B, self.offsets, self._local_matrix, delta)
+        self._blocks = LocalBlocks(self.B, self.offsets, self._local, delta)
         self._u = self.B.createVecLeft()
-
-    def _local_matrix(self, Z: np.ndarray) -> np.ndarray:
-        """S applied to the columns of Z (what ``_local`` does to one vector)."""
-        out = np.zeros_like(Z)
-        Zb = Z[self._b]
-        sb = self._Kbb @ Zb
-        if self._chol is not None:
-            sb -= self._Kib.T @ self._chol.solve_matrix(self._Kib @ Zb)
-        out[self._b] = sb
-        return out
 
     def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = B S Bᵀ x (scaled if asked) by the local blocks."""
