@@ -8,6 +8,9 @@ For each problem and decomposition (Total FETI unless named), on the ranks it is
 - ``set-up``: forming the blocks (the batched solves and products), once;
 - ``break-even``: set-up / (implicit − explicit), the F-multiplications after which the explicit
   operator has paid (∞ when it is not faster);
+- ``Dirichlet``: one application of the Dirichlet preconditioner (stiffness scaling) implicit
+  and by its explicit blocks (:mod:`dolfinx_feti.feti.precond_explicit`), and the extra set-up
+  of the blocks (explicit build − implicit build);
 - ``solve``: with ``--solve``, the wall time of ``df.solve(rtol=1e-6)`` with each operator
   (its F-multiplications in parentheses);
 - the cost model of ``dual_operator="auto"`` (:mod:`dolfinx_feti.feti.explicit`): its predicted
@@ -39,6 +42,7 @@ import problems as P  # noqa: E402
 from dolfinx_feti import meshes_occ  # noqa: E402
 from dolfinx_feti.feti import explicit  # noqa: E402
 from dolfinx_feti.feti.dualize import ImplicitDual  # noqa: E402
+from dolfinx_feti.feti.precond import make_preconditioner  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 
@@ -96,12 +100,22 @@ def measure(name: str, build, method: str, repeat: int, solve: bool) -> list:
     even = f"{setup / saving:.0f}" if saving > 0 else "∞"
     subs = COMM.allreduce(int(pattern.sizes.size))
     exp.destroy()
+    pre, build_t = {}, {}
+    for e in (False, True):
+        COMM.Barrier()
+        t0 = time.perf_counter()
+        pre[e] = make_preconditioner("dirichlet", qp.primal, scaling="stiffness", explicit=e)
+        build_t[e] = COMM.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    t_pre = {e: timed(lambda e=e: pre[e].mult(x, y), repeat) for e in pre}
+    for p in pre.values():
+        p.destroy()
     solves = [solve_time(build, method, op) if solve else "–" for op in ("implicit", "explicit")]
     return [name, method, COMM.size, qp.system.primal_size[1], subs, m_max,
             f"{8e-6 * entries:.1f}", f"{1e3 * t_imp:.3f}", f"{1e3 * t_exp:.3f}",
             f"{1e3 * setup:.1f}", even, f"{1e3 * model['t_explicit']:.3f}",
             f"{1e3 * model['setup']:.1f}", "explicit" if model["explicit"] else "implicit",
-            *solves]
+            f"{1e3 * t_pre[False]:.3f}", f"{1e3 * t_pre[True]:.3f}",
+            f"{1e3 * (build_t[True] - build_t[False]):.1f}", *solves]
 
 
 def main() -> None:
@@ -120,7 +134,8 @@ def main() -> None:
     header = ["problem", "method", "ranks", "primal dofs", "subdomains", "max m_s",
               "blocks [MB/rank]", "implicit F [ms]", "explicit F [ms]", "set-up [ms]",
               "break-even [F-mults]", "model: explicit F [ms]", "model: set-up [ms]",
-              f"auto (N = {explicit.EXPECTED_MULTS})", "solve implicit [s]",
+              f"auto (N = {explicit.EXPECTED_MULTS})", "Dirichlet implicit [ms]",
+              "Dirichlet explicit [ms]", "Dirichlet blocks set-up [ms]", "solve implicit [s]",
               "solve explicit [s]"]
     rows = []
     for name, build, method in cases:
