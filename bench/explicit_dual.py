@@ -130,7 +130,10 @@ def main() -> None:
              ("3D blocks n=16, Parts(2)", lambda: P.blocks3d(16, 2), "tfeti"),
              ("3D blocks n=16, Parts(8)", lambda: P.blocks3d(16, 8), "tfeti"),
              ("3D blocks n=16, Parts(32)", lambda: P.blocks3d(16, 32), "tfeti"),
-             ("3D blocks n=16, Parts(32)", lambda: P.blocks3d(16, 32), "fetidp")]
+             ("3D blocks n=16, Parts(32)", lambda: P.blocks3d(16, 32), "fetidp"),
+             ("3D blocks n=24, Parts(8)", lambda: P.blocks3d(24, 8), "tfeti"),
+             ("3D blocks n=24, Parts(32)", lambda: P.blocks3d(24, 32), "tfeti"),
+             ("3D blocks n=24, Parts(32)", lambda: P.blocks3d(24, 32), "fetidp")]
     header = ["problem", "method", "ranks", "primal dofs", "subdomains", "max m_s",
               "blocks [MB/rank]", "implicit F [ms]", "explicit F [ms]", "set-up [ms]",
               "break-even [F-mults]", "model: explicit F [ms]", "model: set-up [ms]",

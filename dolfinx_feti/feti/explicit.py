@@ -52,9 +52,9 @@ from .kplus import LocalInverse
 
 #: Right-hand sides per batched solve of the set-up (memory: n_local × BATCH doubles).
 BATCH = 64
-#: The expected number of F-multiplications of a solve, N of the cost model: the lower end of
-#: the counts measured on the benchmark problems (docs/benchmarks.md: 40–4 000 for contact).
-EXPECTED_MULTS = 100
+#: The expected number of F-multiplications of a solve, N of the cost model: about the median
+#: count of the solves of docs/benchmarks.md § 12 (35–218, median 43; 3D 35–53, 2D 118–218).
+EXPECTED_MULTS = 50
 #: Most memory the explicit blocks may take per rank for ``"auto"`` to pick them [bytes].
 MEMORY_MAX = 2 * 1024**3
 #: Measured time of a dense GEMV per matrix entry [ns] (bench/explicit_dual.py: 0.27–0.34 on
