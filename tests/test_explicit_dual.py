@@ -106,18 +106,27 @@ def test_linear_solve_explicit_as_implicit(hertz_mesh, method):
     assert abs(i.hessian_mults_total - e.hessian_mults_total) <= 2
 
 
-#: SMALBE's count moves with round-off alone: the implicit solve takes 251 F-multiplications
-#: (TFETI, 12 outer iterations) on one rank and 235 (10) on two, and the explicit one 230–245;
-#: FETI-1 285–306, FETI-DP 198–203. So a contact solve is held to that spread, 10 %, not to two
-#: multiplications (the linear solves above are).
-ROUND_OFF_SPREAD = 0.10
+@pytest.mark.parametrize("method", METHODS)
+def test_contact_solve_explicit_as_implicit_3d(blocks_mesh, method):
+    """Contact (SMALBE, or MPRGP for coercive FETI-DP): the same solution and iterations."""
+    sols = _solve_both(lambda: b3.problem(blocks_mesh, "constrained", df.Parts(4)), method)
+    i, e = sols["implicit"].report, sols["explicit"].report
+    assert abs(i.hessian_mults - e.hessian_mults) <= 2
+    assert abs(i.hessian_mults_total - e.hessian_mults_total) <= 2
+    fi, fe = sols["implicit"].contact.force, sols["explicit"].contact.force
+    assert np.abs(fe - fi).max() <= 1e-7 * np.abs(fi).max()
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_contact_solve_explicit_as_implicit(hertz_mesh, method):
+def test_contact_solve_explicit_as_implicit_2d(hertz_mesh, method):
+    """The same solution; the counts are not compared here.
+
+    On 2D Hertz SMALBE needs 8–14 outer iterations and its count follows round-off alone: the
+    implicit solve takes 251 F-multiplications (TFETI) on one rank and 235 on two with
+    DOLFINx 0.5.2, 253 and 244 with 0.11; the explicit one 230–280. The linear solves and the
+    3D contact solves above hold the counts to two.
+    """
     sols = _solve_both(lambda: h2.problem(hertz_mesh, df.Parts(4)), method)
-    i, e = sols["implicit"].report, sols["explicit"].report
-    assert abs(i.hessian_mults - e.hessian_mults) <= ROUND_OFF_SPREAD * i.hessian_mults
     fi, fe = sols["implicit"].contact.force, sols["explicit"].contact.force
     assert np.abs(fe - fi).max() <= 1e-7 * np.abs(fi).max()
 
