@@ -29,15 +29,17 @@ implicit multiplication, t_E the predicted time of an explicit one and T the pre
 
 N the expected number of F-multiplications (:data:`EXPECTED_MULTS`). t_I is the fastest of
 five implicit multiplications (not counted as F-multiplications; on a shared machine the
-others only add waiting), T = (max_s m_s) t_c with
-t_c the measured time per column of a batched solve of a few random columns, and
-t_E = c_e Σ_s m_s² + c_b (subdomains) + c_0 (+ FETI-DP's corner correction: one S_cc⁺ solve,
-timed, and two sparse products with B̃_r Ψ, by their nonzeros) with the constants
-:data:`NS_PER_ENTRY`, :data:`US_PER_BLOCK`, :data:`US_FIXED`, :data:`NS_PER_SPARSE_ENTRY`
-measured by ``bench/explicit_dual.py``. Each time is
-the slowest rank's (every multiplication waits for it), so the choice is the same on every
-rank. The model's predictions are within about 2× of the measured times (docs/benchmarks.md
-§ 12), and the choice is only as close as the break-even is to N.
+others only add waiting), T = (max_s m_s) t_c with t_c the measured time per column of a
+batched solve of a few random columns, and t_E = c_e Σ_s m_s² + c_b (subdomains) + c_0
+(+ FETI-DP's corner correction: one S_cc⁺ solve, timed, and two sparse products with B̃_r Ψ,
+by their nonzeros) with the constants :data:`NS_PER_ENTRY`, :data:`US_PER_BLOCK`,
+:data:`US_FIXED`, :data:`NS_PER_SPARSE_ENTRY` measured by ``bench/explicit_dual.py``. Each
+time is the slowest rank's (every multiplication waits for it), so the choice is the same on
+every rank. Measured (docs/benchmarks.md § 12), the model predicted t_E within 0.5–2.3× and
+T within 0.7–2.0×, so the choice is only as good as the break-even is far from N.
+
+The same blocks serve the Dirichlet preconditioner (:mod:`.precond_explicit`):
+:class:`LocalBlocks` forms Σ_s Π_s B_s A_s B_sᵀ Π_sᵀ for any block-diagonal A.
 """
 
 from __future__ import annotations
