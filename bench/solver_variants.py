@@ -82,7 +82,7 @@ def parse_variant(spec: str) -> dict:
 
 def application_costs(problem: df.ContactProblem, repeat: int = 20) -> dict:
     """Milliseconds per F-multiplication and per preconditioner application (max over ranks)."""
-    from dolfinx_feti.feti.precond import make_preconditioner
+    from dolfinx_feti.feti.preconditioner import make_preconditioner
 
     comm = MPI.COMM_WORLD
     qp = df.dual_qp(problem, comm)

@@ -80,7 +80,8 @@ class SharedProblem:
 
 def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             factor: str | None = None, norm_rtol: float = 1e-4,
-            timer: Timer | None = None, method: str = "tfeti") -> DualQP:
+            timer: Timer | None = None, method: str = "tfeti",
+            dual_operator: str = "implicit") -> DualQP:
     """Decompose, assemble and dualize ``problem``; homogenize and project its dual QP.
 
     The three stages are :func:`share_problem`, :func:`~.fem.assembly.assemble_subdomains`
@@ -95,6 +96,7 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
             shares handed out), ``assembly``, ``factorization``, ``dual operators`` and
             ``coarse problem``; a new one if None.
         method: ``"tfeti"``, ``"feti1"`` or ``"fetidp"`` (see the module docstring).
+        dual_operator: How F is applied (:class:`.feti.dualize.Dualization`).
 
     Returns:
         The dual QP (collective objects on ``comm``).
@@ -106,7 +108,8 @@ def dual_qp(problem: ContactProblem, comm: MPI.Comm = MPI.COMM_WORLD, *,
     shared = share_problem(problem, comm, method, timer)
     data = None if shared.method == "tbeti" else \
         assemble_subdomains(problem, shared.share, comm, timer)
-    return qp_of_share(problem, shared, data, factor=factor, norm_rtol=norm_rtol, timer=timer)
+    return qp_of_share(problem, shared, data, factor=factor, norm_rtol=norm_rtol, timer=timer,
+                       dual_operator=dual_operator)
 
 
 def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: Timer
@@ -153,7 +156,8 @@ def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: T
 
 def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                 factor: str | None = None, norm_rtol: float = 1e-4,
-                timer: Timer | None = None, factors_of: DualQP | None = None) -> DualQP:
+                timer: Timer | None = None, factors_of: DualQP | None = None,
+                dual_operator: str = "implicit") -> DualQP:
     """Chain the method's transforms on this rank's assembled subdomains (collective).
 
     ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
@@ -174,7 +178,8 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     qp = chain_qp(total, steps, method=shared.method, factor=factor,
                   norm_rtol=norm_rtol, timer=timer, dec=shared.share.dec,
                   rows=shared.share.rows,
-                  info=shared.share.extra["info"] if shared.method == "fetidp" else None)
+                  info=shared.share.extra["info"] if shared.method == "fetidp" else None,
+                  dual_operator=dual_operator)
     qp.mortar, qp.friction = shared.mortar, shared.friction
     qp.share, qp.surface = shared.share, shared.surface
     qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)

@@ -24,7 +24,7 @@ from petsc4py import PETSc
 
 from .feti.chain import DualQP
 from .feti.free_motions import remove_free_motions
-from .feti.precond import make_preconditioner
+from .feti.preconditioner import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
 from .options import PENALTY, SolverOptions
@@ -105,7 +105,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     if own_precond:
         with timer.phase("preconditioner"):
             preconditioner = make_preconditioner(opts.preconditioner, qp.primal, opts.factor,
-                                                 opts.preconditioner_scaling)
+                                                 opts.preconditioner_scaling,
+                                                 explicit=feti.operator == "explicit")
     precond = preconditioner
     report.warnings.extend(getattr(precond, "notes", []))
     x = qp.b.duplicate()

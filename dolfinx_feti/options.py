@@ -90,6 +90,11 @@ FETI = OptionSet(
     qp=Option("auto", Choice("auto", "penalty"), "'auto' (CG / SMALBE / MPRGP as the problem "
               "needs) or 'penalty' (the dual penalty FETI-NCG_ρ: MPRGP on PFP + ρQ, the "
               "equality only approximated: ||Gλ|| = O(1/ρ))"),
+    dual_operator=Option("implicit", Choice("implicit", "explicit", "auto"), "how F = B K⁺ Bᵀ "
+                         "is applied: 'implicit' (Bᵀ, the subdomain solves, B), 'explicit' "
+                         "(one dense matrix B_s K_s⁺ B_sᵀ per subdomain, formed once) or "
+                         "'auto' (explicit when its set-up pays within the expected "
+                         "F-multiplications: the measured cost model of docs/solvers.md)"),
     norm_rtol=Option(1e-4, _TOL, "the relative tolerance of the Lanczos estimate of ||PFP||"),
     verbose=Option(0, Integer(ge=0, le=2), "0 quiet, 1 one line per phase, 2 also every "
                    "iteration (rank 0 only)"),

@@ -31,7 +31,7 @@ from .dual import DualQP, SharedProblem, qp_of_share, share_problem
 from .dual_solve import solve_qp, warn_loose_stop
 from .errors import InputError, NotConverged
 from .fem.assembly import assemble_loads, assemble_subdomains
-from .feti.precond import make_preconditioner
+from .feti.preconditioner import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
 from .mortar_report import mortar_warnings
@@ -83,7 +83,8 @@ class FetiSolver:
             assemble_subdomains(problem, self._shared.share, comm, self._timer, keep=keep_meshes)
         self._loads = LoadRows(self._shared.share, problem.value_size)
         self.qp: DualQP = qp_of_share(problem, self._shared, self._data, factor=opts.factor,
-                                      norm_rtol=opts.norm_rtol, timer=self._timer)
+                                      norm_rtol=opts.norm_rtol, timer=self._timer,
+                                      dual_operator=opts.dual_operator)
         self.preconditioner = None
         self._new_preconditioner()
         self._lam: PETSc.Vec | None = None
@@ -148,7 +149,7 @@ class FetiSolver:
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
-                         factors_of=old)
+                         factors_of=old, dual_operator=self.options.dual_operator)
         self._adopt(qp, rows)
         self._new_preconditioner()
         self._mu = None  # the multiplier of another G̃
@@ -176,7 +177,8 @@ class FetiSolver:
         self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
-                         norm_rtol=self.options.norm_rtol, timer=self._timer)
+                         norm_rtol=self.options.norm_rtol, timer=self._timer,
+                         dual_operator=self.options.dual_operator)
         self._adopt(qp, rows)
         self._new_preconditioner()
 
@@ -199,8 +201,9 @@ class FetiSolver:
             self.preconditioner.destroy()
         opts = self.options
         with self._timer.phase("preconditioner"):
-            self.preconditioner = make_preconditioner(opts.preconditioner, self.qp.primal,
-                                                      opts.factor, opts.preconditioner_scaling)
+            self.preconditioner = make_preconditioner(
+                opts.preconditioner, self.qp.primal, opts.factor, opts.preconditioner_scaling,
+                explicit=self.qp.feti.operator == "explicit")
 
     def _check_stiffness(self, problem: ContactProblem) -> None:
         """Refuse forms whose stiffness differs from the set-up's (one assembly of K)."""

@@ -232,7 +232,8 @@ class DualQP:
 
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
-             dec=None, rows=None, info: dict | None = None) -> DualQP:
+             dec=None, rows=None, info: dict | None = None,
+             dual_operator: str = "implicit") -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 
     Args:
@@ -246,6 +247,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         dec: The decomposition behind ``total``, if any.
         rows: The constraint rows behind ``total``, if any.
         info: Sizes of the method for the report.
+        dual_operator: How F is applied (:class:`.dualize.Dualization`).
     """
     timer = Timer() if timer is None else timer
     comm = total.comm
@@ -257,7 +259,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         with timer.phase("factorization"):
             system.factorize(factor, site="factorization")  # guarded inside (collective)
     with timer.phase("dual operators"):
-        feti = Dualization(system)
+        feti = Dualization(system, dual_operator)
     ineq = system.types == INEQUALITY
     with timer.phase("coarse problem"):
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))

@@ -33,7 +33,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InputError, SolveError, collective
-from .kplus import FixingNodesInverse
+from .kplus import CornerCoarse, FixingNodesInverse, LocalInverse
 from .system import (
     EQUALITY,
     BlockSystem,
@@ -87,6 +87,12 @@ class CornerSystem(RowOperands):
         """y = K̃⁺ x."""
         self._step.apply_kplus(x.array_r, y.array)
 
+    def local_inverse(self) -> LocalInverse:
+        """K̃⁺ as K_rr⁺ by subdomains plus the corner correction (for :mod:`.explicit`)."""
+        step = self._step
+        coarse = CornerCoarse(step.Psi, step.S_plus, step.n_coarse) if step.n_coarse else None
+        return LocalInverse(step.Krr_plus, step.parent.offsets, coarse)
+
     def kernel_matrix(self):
         """The rigid motions of the floating bodies in the new layout, and their bodies."""
         return self._step.kernel_local, list(self._step.kernel_bodies)
@@ -96,7 +102,8 @@ class CornerSystem(RowOperands):
         step = self._step
         blocks = step.parent.blocks
         return PreconditionerOperands(step.parent.K, step.B_parent, step.is_corner,
-                                      None if blocks is None else blocks[step.kept])
+                                      None if blocks is None else blocks[step.kept],
+                                      step.parent.offsets)
 
     def assembled(self) -> PETSc.Mat:
         """K̃ = Eᵀ K E as an MPIAIJ matrix (for checks)."""

@@ -6,7 +6,10 @@
 
 The primal problem is anything with ``B``, ``f``, ``c``, ``apply_kplus`` and ``kernel_matrix``
 (:class:`.system.BlockSystem` for Total FETI and FETI-1, :class:`.corners.CornerSystem` for
-FETI-DP), so the same step serves every method.
+FETI-DP), so the same step serves every method. F is applied implicitly (Bᵀ, the local solves,
+B: :class:`ImplicitDual`) or through dense local blocks formed once (``local_inverse()``
+needed: :class:`.explicit.ExplicitDual`), as ``dual_operator`` says; ``"auto"`` picks by the
+measured cost model of :mod:`.explicit`. Either way an application of F counts once.
 """
 
 from __future__ import annotations
@@ -18,25 +21,49 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..errors import InputError
 from ..qp.equality import RowBlockConstraint, orthonormalize
 from ..qp.shell import python_shell
+from .explicit import EXPECTED_MULTS, ExplicitDual, measured_costs
 from .system import petsc_aij
 
 
-class _DualShell:
-    """The python context of the F shell: y = B K⁺ Bᵀ x, counting applications."""
+class ImplicitDual:
+    """y = B K⁺ Bᵀ x applied as it reads: Bᵀ, the local solves, B (no set-up)."""
+
+    name = "implicit"
 
     def __init__(self, primal) -> None:
         self.primal = primal
-        self.count = 0
         self._w = primal.B.createVecRight()
         self._v = primal.B.createVecRight()
 
-    def mult(self, mat: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
-        self.count += 1
+    def mult(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        """y = F x (collective)."""
         self.primal.B.multTranspose(x, self._w)
         self.primal.apply_kplus(self._w, self._v)
         self.primal.B.mult(self._v, y)
+
+    def destroy(self) -> None:
+        """Free the work vectors."""
+        self._w.destroy()
+        self._v.destroy()
+
+
+#: The ways to apply F, by the option ``dual_operator`` (``"auto"``: :func:`.explicit.choose`).
+OPERATORS = {"implicit": ImplicitDual, "explicit": ExplicitDual}
+
+
+class _DualShell:
+    """The python context of the F shell: y = F x by ``operator``, counting applications."""
+
+    def __init__(self, operator) -> None:
+        self.operator = operator
+        self.count = 0
+
+    def mult(self, mat: PETSc.Mat, x: PETSc.Vec, y: PETSc.Vec) -> None:
+        self.count += 1
+        self.operator.mult(x, y)
 
 
 class Dualization:
@@ -53,15 +80,36 @@ class Dualization:
         kernel_bodies: The body of each column of R (for messages).
         coarse_size: Number of columns of R (the coarse space before orthonormalization).
         rows_local: The global rows owned by this rank.
+        operator: How F is applied: ``"implicit"`` or ``"explicit"``.
+        operator_costs: With ``dual_operator="auto"``, the cost model's figures
+            (:func:`.explicit.measured_costs`), else empty.
+
+    Args:
+        primal: The factored primal problem.
+        dual_operator: ``"implicit"``, ``"explicit"`` or ``"auto"``.
+        expected_mults: N of the cost model of ``"auto"``.
     """
 
-    def __init__(self, primal) -> None:
+    def __init__(self, primal, dual_operator: str = "implicit",
+                 expected_mults: float = EXPECTED_MULTS) -> None:
         self.primal = primal
         self.comm: MPI.Comm = primal.comm
         self.B, self.c, self.f = primal.B, primal.c, primal.f
         self.rows_local = primal.rows_local
         self.dual_size, self.primal_size = primal.dual_size, primal.primal_size
-        self._shell = _DualShell(primal)
+        if dual_operator not in (*OPERATORS, "auto"):
+            raise InputError(f"dual_operator must be one of {(*OPERATORS, 'auto')}, got "
+                             f"{dual_operator!r}")
+        operator = ImplicitDual(primal)
+        self.operator_costs: dict = {}
+        if dual_operator == "auto":
+            self.operator_costs = measured_costs(primal, operator, expected_mults)
+            dual_operator = "explicit" if self.operator_costs["explicit"] else "implicit"
+        if dual_operator != operator.name:
+            operator.destroy()
+            operator = OPERATORS[dual_operator](primal)
+        self.operator = operator.name
+        self._shell = _DualShell(operator)
         self.F = python_shell(self._shell, self.c)
         self.R, self.kernel_bodies = primal.kernel_matrix()
         m = self.coarse_size = self.R.shape[1]
@@ -139,6 +187,7 @@ class Dualization:
 
     def destroy(self) -> None:
         """Free the PETSc objects of the dual (not the primal's; of a copy: only d)."""
-        shared = getattr(self, "_shares_operators", False)
-        for obj in (self.d,) if shared else (self.F, self.d):
-            obj.destroy()
+        self.d.destroy()
+        if not getattr(self, "_shares_operators", False):
+            self.F.destroy()
+            self._shell.operator.destroy()

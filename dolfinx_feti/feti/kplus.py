@@ -8,6 +8,7 @@ subdomains: no Python work per subdomain on the hot path.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -16,6 +17,34 @@ from petsc4py import PETSc
 
 from ..errors import SolveError
 from ..factor import default_factor, set_cholesky
+
+
+class CornerCoarse(NamedTuple):
+    """FETI-DP's coarse correction of K̃⁺ (see :mod:`.corners`): K̃⁺ = K_rr⁺ + its rank-nc part.
+
+    Attributes:
+        Psi: Ψ = K_rr⁺ K_rc, local rows × corner unknowns (SciPy CSR).
+        S_plus: The generalized inverse of the corner Schur complement S_cc (replicated).
+        n_coarse: Number of corner unknowns (rank 0 holds them after its local entries).
+    """
+
+    Psi: sp.csr_matrix
+    S_plus: FixingNodesInverse
+    n_coarse: int
+
+
+class LocalInverse(NamedTuple):
+    """The block-diagonal part of a primal system's K⁺ on this rank (the explicit dual's input).
+
+    Attributes:
+        kplus: The factored blocks, on the first ``offsets[-1]`` local primal entries.
+        offsets: Local offsets of the blocks (subdomains).
+        coarse: FETI-DP's corner correction, or None (Total FETI, FETI-1).
+    """
+
+    kplus: FixingNodesInverse
+    offsets: np.ndarray
+    coarse: CornerCoarse | None = None
 
 
 def choose_fixing_dofs(R: np.ndarray) -> np.ndarray:

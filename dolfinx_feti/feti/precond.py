@@ -242,7 +242,9 @@ class LumpedPreconditioner:
         if scaling not in SCALINGS:
             raise ValueError(f"preconditioner scaling must be one of {SCALINGS}, got "
                              f"{scaling!r}")
-        self.K, self.B, self.left_out, self.row_blocks = PreconditionerOperands(*operands)
+        ops = PreconditionerOperands(*operands)
+        self.K, self.B, self.left_out, self.row_blocks = ops[:4]
+        self.offsets = ops.offsets
         self.count = 0
         self._w = self.B.createVecRight()
         self._v = self.B.createVecRight()
@@ -325,11 +327,14 @@ class DirichletPreconditioner(LumpedPreconditioner):
                              "constrained dofs of a subdomain do not fix it)") from e
 
     def _local(self, w: np.ndarray) -> np.ndarray:
+        """S w for a vector, or for the columns of an array (:mod:`.precond_explicit`)."""
         out = np.zeros_like(w)
         wb = w[self._b]
         sb = self._Kbb @ wb
         if self._chol is not None:
-            sb -= self._Kib.T @ self._chol.solve(self._Kib @ wb)
+            t = self._Kib @ wb
+            sb -= self._Kib.T @ (self._chol.solve(t) if t.ndim == 1 else
+                                 self._chol.solve_matrix(t))
         out[self._b] = sb
         return out
 
@@ -338,20 +343,3 @@ class DirichletPreconditioner(LumpedPreconditioner):
         super().destroy()
         if self._chol is not None:
             self._chol.destroy()
-
-
-def make_preconditioner(kind: str, primal, factor: str | None = None,
-                        scaling: str = "multiplicity"):
-    """``"none"`` → None, ``"lumped"``, ``"dirichlet"`` (``scaling``: see the module).
-
-    ``primal`` is a primal system (its ``preconditioner_operands()``) or the operands.
-    """
-    if kind == "none":
-        return None
-    operands = primal.preconditioner_operands() if hasattr(primal, "preconditioner_operands") \
-        else primal
-    if kind == "lumped":
-        return LumpedPreconditioner(operands, scaling, factor)
-    if kind == "dirichlet":
-        return DirichletPreconditioner(operands, factor, scaling)
-    raise ValueError(f"unknown preconditioner {kind!r}: use 'none', 'lumped' or 'dirichlet'")

@@ -21,7 +21,7 @@ from petsc4py import PETSc
 
 from ..constraints.rows import Kind, Rows
 from ..errors import collective
-from .kplus import FixingNodesInverse
+from .kplus import FixingNodesInverse, LocalInverse
 
 #: Singular values of R_s restricted to its held dofs at or below this (R_s has orthonormal
 #: columns, so they are at most 1) count as zero: that rigid motion is not held there.
@@ -78,12 +78,15 @@ class PreconditionerOperands(NamedTuple):
             or None.
         row_blocks: Per local row of ``B``, a label of its block of B diag(K)⁻¹ Bᵀ (see
             :func:`row_blocks`), or None (then no stiffness scaling).
+        offsets: Local offsets of the blocks (subdomains) of ``K``, or None (then no
+            explicit local blocks, :mod:`.precond_explicit`).
     """
 
     K: sp.csr_matrix
     B: PETSc.Mat
     left_out: np.ndarray | None = None
     row_blocks: np.ndarray | None = None
+    offsets: np.ndarray | None = None
 
 
 def nullspace_columns(M: np.ndarray, tol: float = KERNEL_TOL) -> np.ndarray:
@@ -204,6 +207,10 @@ class BlockSystem(RowOperands):
         """y = K⁺ x (the local solves)."""
         self.Kplus.solve(x.array_r, y.array)
 
+    def local_inverse(self) -> LocalInverse:
+        """K⁺ = diag(K_s⁺) on this rank, by blocks (for :mod:`.explicit`; after factorize)."""
+        return LocalInverse(self.Kplus, self.offsets)
+
     def kernel_matrix(self) -> tuple[sp.csr_matrix, list[str]]:
         """R as local rows with global columns (k_s columns per block, in block order).
 
@@ -272,7 +279,7 @@ class BlockSystem(RowOperands):
 
     def preconditioner_operands(self) -> PreconditionerOperands:
         """K, B and the row blocks: what the lumped and Dirichlet preconditioners act with."""
-        return PreconditionerOperands(self.K, self.B, None, self.blocks)
+        return PreconditionerOperands(self.K, self.B, None, self.blocks, self.offsets)
 
     def destroy(self) -> None:
         """Free the PETSc objects (of a :meth:`with_rhs` copy: its vectors only)."""
