@@ -296,6 +296,19 @@ def scatter_forward(u: dolfinx.fem.Function) -> None:
 # ---------------------------------------------------------------------------------------------
 
 
+def garbage_cleanup(comm: MPI.Comm) -> None:
+    """Destroy the PETSc objects Python has collected (collective on ``comm``).
+
+    Since petsc4py 3.18 a parallel PETSc object whose Python wrapper is collected is only
+    queued for destruction (destroying it there could deadlock: not every rank collects at
+    the same moment); the queue is emptied here, at a point every rank reaches together.
+    Without it, every solve's vectors and matrices stay allocated.
+    """
+    cleanup = getattr(PETSc, "garbage_cleanup", None)
+    if cleanup is not None:
+        cleanup(comm)
+
+
 def constant(msh: dolfinx.mesh.Mesh, value) -> dolfinx.fem.Constant:
     """A constant (scalar or vector) on ``msh``: a runtime value, not a literal of the form.
 

@@ -207,6 +207,7 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
             precond = ProjectedPreconditioner(precond, ocon, rho)
         res = solver.solve(QP.create(Arho, dual.b, lb=lb, ub=ub, discs=discs,
                                      norm_A=max(norm_A, rho), preconditioner=precond), x)
+        Arho.destroy()  # a shell holds its context until destroyed
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res
     return solver.solve(QP.create(dual.A, dual.b, lb=lb, ub=ub, discs=discs, eq=ocon,

@@ -26,6 +26,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from . import compat
 from .constraints.load_rows import LoadRows
 from .dual import DualQP, SharedProblem, qp_of_share, share_problem
 from .dual_solve import solve_qp, warn_loose_stop
@@ -93,6 +94,17 @@ class FetiSolver:
 
     # --- what changes between solves ---------------------------------------------------------
     def update(self, problem: ContactProblem, *, check_stiffness: bool = False) -> None:
+        """Take a new load case: tractions, body forces, Dirichlet values, obstacle positions.
+
+        See :meth:`_update` (arguments, what is recomputed); afterwards the PETSc objects let go
+        of are destroyed, as after :meth:`solve`.
+        """
+        try:
+            self._update(problem, check_stiffness)
+        finally:
+            compat.garbage_cleanup(self.comm)
+
+    def _update(self, problem: ContactProblem, check_stiffness: bool) -> None:
         """Take a new load case: tractions, body forces, Dirichlet values, obstacle positions.
 
         Recomputes the load f, the right-hand sides c of the Dirichlet and obstacle rows, and
@@ -218,6 +230,17 @@ class FetiSolver:
 
     # --- the solve -------------------------------------------------------------------------
     def solve(self, x0: Solution | PETSc.Vec | str | None = None) -> Solution:
+        """Solve the current problem (collective).
+
+        See :meth:`_solve`; afterwards the PETSc objects the solve let go of are destroyed
+        (:func:`~dolfinx_feti.compat.garbage_cleanup`), so memory stays flat over many solves.
+        """
+        try:
+            return self._solve(x0)
+        finally:
+            compat.garbage_cleanup(self.comm)
+
+    def _solve(self, x0) -> Solution:
         """Solve the current problem (collective).
 
         Args:
@@ -369,12 +392,21 @@ class FetiSolver:
         report.warnings.extend(warn)
 
     def destroy(self) -> None:
-        """Free the PETSc objects the solver holds (its Solutions keep theirs)."""
+        """Free the PETSc objects the solver holds (collective); it cannot solve again.
+
+        The chain, the factorizations and the preconditioner go; its Solutions stay valid,
+        without their ``dual`` operators.
+        """
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
             self.preconditioner.destroy()
+            self.preconditioner = None
         if self._lam is not None:
             self._lam.destroy()
             self._lam = None
+        if self.qp is not None:
+            self.qp.destroy()
+            self.qp = None
+        compat.garbage_cleanup(self.comm)
 
 
 def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -407,9 +439,14 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     """
     solver = FetiSolver(problem, comm=comm, options=options, keep_meshes=False, **kwargs)
     try:
-        return solver.solve()
+        sol = solver.solve()
+    except NotConverged as e:
+        e.solution.dual = None
+        raise
     finally:
         solver.destroy()
+    sol.dual = None  # the operators went with the solver: keep a FetiSolver for them
+    return sol
 
 
 __all__ = ["COLD", "FetiSolver", "solve"]

@@ -229,6 +229,22 @@ class DualQP:
         self.hom.destroy()
         self.proj.b.destroy()
 
+    def destroy(self) -> None:
+        """Free the chain's PETSc objects: the vectors, P F P, F, the factorizations.
+
+        The Total FETI system's B, c and f stay (a Solution reads them); so does every
+        operator of an earlier load case it shares with this one (they are the same objects).
+        A shell Mat holds its Python context — and through it the whole chain — until it is
+        destroyed: without this, a chain outlives its last reference.
+        """
+        self.destroy_load()
+        self.proj.A.destroy()
+        self.feti.destroy(operators=True)
+        last = self.steps[-1].child if self.steps else self.system
+        last.destroy_factors()
+        for step in self.steps:
+            step.child.destroy_rows()
+
 
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,

@@ -113,6 +113,15 @@ class CornerSystem(RowOperands):
         """Free the PETSc objects (of a :meth:`with_rhs` copy: its vectors only)."""
         self._destroy_rows()
 
+    def destroy_factors(self) -> None:
+        """Free K_rr⁺ and S_cc⁺ (shared with every copy and adopter of the step)."""
+        step = self._step
+        for name in ("Krr_plus", "S_plus"):
+            inverse = getattr(step, name, None)
+            if inverse is not None:
+                inverse.destroy()
+                setattr(step, name, None)
+
 
 class EliminateCorners:
     """Keep the corner dofs primal: the FETI-DP transform of a block system.

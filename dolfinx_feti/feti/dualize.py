@@ -185,9 +185,15 @@ class Dualization:
             alpha += N @ (N.T @ hint)
         return alpha
 
-    def destroy(self) -> None:
-        """Free the PETSc objects of the dual (not the primal's; of a copy: only d)."""
+    def destroy(self, operators: bool | None = None) -> None:
+        """Free the PETSc objects of the dual (not the primal's).
+
+        ``operators``: also F and its operator, shared by every :meth:`for_load` copy
+        (default: only when this is the original, not a copy).
+        """
         self.d.destroy()
-        if not getattr(self, "_shares_operators", False):
+        if operators is None:
+            operators = not getattr(self, "_shares_operators", False)
+        if operators:
             self.F.destroy()
             self._shell.operator.destroy()

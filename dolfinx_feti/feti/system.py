@@ -126,6 +126,10 @@ class RowOperands:
         new._shares_operators = True
         return new
 
+    def destroy_rows(self) -> None:
+        """Free f and c, and B unless shared with the system this one was copied from."""
+        self._destroy_rows()
+
     def _destroy_rows(self) -> bool:
         """Free f and c, and B unless shared; whether the operators are this system's own."""
         own = not getattr(self, "_shares_operators", False)
@@ -281,7 +285,13 @@ class BlockSystem(RowOperands):
         """K, B and the row blocks: what the lumped and Dirichlet preconditioners act with."""
         return PreconditionerOperands(self.K, self.B, None, self.blocks, self.offsets)
 
+    def destroy_factors(self) -> None:
+        """Free K⁺ (shared with every :meth:`with_rhs` copy and adopter of it)."""
+        if self.Kplus is not None:
+            self.Kplus.destroy()
+            self.Kplus = None
+
     def destroy(self) -> None:
         """Free the PETSc objects (of a :meth:`with_rhs` copy: its vectors only)."""
-        if self._destroy_rows() and self.Kplus is not None:
-            self.Kplus.destroy()
+        if self._destroy_rows():
+            self.destroy_factors()

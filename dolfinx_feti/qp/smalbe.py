@@ -269,17 +269,24 @@ class _SMALBESolve:
         return qp.child(A=H, b=bk, eq=None, norm_A=inner_norm, preconditioner=inner_prec)
 
     def run(self) -> QPResult:
-        """The outer loop; the result."""
-        reason = "max_outer"
-        for k in range(self.s.max_outer):
-            M_k = self.M
-            res = self._inner_solve(M_k)
-            reason = self._outer_update(k, M_k, res)
-            if reason is not None:
-                break
-        else:
+        """The outer loop; the result. The inner QP's operator and vectors are freed after it.
+
+        (A shell Mat holds its Python context: without ``destroy`` neither is ever freed.)
+        """
+        try:
             reason = "max_outer"
-        return self._result(reason, res)
+            for k in range(self.s.max_outer):
+                M_k = self.M
+                res = self._inner_solve(M_k)
+                reason = self._outer_update(k, M_k, res)
+                if reason is not None:
+                    break
+            else:
+                reason = "max_outer"
+            return self._result(reason, res)
+        finally:
+            for obj in (self.inner_qp.A, self.inner_qp.b, self.g, self.tmp):
+                obj.destroy()
 
     def _inner_solve(self, M_k: float) -> QPResult:
         """The inner solve of one outer iteration; its counts added to SMALBE's."""
