@@ -1,0 +1,278 @@
+"""Load paths and load cases on one set-up (``df.solve_path``, ``df.solve_cases``).
+
+Without friction the path does not matter: every step equals a single solve at its load. With
+friction the tangential rows act on the slip increment of the step: each step equals an
+independent monolithic solve (``friction_reference``, semismooth Newton on the dense dual)
+whose tangential rows' right-hand sides are its own previous step's B_t u; on the Hertz
+disk-on-block (Cattaneo–Mindlin) a tangential load taken back to zero leaves tangential
+tractions locked in, which a single solve at the final load does not have.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import reference as ref
+import ufl
+from friction_reference import FrictionReference
+from mpi4py import MPI
+from test_feti_solver import assert_no_setup, assert_same, hertz
+
+import dolfinx_feti as df
+from dolfinx_feti import meshes
+
+RTOL = 1e-10
+
+
+@pytest.fixture(scope="module")
+def hertz_mesh(root):
+    return df.read_gmsh(root / "meshes/hertz2d.msh")
+
+
+# --- without friction: the path does not matter ---------------------------------------------
+LOADS = (5.0, 10.0, 15.0, 10.0, 5.0, 0.5)  # load and unload
+
+
+@pytest.mark.parametrize("method", ("tfeti", "fetidp"))
+def test_frictionless_path_equals_single_solves(hertz_mesh, method):
+    sols = df.solve_path(lambda t: hertz(hertz_mesh, load=LOADS[int(t)]), range(len(LOADS)),
+                         rtol=RTOL, method=method)
+    assert len(sols) == len(LOADS)
+    for k, (sol, load) in enumerate(zip(sols, LOADS, strict=True)):
+        assert sol.report.converged
+        assert sol.report.extra["step"] == k and sol.report.extra["time"] == float(k)
+        assert_same(sol, df.solve(hertz(hertz_mesh, load=load), rtol=RTOL, method=method))
+        if k:
+            assert_no_setup(sol)
+
+
+def test_times_and_problems_checked(hertz_mesh):
+    def at(t):
+        return hertz(hertz_mesh)
+
+    with pytest.raises(df.InputError, match="increase strictly"):
+        df.solve_path(at, [0.0, 1.0, 1.0])
+    with pytest.raises(df.InputError, match="non-empty"):
+        df.solve_path(at, [])
+    with pytest.raises(df.InputError, match="not a ContactProblem"):
+        df.solve_path(lambda t: None, [0.0])
+    with pytest.raises(df.InputError, match="differs in forms"):
+        df.solve_path(lambda t: hertz(hertz_mesh, E=200.0 + t), [0.0, 1.0])
+
+
+def test_cases_amortized(hertz_mesh):
+    loads = (5.0, 15.0, 10.0)
+    sols = df.solve_cases([hertz(hertz_mesh, load=p) for p in loads], rtol=RTOL)
+    for k, (sol, load) in enumerate(zip(sols, loads, strict=True)):
+        assert_same(sol, df.solve(hertz(hertz_mesh, load=load), rtol=RTOL))
+        case = sol.report.extra["case"]
+        assert case["index"] == k and case["cases"] == 3
+        assert 0 < case["amortized_seconds"] and case["setup_seconds"] <= sol.report.timings[
+            "total"]
+    first = sols[0].report.extra["case"]
+    assert sols[1].report.extra["case"]["setup_seconds"] < first["first_setup_seconds"]
+    cold = df.solve_cases([hertz(hertz_mesh, load=p) for p in loads], rtol=RTOL, warm=False)
+    for a, b in zip(sols, cold, strict=True):
+        assert_same(a, b)
+
+
+# --- friction with history against a monolithic reference ----------------------------------
+E, NU = 21.19, 0.277
+#: The block's top: pressed, sheared there and back (a load path of prescribed displacements).
+SHIFTS = ((0.0, -0.02), (0.01, -0.02), (0.02, -0.02), (0.01, -0.02), (0.0, -0.02))
+
+
+@pytest.fixture(scope="module")
+def blocks(root):
+    return df.build_mesh(meshes.tresca2d, n=6)
+
+
+def sheared(mesh, shift, friction):
+    return df.ContactProblem(
+        mesh, df.Elasticity(E, NU),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=shift)],
+        contact=[df.NodeToNode("block_bottom", "foundation_top", friction=friction)],
+        decomposition=df.Parts(3))
+
+
+def reference_path(mesh, friction):
+    """The monolithic path: each step's tangential rows start from the last step's B_t u."""
+    out, slip0 = [], None
+    for shift in SHIFTS:
+        r = FrictionReference(mesh, ref.elasticity_forms(E, NU),
+                              dirichlet=[("bottom", (0.0, 0.0)), ("top", shift)],
+                              slave="block_bottom", master="foundation_top", normal=(0.0, 1.0))
+        sol = r.solve_coulomb(friction.coefficient, slip0=slip0) \
+            if isinstance(friction, df.Coulomb) else r.solve_tresca(friction.bound) \
+            if slip0 is None else r.solve_bound(friction.bound * r.area, slip0=slip0)
+        out.append(sol)
+        slip0 = r.tangential_displacement(sol.u)
+    return out
+
+
+@pytest.mark.parametrize("friction", [df.Tresca(0.1), df.Coulomb(0.3, rtol=1e-10)],
+                         ids=["tresca", "coulomb"])
+def test_friction_path_against_monolithic_reference(blocks, friction):
+    sols = df.solve_path(lambda t: sheared(blocks, SHIFTS[int(t)], friction),
+                         range(len(SHIFTS)), rtol=RTOL)
+    refs = reference_path(blocks, friction)
+    tol = 1e-6
+    for sol, r in zip(sols, refs, strict=True):
+        assert sol.report.converged
+        c = sol.contact
+        assert ref.rel_max_diff(sol.nodal_values(), r.u) <= tol
+        scale = r.normal_force.max()
+        assert np.abs(r.by_node(c.node, c.force) - r.normal_force).max() <= tol * scale
+        ft = r.by_node(c.node, c.tangential_force)
+        assert np.abs(ft - r.tangential_force).max() <= tol * scale
+    # the path matters: back at the first shift, the state is not the first step's
+    first, last = sols[0], sols[-1]
+    assert ref.rel_max_diff(last.nodal_values(), first.nodal_values()) > 1e-3
+    single = df.solve(sheared(blocks, SHIFTS[-1], friction), rtol=RTOL)
+    assert_same(single, first, tol=1e-6)
+
+
+def test_friction_values_change_between_steps(blocks):
+    """A Tresca bound that changes along the path, and Tresca → Coulomb (the same rows)."""
+    frictions = (df.Tresca(0.1), df.Tresca(0.05), df.Coulomb(0.3, rtol=1e-10))
+    sols = df.solve_path(lambda t: sheared(blocks, SHIFTS[int(t)], frictions[int(t)]),
+                         range(3), rtol=RTOL)
+    slip0 = None
+    for k, (sol, fr) in enumerate(zip(sols, frictions, strict=True)):
+        r = FrictionReference(blocks, ref.elasticity_forms(E, NU),
+                              dirichlet=[("bottom", (0.0, 0.0)), ("top", SHIFTS[k])],
+                              slave="block_bottom", master="foundation_top", normal=(0.0, 1.0))
+        rs = r.solve_coulomb(fr.coefficient, slip0=slip0) if isinstance(fr, df.Coulomb) \
+            else r.solve_bound(fr.bound * r.area, slip0=slip0)
+        assert ref.rel_max_diff(sol.nodal_values(), rs.u) <= 1e-6
+        slip0 = r.tangential_displacement(rs.u)
+    assert sols[2].report.extra["friction"]["model"] == "coulomb"
+    problem = sheared(blocks, SHIFTS[0], None)
+    with pytest.raises(df.InputError, match="differs in contact"):
+        df.solve_path(lambda t: sheared(blocks, SHIFTS[0], frictions[0]) if t == 0 else problem,
+                      [0.0, 1.0])
+
+
+# --- Cattaneo–Mindlin–Deresiewicz on the Hertz disk-on-block -------------------------------
+R, P, EH, NUH, F = 8.0, 10.0, 200.0, 0.3, 0.4
+H = 0.1
+A_HERTZ = 2.0 * np.sqrt(R * P / (np.pi * EH / (2.0 * (1.0 - NUH**2))))
+
+
+@pytest.fixture(scope="module")
+def disk():
+    return df.build_mesh(meshes.hertz2d_full, h_contact=H)
+
+
+def disk_problem(mesh, p, q):
+    """Normal load p and tangential load q on the disk's top, without a moment about the
+    contact point (a linear normal part cancels q's), so the pressure stays Hertzian."""
+    m = 3.0 * q / (2.0 * R**2)
+
+    def traction(x):
+        return ufl.as_vector((q / (2 * R), -p / (2 * R) + m * x[0]))
+
+    return df.ContactProblem(
+        mesh, df.Elasticity(EH, NUH, tractions={"load": traction}),
+        dirichlet=[df.Dirichlet("bottom")],
+        contact=[df.NodeToNode("disk_contact", "block_contact", friction=df.Coulomb(F))],
+        decomposition=df.Parts(2))
+
+
+def half_width(x, inside):
+    xi = x[inside]
+    return 0.5 * (xi.max() - xi.min()) + 0.5 * H
+
+
+#: Q/(𝓕P) along the path: P first, then Q up and back to 0.
+RATIOS = (0.0, 0.3, 0.6, 0.3, 0.0)
+
+
+@pytest.fixture(scope="module")
+def mindlin(disk, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("path") if MPI.COMM_WORLD.rank == 0 else None
+    folder = MPI.COMM_WORLD.bcast(folder, root=0)
+    sols = df.solve_path(lambda t: disk_problem(disk, P, RATIOS[int(t)] * F * P),
+                         range(len(RATIOS)), rtol=1e-8, xdmf=folder / "path.xdmf",
+                         history=folder / "history.json")
+    return sols, folder
+
+
+def test_locked_in_traction_after_unloading(disk, mindlin):
+    sols, _ = mindlin
+    for sol, r in zip(sols, RATIOS, strict=True):
+        assert sol.report.converged, sol.report.summary()
+        assert np.allclose(sol.total_contact_force, [-r * F * P, P], rtol=0, atol=1e-6 * P)
+    last = sols[-1].contact
+    single = df.solve(disk_problem(disk, P, 0.0), rtol=1e-8).contact
+    locked = np.abs(last.tangential_force[:, 0])
+    fresh = np.abs(single.tangential_force[:, 0])
+    # zero net tangential force both, but the path's tractions are an order larger
+    assert abs(last.tangential_force[:, 0].sum()) <= 1e-6 * P
+    assert locked.sum() > 10 * fresh.sum()
+    assert locked.max() > 0.1 * F * last.force.max()
+    # the same contact pressure: the tangential history does not change the normal problem
+    assert np.abs(last.force - single.force).max() <= 2e-2 * single.force.max()
+
+
+def test_stick_zone_while_loading(mindlin):
+    """Q rising at constant P: the stick zone c = a sqrt(1 − Q/(𝓕P)) (Cattaneo–Mindlin)."""
+    sols, _ = mindlin
+    for sol, r in zip(sols[1:3], RATIOS[1:3], strict=True):
+        c = sol.contact
+        x = c.x[:, 0]
+        stick = c.state == df.ContactData.STICK
+        c_theory = A_HERTZ * np.sqrt(1.0 - r)
+        assert abs(half_width(x, stick) - c_theory) <= 2 * H
+
+
+def test_unloading_reverses_slip_at_the_edges(mindlin):
+    """Mindlin–Deresiewicz: unloading from Q* to Q* − ΔQ, the edges c′ < |x| < a slip back
+    (the friction force reverses there) while the centre sticks, c′/a = sqrt(1 − ΔQ/(2𝓕P))."""
+    sols, _ = mindlin
+    loaded, unloaded = sols[2].contact, sols[3].contact
+    x = unloaded.x[:, 0]
+    stick = unloaded.state == df.ContactData.STICK
+    c_prime = A_HERTZ * np.sqrt(1.0 - (RATIOS[2] - RATIOS[3]) / 2.0)
+    assert abs(half_width(x, stick) - c_prime) <= 2 * H
+    slip = (unloaded.state == df.ContactData.SLIP) & (unloaded.force > 0)
+    # at the slipping edges the friction force flips sign from the loaded step
+    assert np.all(np.sign(unloaded.tangential_force[slip, 0])
+                  == -np.sign(loaded.tangential_force[slip, 0]))
+
+
+def test_path_output(mindlin):
+    sols, folder = mindlin
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        steps = json.loads((folder / "history.json").read_text())["steps"]
+        assert [s["step"] for s in steps] == list(range(len(RATIOS)))
+        for s, sol in zip(steps, sols, strict=True):
+            assert s["hessian_mults"] == sol.report.hessian_mults
+            assert np.allclose(s["contact_force"], sol.total_contact_force)
+            assert s["stick_nodes"] + s["slip_nodes"] == sol.contact.force.size
+        text = (folder / "path.xdmf").read_text()
+        assert text.count('<Time Value="') >= 2 * len(RATIOS)  # u and the pressure per step
+        assert (folder / "path.h5").exists()
+        assert not list(folder.glob(".tmp-*"))
+    comm.barrier()
+
+
+def test_proportional_loading_does_not_slip(disk):
+    """(P, Q) rising together with Q/P < 𝓕 from zero: every pressed node sticks, but for
+    the node that enters contact in the step (the discrete contact zone grows by jumps)."""
+    ratio = 0.5  # Q = 0.5 𝓕 P
+    loads = np.linspace(0.25, 1.0, 4) * P
+    sols = df.solve_path(lambda t: disk_problem(disk, loads[int(t)],
+                                                ratio * F * loads[int(t)]),
+                         range(loads.size), rtol=1e-8, progress=False)
+    for prev, sol in zip(sols[:-1], sols[1:], strict=True):
+        c, before = sol.contact, prev.contact.force > 0
+        slip = (c.state == df.ContactData.SLIP) & (c.force > 0)
+        assert not np.any(slip & before), c.x[slip & before]
+    single = df.solve(disk_problem(disk, loads[-1], ratio * F * loads[-1]),
+                      rtol=1e-8).contact
+    assert np.any((single.state == df.ContactData.SLIP) & (single.force > 0))  # Cattaneo
+
