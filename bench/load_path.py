@@ -36,19 +36,13 @@ from dolfinx_feti import meshes
 from dolfinx_feti.drivers import setup_seconds
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "peers"))
 import common as C  # noqa: E402  (bench/peers/common.py)
+from reuse import hertz2d, sphere3d  # noqa: E402  (the cases of bench/reuse.py)
 
 ROOT = HERE.parent
 R, P, F = 8.0, 10.0, 0.4
-
-
-def hertz2d(mesh, s: float) -> df.ContactProblem:
-    return df.ContactProblem(
-        mesh, df.Elasticity(200.0, 0.3, tractions={"load": (0.0, -s * 10.0 / 2 / 8.0)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-        contact=[df.Mortar(slave="disk_contact", master="block_contact")],
-        decomposition=df.Parts(2))
 
 
 def coulomb2d(mesh, s: float) -> df.ContactProblem:
@@ -63,15 +57,6 @@ def coulomb2d(mesh, s: float) -> df.ContactProblem:
         dirichlet=[df.Dirichlet("bottom")],
         contact=[df.NodeToNode("disk_contact", "block_contact", friction=df.Coulomb(F))],
         decomposition=df.Parts(2))
-
-
-def sphere3d(mesh, s: float, parts: int) -> df.ContactProblem:
-    sphere = df.Sphere(center=(0.0, 0.0, C.SPHERE_R - s * C.SPHERE_D), radius=C.SPHERE_R)
-    return df.ContactProblem(
-        mesh, df.Elasticity(C.SPHERE_E, C.SPHERE_NU),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry_x", components=[0]),
-                   df.Dirichlet("symmetry_y", components=[1])],
-        contact=[df.RigidObstacle("top", sphere)], decomposition=df.Parts(parts))
 
 
 def main() -> None:
