@@ -13,11 +13,12 @@ Cases: ``hertz2d`` (disk on block, mortar contact, the load rising: meshes/disk_
 ``coulomb2d`` (the Hertz disk on block, node-to-node, Coulomb 𝓕 = 0.4: P fixed, the tangential
 load Q rising by 10 % per step from 0.3 𝓕P), ``sphere3d`` (a rigid sphere pressed into a quarter
 block, docs/peers.md level S3: the indentation depth rising; the sphere's normals move with it,
-so every step is a row update).
+so every step is a row update), ``pushed3d`` (the same indentation with the sphere held and the
+block's bottom pushed up: B stays).
 
 Run (one process): ``python bench/load_path.py --case hertz2d`` (seconds), ``--case coulomb2d``
-(seconds), ``--case sphere3d`` (minutes). Writes ``output/bench/load_path_<case>.json``; prints
-a Markdown table.
+(seconds), ``--case sphere3d --steps 4`` or ``pushed3d`` (minutes). Writes
+``output/bench/load_path_<case>.json``; prints a Markdown table.
 """
 
 from __future__ import annotations
@@ -59,9 +60,24 @@ def coulomb2d(mesh, s: float) -> df.ContactProblem:
         decomposition=df.Parts(2))
 
 
+def pushed3d(mesh, s: float, parts: int) -> df.ContactProblem:
+    """sphere3d with the sphere held and the block's bottom pushed up by the depth.
+
+    The same indentation, but the rows stay (B does not change).
+    """
+    sphere = df.Sphere(center=(0.0, 0.0, C.SPHERE_R), radius=C.SPHERE_R)
+    return df.ContactProblem(
+        mesh, df.Elasticity(C.SPHERE_E, C.SPHERE_NU),
+        dirichlet=[df.Dirichlet("bottom", value=(0.0, 0.0, s * C.SPHERE_D)),
+                   df.Dirichlet("symmetry_x", components=[0]),
+                   df.Dirichlet("symmetry_y", components=[1])],
+        contact=[df.RigidObstacle("top", sphere)], decomposition=df.Parts(parts))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--case", choices=("hertz2d", "coulomb2d", "sphere3d"), default="hertz2d")
+    ap.add_argument("--case", choices=("hertz2d", "coulomb2d", "sphere3d", "pushed3d"),
+                    default="hertz2d")
     ap.add_argument("--steps", type=int, default=8, help="load steps after the first")
     ap.add_argument("--rtol", type=float, default=1e-6)
     ap.add_argument("--method", default="tfeti")
@@ -81,9 +97,10 @@ def main() -> None:
             return coulomb2d(mesh, s)
     else:
         mesh = C.sphere_mesh(args.level)
+        case = sphere3d if args.case == "sphere3d" else pushed3d
 
         def make(s):
-            return sphere3d(mesh, s, args.parts)
+            return case(mesh, s, args.parts)
     loads = 1.1 ** np.arange(args.steps + 1)
     solver = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method)
     rows, prev = [], None
