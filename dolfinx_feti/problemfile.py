@@ -67,7 +67,7 @@ from .problem import (
 
 #: Top-level keys.
 TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
-            "decomposition", "solver", "output")
+            "decomposition", "solver", "output", "loading")
 #: ``[[tie]]`` keys.
 TIE_KEYS = ("slave", "master", "search_distance")
 #: ``[model]`` keys by model type.
@@ -95,6 +95,7 @@ DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
                       "grid": ("type", "size", "origin", "gluing")}
 #: ``[output]`` keys.
 OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
+LOADING_KEYS = ("factors", "history")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
@@ -358,6 +359,11 @@ class AffineTraction:
     value: tuple[float, ...]
     gradient: tuple[tuple[float, ...], ...] | None = None
 
+    def scaled(self, s: float) -> AffineTraction:
+        """The traction s·t (a load step of the ``[loading]`` table)."""
+        return AffineTraction(tuple(s * v for v in self.value), None if self.gradient is None
+                              else tuple(tuple(s * g for g in row) for row in self.gradient))
+
     def __call__(self, x) -> Any:
         """t as a UFL vector of the spatial coordinate x."""
         comps = []
@@ -418,10 +424,12 @@ class OutputSpec:
     report: Path | None
     nodal_values: Path | None
     pressure_plot: PlotSpec | None
+    history: Path | None = None  # a load path's JSON history ([loading])
 
     def paths(self) -> list[Path]:
         """Every file that a successful run writes (the XDMF's .h5 included)."""
-        out = [p for p in (self.xdmf, self.report, self.nodal_values) if p is not None]
+        out = [p for p in (self.xdmf, self.report, self.nodal_values, self.history)
+               if p is not None]
         if self.xdmf is not None:
             out.append(self.xdmf.with_suffix(".h5"))
         if self.pressure_plot is not None:
@@ -443,6 +451,7 @@ class ProblemFile:
         solver: The ``[solver]`` table (fields of :class:`~dolfinx_feti.SolverOptions`).
         command_line: ``-feti_<name> value`` pairs given on the command line, checked.
         output: The outputs.
+        loading: The load factors of a load path (``[loading] factors``), or None: one solve.
     """
 
     path: Path
@@ -454,6 +463,12 @@ class ProblemFile:
     solver: dict[str, Any]
     output: OutputSpec
     command_line: list[tuple[str, str]] = field(default_factory=list)
+    loading: tuple[float, ...] | None = None
+
+    def problem_at(self, t: float) -> ContactProblem:
+        """The problem of step ``int(t)`` of the load path: its loads times the step's factor."""
+        from .drivers.scaled import scaled
+        return scaled(self.problem, self.loading[int(t)])
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
@@ -606,7 +621,8 @@ class _Reader:
                 c.fault("method", f"{method!r} here, but solver.method is "
                         f"{solver['method']!r}: give it once")
             solver["method"] = method
-        output = self._output(contact)
+        loading = self._loading(model)
+        output = self._output(contact, loading is not None)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
         if c.faults:
@@ -622,7 +638,7 @@ class _Reader:
             raise ProblemFileError(self.path, c.faults)
         pf = ProblemFile(path=self.path, title=title, model=model, mesh=self.mesh,
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
-                         command_line=pairs)
+                         command_line=pairs, loading=loading)
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
             pf.solver_options()
         except InputError as e:
@@ -1161,7 +1177,25 @@ class _Reader:
             c.fault("solver", str(e))
         return out
 
-    def _output(self, contact: list) -> OutputSpec:
+    def _loading(self, model: str | None) -> tuple[float, ...] | None:
+        """The load factors of ``[loading]`` (None without the table)."""
+        c = self.c
+        if "loading" not in self.data:
+            return None
+        t = c.table(self.data["loading"], "loading", LOADING_KEYS, required=("factors",))
+        if t is None or "factors" not in t:
+            return None
+        if model is not None and model != "elasticity":
+            c.fault("loading", f"a load path needs model.type = 'elasticity' (its tractions, "
+                    f"body force and Dirichlet values are scaled), got {model!r}")
+            return None
+        factors = c.vector(t["factors"], "loading.factors", None, "load factors")
+        if factors is not None and len(factors) == 0:
+            c.fault("loading.factors", "expected at least one load factor")
+            return None
+        return None if factors is None else tuple(float(v) for v in factors)
+
+    def _output(self, contact: list, path: bool = False) -> OutputSpec:
         c, stem = self.c, self.path.stem
         o = c.table(self.data.get("output", {}), "output", OUTPUT_KEYS) or {}
         directory = Path(os.path.normpath(
@@ -1184,13 +1218,22 @@ class _Reader:
         xdmf = name("xdmf", f"{stem}.xdmf", ".xdmf")
         report = name("report", f"{stem}.json", None)
         nodal = name("nodal_values", None, ".npz")
+        history = None
+        if path:
+            h = self.data["loading"].get("history", f"{stem}_history.json")
+            if h is not False:
+                if not isinstance(h, str) or not h.endswith(".json"):
+                    c.fault("loading.history", "expected a file name ending in .json or false, "
+                            f"got {_describe(h)}")
+                else:
+                    history = directory / h
         plot = None
         p = o.get("pressure_plot", False)
         if p is True:
             p = {}
         if p is not False:
             plot = self._plot(p, directory, stem, contact)
-        spec = OutputSpec(directory, xdmf, report, nodal, plot)
+        spec = OutputSpec(directory, xdmf, report, nodal, plot, history)
         paths = [q.resolve() for q in spec.paths()]
         if len(set(paths)) != len(paths):
             c.fault("output", "two outputs have the same file name: "

@@ -245,8 +245,8 @@ class FetiSolver:
                 start; the default start on the first solve), ``"cold"`` for the default
                 start (λ = λ̂ where feasible), a :class:`~dolfinx_feti.Solution` of this
                 problem's set-up for its multipliers, or a Vec of multipliers of the QP's rows.
-                With friction a warm start is not scaled by a load factor, and Coulomb's
-                fixed point starts from the slip bounds of the last solve's normal forces.
+                With Coulomb friction a warm start's fixed point starts from the slip bounds
+                of the last solve's normal forces (scaled by the same load factor).
 
         Returns:
             The solution (displacement, multipliers, contact pressure, report). A solve that
@@ -266,9 +266,10 @@ class FetiSolver:
         fdata = qp.friction
         friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
         mults0 = qp.feti.hessian_mults
-        start, scale = self._start(x0, scaled=friction is None)
+        start, scale = self._start(x0)
         if friction is not None and start is not None:
-            friction.start_from(self._normal_force if x0 is None else None)
+            friction.start_from(self._normal_force * scale if x0 is None and
+                                self._normal_force is not None else None)
         mu = self._mu * scale if x0 is None and start is not None and self._mu is not None \
             else None
         start_mults = qp.feti.hessian_mults - mults0
@@ -295,12 +296,8 @@ class FetiSolver:
                                f"{report.converged_reason}); see error.solution.report", sol)
         return sol
 
-    def _start(self, x0, scaled: bool = True) -> tuple[PETSc.Vec | None, float]:
-        """The QP iterate to start from (None: the default start) and the warm start's scale.
-
-        ``scaled``: scale the old multipliers by the load factor (:meth:`DualQP.warm_start`);
-        else start from P λ (λ̂ + P λ is the nearest λ that balances the new load).
-        """
+    def _start(self, x0) -> tuple[PETSc.Vec | None, float]:
+        """The QP iterate to start from (None: the default start) and the warm start's scale."""
         if isinstance(x0, str):
             if x0 != COLD:
                 raise InputError(f"x0 must be None, {COLD!r}, a Solution or a Vec, got {x0!r}")
@@ -318,11 +315,7 @@ class FetiSolver:
             raise InputError(f"x0: {lam.getSize()} multipliers for a QP of {self.qp.b.getSize()} "
                              "rows")
         x = self.qp.b.duplicate()
-        if scaled:
-            scale = self.qp.warm_start(lam, x)
-        else:
-            self.qp.projector.apply(lam, x)
-            scale = 1.0
+        scale = self.qp.warm_start(lam, x)
         if lam is not x0 and lam is not self._lam:
             lam.destroy()
         return x, scale

@@ -315,3 +315,63 @@ def test_proportional_loading_does_not_slip(disk):
                       rtol=1e-8).contact
     assert np.any((single.state == df.ContactData.SLIP) & (single.force > 0))  # Cattaneo
 
+
+
+# --- the [loading] table of a problem file ---------------------------------------------------
+def test_problem_file_loading(root, capsys):
+    """``problems/load_path.toml`` through the command against the same path written with the
+    Python API (the affine traction times each factor, by hand)."""
+    from cli_helpers import files_in, remove_shared, shared_dir
+
+    from dolfinx_feti import problemfile
+    from dolfinx_feti.cli import main
+
+    out = shared_dir("feti-path-")
+    try:
+        assert main([str(root / "problems/load_path.toml"), "-o", str(out), "-q"]) == 0, \
+            capsys.readouterr().err
+        pf = problemfile.load(root / "problems/load_path.toml")
+        factors = pf.loading
+        assert len(factors) >= 4
+
+        def at(t):
+            f = factors[int(t)]
+            return df.ContactProblem(
+                pf.mesh, df.Elasticity(200.0, 0.3, tractions={"load": lambda x: ufl.as_vector(
+                    (f * 0.125, f * (-0.625 + 0.046875 * x[0])))}),
+                dirichlet=[df.Dirichlet("bottom")],
+                contact=[df.NodeToNode("disk_contact", "block_contact",
+                                       friction=df.Coulomb(0.4))],
+                decomposition=df.Parts(2))
+
+        sols = df.solve_path(at, range(len(factors)), rtol=1e-8, progress=False)
+        u = np.load(out / "load_path_nodal.npz")["u"]
+        assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+        report = json.loads((out / "load_path.json").read_text())
+        assert report["converged"]
+        assert [s["factor"] for s in report["extra"]["loading"]] == list(factors)
+        steps = json.loads((out / "load_path_history.json").read_text())["steps"]
+        for s, sol in zip(steps, sols, strict=True):
+            assert np.allclose(s["contact_force"], sol.total_contact_force, rtol=1e-6,
+                               atol=1e-9)
+        assert (out / "load_path.xdmf").read_text().count('<Time Value="') == 2 * len(factors)
+        assert not any(f.startswith(".") for f in files_in(out))
+    finally:
+        remove_shared(out)
+
+
+def test_problem_file_loading_checked(root, tmp_path):
+    from cli_helpers import write_text
+
+    from dolfinx_feti import problemfile
+
+    text = (root / "problems/load_path.toml").read_text()
+    text = text.replace("factors = [0.25, 0.5, 0.75, 1.0, 0.75, 0.5]",
+                        'factors = "up"\nsteps = 3')
+    folder = MPI.COMM_WORLD.bcast(tmp_path if MPI.COMM_WORLD.rank == 0 else None, root=0)
+    bad = write_text(folder / "bad.toml", text)
+    with pytest.raises(problemfile.ProblemFileError) as e:
+        problemfile.load(bad)
+    msg = str(e.value)
+    assert "loading.factors: expected an array of load factors" in msg
+    assert "loading.steps" in msg  # an unknown key, named
