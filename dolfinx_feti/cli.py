@@ -224,7 +224,7 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
     """Write the outputs, all or none (collective; raises on every rank if one failed).
 
     A converged run writes every output; a run that did not converge only the report. A load
-    path (``steps``: a Solution per step) writes the displacement and the contact pressure of
+    path (``steps``: a Solution per step) writes the displacement and the contact fields of
     every step into the XDMF file (the step's index as its time) and the history; the other
     outputs are those of the last step.
     """

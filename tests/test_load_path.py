@@ -11,6 +11,7 @@ tractions locked in, which a single solve at the final load does not have.
 from __future__ import annotations
 
 import json
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
@@ -292,8 +293,16 @@ def test_path_output(mindlin):
             assert s["hessian_mults"] == sol.report.hessian_mults
             assert np.allclose(s["contact_force"], sol.total_contact_force)
             assert s["stick_nodes"] + s["slip_nodes"] == sol.contact.force.size
+            pressed = sol.contact.force > 0
+            assert s["contact_nodes"] == pressed.sum()
+            # the pressed nodes' lumped lengths: about the Hertz width 2a
+            assert abs(s["contact_area"] - 2 * A_HERTZ) <= 2 * H
         text = (folder / "path.xdmf").read_text()
-        assert text.count('<Time Value="') >= 2 * len(RATIOS)  # u and the pressure per step
+        # u, the pressure, the tangential traction and the stick/slip state per step
+        assert text.count('<Time Value="') == 4 * len(RATIOS)
+        names = [a.get("Name") for a in ET.fromstring(text).iter("Attribute")]
+        for name in ("contact_pressure", "tangential_traction", "stick_slip"):
+            assert names.count(name) == len(RATIOS)
         assert (folder / "path.h5").exists()
         assert not list(folder.glob(".tmp-*"))
     comm.barrier()
@@ -354,7 +363,7 @@ def test_problem_file_loading(root, capsys):
         for s, sol in zip(steps, sols, strict=True):
             assert np.allclose(s["contact_force"], sol.total_contact_force, rtol=1e-6,
                                atol=1e-9)
-        assert (out / "load_path.xdmf").read_text().count('<Time Value="') == 2 * len(factors)
+        assert (out / "load_path.xdmf").read_text().count('<Time Value="') == 4 * len(factors)
         assert not any(f.startswith(".") for f in files_in(out))
     finally:
         remove_shared(out)

@@ -68,8 +68,9 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
         times: The pseudo-times, strictly increasing.
         comm: The ranks to spread the subdomains over.
         options: Solver options, or command-line tokens (as for :func:`dolfinx_feti.solve`).
-        xdmf: Write the displacement and the contact pressure of every step to this XDMF file,
-            with the step's time (None: no file).
+        xdmf: Write the displacement and the contact fields (pressure; with friction the
+            tangential traction and the stick/slip state) of every step to this XDMF file, with
+            the step's time (None: no file).
         history: Write the per-step history (iterations, F-multiplications, times, contact
             forces, stick/slip counts) to this JSON file (None: no file).
         progress: One line per step on rank 0 (through the ``dolfinx_feti`` logger).

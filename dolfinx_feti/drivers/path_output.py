@@ -1,7 +1,8 @@
 """Output of a load path over time: one XDMF file with a time per step, a JSON history.
 
-The XDMF file holds the mesh once and, per step, the displacement and the contact pressure at
-the step's time (ParaView's time slider); it is written under a temporary name and appears
+The XDMF file holds the mesh once and, per step, the displacement, the contact pressure and
+with friction the tangential traction and the stick/slip state at the step's time (ParaView's
+time slider); it is written under a temporary name and appears
 under its own when the path is done. The JSON history is rewritten after every step (a path
 that stops early leaves the steps done).
 """
@@ -65,7 +66,23 @@ class TimeSeries:
             if self._file is None:
                 self._file = compat.open_xdmf_series(self.tmp, u.function_space.mesh)
             self._file.write_function(u, t)
-            self._file.write_function(sol.pressure_function(degree=sol.problem.degree), t)
+            for f in self.fields(sol):
+                self._file.write_function(f, t)
+
+    @staticmethod
+    def fields(sol: Solution) -> list:
+        """The contact fields of a step.
+
+        The pressure; with friction the tangential traction and the state (0 off contact or
+        frictionless, 1 stick, 2 slip).
+        """
+        degree, c = sol.problem.degree, sol.contact
+        out = [sol.pressure_function(degree=degree)]
+        if c.tangential_traction is not None:
+            out.append(sol.contact_function(c.tangential_traction, "tangential_traction",
+                                            degree))
+            out.append(sol.contact_function(c.state, "stick_slip", degree))
+        return out
 
     def close(self) -> None:
         """Finish the file and give it its name."""
@@ -102,6 +119,7 @@ class History:
     def record(sol: Solution) -> dict:
         """What the history keeps of a step (the same on every rank)."""
         rep, c = sol.report, sol.contact
+        pressed = (c.force > 0) & (c.pressure > 0)  # a pressed node's lumped area: force/pressure
         rec = {"step": rep.extra.get("step"), "time": rep.extra.get("time"),
                "converged": bool(rep.converged), "reason": rep.reason,
                "iterations": int(rep.iterations), "outer_iterations": int(rep.outer_iterations),
@@ -109,7 +127,8 @@ class History:
                "setup_time": setup_seconds(sol),
                "solve_time": float(sum(rep.timings.get(p, 0.0) for p in SOLVE_PHASES)),
                "contact_force": [float(v) for v in sol.total_contact_force],
-               "contact_nodes": int(np.count_nonzero(c.force > 0))}
+               "contact_nodes": int(np.count_nonzero(pressed)),
+               "contact_area": float(np.sum(c.force[pressed] / c.pressure[pressed]))}
         if sol.problem.value_size > 1:
             per = {}
             for i in np.unique(c.spec):
