@@ -156,6 +156,43 @@ def test_friction_values_change_between_steps(blocks):
                       [0.0, 1.0])
 
 
+# --- 3D: discs (MPGP), a block pressed, sheared along x, then along y, then released ---------
+SHIFTS3 = ((0.0, 0.0, -0.02), (0.02, 0.0, -0.02), (0.02, 0.02, -0.02), (0.0, 0.0, -0.02))
+
+
+@pytest.mark.parametrize("friction", [df.Tresca(0.0075), df.Coulomb(0.3, rtol=1e-10)],
+                         ids=["tresca", "coulomb"])
+def test_friction_path_3d_against_monolithic_reference(friction):
+    mesh = df.build_mesh(meshes.blocks3d, n=3)
+
+    def at(t):
+        return df.ContactProblem(
+            mesh, df.Elasticity(1.0, 0.3),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=SHIFTS3[int(t)])],
+            contact=[df.NodeToNode("contact_upper", "contact_lower", friction=friction)],
+            decomposition=df.Parts(2))
+
+    sols = df.solve_path(at, range(len(SHIFTS3)), rtol=RTOL, progress=False)
+    slip0 = None
+    for sol, shift in zip(sols, SHIFTS3, strict=True):
+        r = FrictionReference(mesh, ref.elasticity_forms(1.0, 0.3),
+                              dirichlet=[("bottom", (0, 0, 0)), ("top", shift)],
+                              slave="contact_upper", master="contact_lower",
+                              normal=(0.0, 0.0, 1.0), match_axes=(0, 1))
+        rs = r.solve_coulomb(friction.coefficient, slip0=slip0) \
+            if isinstance(friction, df.Coulomb) \
+            else r.solve_bound(friction.bound * r.area, slip0=slip0)
+        slip0 = r.tangential_displacement(rs.u)
+        assert sol.report.converged and sol.report.extra["friction"]["disc"]
+        c = sol.contact
+        assert ref.rel_max_diff(sol.nodal_values(), rs.u) <= 1e-6
+        scale = rs.normal_force.max()
+        assert np.abs(rs.by_node(c.node, c.tangential_force) - rs.tangential_force).max() \
+            <= 1e-6 * scale
+    released = sols[-1].contact
+    assert np.linalg.norm(released.tangential_force, axis=1).max() > 1e-2 * released.force.max()
+
+
 # --- Cattaneo–Mindlin–Deresiewicz on the Hertz disk-on-block -------------------------------
 R, P, EH, NUH, F = 8.0, 10.0, 200.0, 0.3, 0.4
 H = 0.1
