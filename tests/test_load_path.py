@@ -1,9 +1,9 @@
 """Load paths and load cases on one set-up (``df.solve_path``, ``df.solve_cases``).
 
 Without friction the path does not matter: every step equals a single solve at its load. With
-friction the tangential rows act on the slip increment of the step: each step equals an
-independent monolithic solve (``friction_reference``, semismooth Newton on the dense dual)
-whose tangential rows' right-hand sides are its own previous step's B_t u; on the Hertz
+friction (2D boxes, 3D discs) the tangential rows act on the slip increment of the step: each
+step equals an independent monolithic solve (``friction_reference``, semismooth Newton on the
+dense dual) whose tangential rows' right-hand sides are its own previous step's B_t u; on the Hertz
 disk-on-block (Cattaneo–Mindlin) a tangential load taken back to zero leaves tangential
 tractions locked in, which a single solve at the final load does not have.
 """
