@@ -291,7 +291,8 @@ class Solution:
         """
         from .output import distributed_function
         c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
-        v = np.asarray(values, dtype=float).reshape(c.node.size, -1)
+        v = np.asarray(values, dtype=float)
+        v = v[:, None] if v.ndim == 1 else v
         return distributed_function(self.problem.mesh, c.node, v, self.comm, name,
                                     self._points(), degree, local=True,
                                     msh=self.u.function_space.mesh)
