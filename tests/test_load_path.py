@@ -113,11 +113,12 @@ def reference_path(mesh, friction):
     return out
 
 
+@pytest.mark.parametrize("method", ["tfeti", "fetidp"])
 @pytest.mark.parametrize("friction", [df.Tresca(0.1), df.Coulomb(0.3, rtol=1e-10)],
                          ids=["tresca", "coulomb"])
-def test_friction_path_against_monolithic_reference(blocks, friction):
+def test_friction_path_against_monolithic_reference(blocks, friction, method):
     sols = df.solve_path(lambda t: sheared(blocks, SHIFTS[int(t)], friction),
-                         range(len(SHIFTS)), rtol=RTOL)
+                         range(len(SHIFTS)), rtol=RTOL, method=method, progress=False)
     refs = reference_path(blocks, friction)
     tol = 1e-6
     for sol, r in zip(sols, refs, strict=True):
