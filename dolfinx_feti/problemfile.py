@@ -95,7 +95,7 @@ DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
                       "grid": ("type", "size", "origin", "gluing")}
 #: ``[output]`` keys.
 OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
-LOADING_KEYS = ("factors", "history")
+LOADING_KEYS = ("factors", "values", "history")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
@@ -452,6 +452,8 @@ class ProblemFile:
         command_line: ``-feti_<name> value`` pairs given on the command line, checked.
         output: The outputs.
         loading: The load factors of a load path (``[loading] factors``), or None: one solve.
+        loading_values: Per Dirichlet group, its value at each step (``[loading] values``;
+            they replace the group's value times the factor).
     """
 
     path: Path
@@ -464,11 +466,18 @@ class ProblemFile:
     output: OutputSpec
     command_line: list[tuple[str, str]] = field(default_factory=list)
     loading: tuple[float, ...] | None = None
+    loading_values: dict[str, tuple] = field(default_factory=dict)
 
     def problem_at(self, t: float) -> ContactProblem:
-        """The problem of step ``int(t)`` of the load path: its loads times the step's factor."""
+        """The problem of step ``int(t)`` of the load path.
+
+        Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
+        their value of the step.
+        """
         from .drivers.scaled import scaled
-        return scaled(self.problem, self.loading[int(t)])
+        k = int(t)
+        return scaled(self.problem, self.loading[k],
+                      {g: v[k] for g, v in self.loading_values.items()})
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
@@ -621,7 +630,7 @@ class _Reader:
                 c.fault("method", f"{method!r} here, but solver.method is "
                         f"{solver['method']!r}: give it once")
             solver["method"] = method
-        loading = self._loading(model)
+        loading, loading_values = self._loading(model, dirichlet, value_size)
         output = self._output(contact, loading is not None)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
@@ -638,7 +647,7 @@ class _Reader:
             raise ProblemFileError(self.path, c.faults)
         pf = ProblemFile(path=self.path, title=title, model=model, mesh=self.mesh,
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
-                         command_line=pairs, loading=loading)
+                         command_line=pairs, loading=loading, loading_values=loading_values)
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
             pf.solver_options()
         except InputError as e:
@@ -1177,23 +1186,84 @@ class _Reader:
             c.fault("solver", str(e))
         return out
 
-    def _loading(self, model: str | None) -> tuple[float, ...] | None:
-        """The load factors of ``[loading]`` (None without the table)."""
+    def _loading(self, model: str | None, dirichlet: list, value_size: int | None
+                 ) -> tuple[tuple[float, ...] | None, dict[str, tuple]]:
+        """The load factors and the per-step Dirichlet values of ``[loading]``."""
         c = self.c
         if "loading" not in self.data:
-            return None
-        t = c.table(self.data["loading"], "loading", LOADING_KEYS, required=("factors",))
-        if t is None or "factors" not in t:
-            return None
+            return None, {}
+        t = c.table(self.data["loading"], "loading", LOADING_KEYS)
+        if t is None:
+            return None, {}
+        if "factors" not in t and "values" not in t:
+            c.fault("loading", "expected factors = [...] (the loads' factor per step), values = "
+                    "{ <dirichlet group> = [[...], ...] } (a group's value per step), or both")
+            return None, {}
         if model is not None and model != "elasticity":
             c.fault("loading", f"a load path needs model.type = 'elasticity' (its tractions, "
                     f"body force and Dirichlet values are scaled), got {model!r}")
+            return None, {}
+        factors = None
+        if "factors" in t:
+            factors = c.vector(t["factors"], "loading.factors", None, "load factors")
+            if factors is not None and len(factors) == 0:
+                c.fault("loading.factors", "expected at least one load factor")
+                factors = None
+            if factors is None:
+                return None, {}
+        values = self._loading_values(t.get("values", {}), dirichlet, value_size,
+                                      None if factors is None else len(factors))
+        if values is None:
+            return None, {}
+        if factors is None and not values:
+            c.fault("loading.values", "expected at least one Dirichlet group")
+            return None, {}
+        if factors is None:  # the values alone: the other loads as given
+            factors = [1.0] * len(next(iter(values.values())))
+        return tuple(float(v) for v in factors), values
+
+    def _loading_values(self, v: Any, dirichlet: list, value_size: int | None,
+                        steps: int | None) -> dict[str, tuple] | None:
+        """``[loading] values``: Dirichlet group → one value per step (None on a fault)."""
+        c, key = self.c, "loading.values"
+        if not isinstance(v, dict):
+            c.fault(key, f"expected a table {{ <dirichlet group> = [[...], ...] }}, got "
+                    f"{_describe(v)}")
             return None
-        factors = c.vector(t["factors"], "loading.factors", None, "load factors")
-        if factors is not None and len(factors) == 0:
-            c.fault("loading.factors", "expected at least one load factor")
-            return None
-        return None if factors is None else tuple(float(v) for v in factors)
+        out, good = {}, True
+        for group, rows in v.items():
+            gkey = _key(key, group)
+            conds = [d for d in dirichlet if d.group == group]
+            if not conds:
+                c.fault(gkey, f"not the group of a [[dirichlet]] condition (those are "
+                        f"{sorted({d.group for d in dirichlet})})")
+                good = False
+                continue
+            n = {len(d.components) if d.components is not None else value_size for d in conds}
+            if not isinstance(rows, list) or not rows:
+                c.fault(gkey, f"expected an array of one value per step, got {_describe(rows)}")
+                good = False
+                continue
+            vals = [c.vector(r, _key(gkey, i), None) if isinstance(r, list) else
+                    c.number(r, _key(gkey, i), "a number or an array of one per component")
+                    for i, r in enumerate(rows)]
+            if any(x is None for x in vals):
+                good = False
+                continue
+            bad = [i for i, x in enumerate(vals) if isinstance(x, list)
+                   and len(x) != 1 and len(x) not in n]
+            if bad:
+                c.fault(_key(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
+                        f"constrained component), got {len(vals[bad[0]])}")
+                good = False
+                continue
+            if steps is not None and len(vals) != steps:
+                c.fault(gkey, f"expected {steps} values (one per load factor), got {len(vals)}")
+                good = False
+                continue
+            steps = len(vals)
+            out[group] = tuple(tuple(x) if isinstance(x, list) else x for x in vals)
+        return out if good else None
 
     def _output(self, contact: list, path: bool = False) -> OutputSpec:
         c, stem = self.c, self.path.stem

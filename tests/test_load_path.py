@@ -422,3 +422,48 @@ def test_problem_file_loading_checked(root, tmp_path):
     msg = str(e.value)
     assert "loading.factors: expected an array of load factors" in msg
     assert "loading.steps" in msg  # an unknown key, named
+    text = (root / "problems/load_path3d.toml").read_text()
+    bad = write_text(folder / "bad3d.toml", text.replace(
+        "values.top = [[0.0, 0.0, -0.02], [0.005, 0.0, -0.02],",
+        "factors = [1.0, 1.0]\nvalues.lid = [[0.0]]\n"
+        "values.bottom = [[0.0, 0.0], [0.005, 0.0, -0.02],"))
+    with pytest.raises(problemfile.ProblemFileError) as e:
+        problemfile.load(bad)
+    msg = str(e.value)
+    assert "loading.values.lid: not the group of a [[dirichlet]] condition" in msg
+    assert "loading.values.bottom[0]: expected one number or [3]" in msg
+
+
+def test_problem_file_values_path(root, capsys):
+    """``problems/load_path3d.toml`` ([loading] values: the top's displacement per step)
+    through the command against the same path written with the Python API."""
+    from cli_helpers import remove_shared, shared_dir
+
+    from dolfinx_feti import problemfile
+    from dolfinx_feti.cli import main
+
+    out = shared_dir("feti-path3d-")
+    try:
+        assert main([str(root / "problems/load_path3d.toml"), "-o", str(out), "-q"]) == 0, \
+            capsys.readouterr().err
+        pf = problemfile.load(root / "problems/load_path3d.toml")
+        tops = pf.loading_values["top"]
+        assert len(pf.loading) == len(tops) and set(pf.loading) == {1.0}
+
+        def at(t):
+            return df.ContactProblem(
+                pf.mesh, df.Elasticity(1.0, 0.3),
+                dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=tops[int(t)])],
+                contact=[df.NodeToNode("contact_upper", "contact_lower",
+                                       friction=df.Coulomb(0.3))],
+                decomposition=df.Parts(4))
+
+        sols = df.solve_path(at, range(len(tops)), rtol=1e-8, progress=False)
+        u = np.load(out / "load_path3d_nodal.npz")["u"]
+        assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+        steps = json.loads((out / "load_path3d_history.json").read_text())["steps"]
+        assert [s["hessian_mults"] for s in steps] == [s.report.hessian_mults for s in sols]
+        # back at the first shift, with tractions locked in: not the first state
+        assert ref.rel_max_diff(sols[-1].nodal_values(), sols[0].nodal_values()) > 1e-3
+    finally:
+        remove_shared(out)
