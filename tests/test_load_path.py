@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -365,24 +366,38 @@ def test_proportional_loading_does_not_slip(disk):
 
 
 # --- the [loading] table of a problem file ---------------------------------------------------
-def test_problem_file_loading(root, capsys):
-    """``problems/load_path.toml`` through the command against the same path written with the
-    Python API (the affine traction times each factor, by hand)."""
-    from cli_helpers import files_in, remove_shared, shared_dir
+@contextmanager
+def command_path(root, name: str, capsys, problem_at_of):
+    """Run ``problems/<name>.toml`` through the command and the same path through the API
+    (``problem_at_of(pf) -> (problem_at, steps)``); the last steps' u agree. Yields the output
+    folder, the problem file and the API's Solutions."""
+    from cli_helpers import remove_shared, shared_dir
 
     from dolfinx_feti import problemfile
     from dolfinx_feti.cli import main
 
     out = shared_dir("feti-path-")
     try:
-        assert main([str(root / "problems/load_path.toml"), "-o", str(out), "-q"]) == 0, \
+        assert main([str(root / f"problems/{name}.toml"), "-o", str(out), "-q"]) == 0, \
             capsys.readouterr().err
-        pf = problemfile.load(root / "problems/load_path.toml")
-        factors = pf.loading
-        assert len(factors) >= 4
+        pf = problemfile.load(root / f"problems/{name}.toml")
+        at, steps = problem_at_of(pf)
+        sols = df.solve_path(at, range(steps), rtol=1e-8, progress=False)
+        u = np.load(out / f"{name}_nodal.npz")["u"]
+        assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+        yield out, pf, sols
+    finally:
+        remove_shared(out)
 
+
+def test_problem_file_loading(root, capsys):
+    """``problems/load_path.toml`` through the command against the same path written with the
+    Python API (the affine traction times each factor, by hand)."""
+    from cli_helpers import files_in
+
+    def api(pf):
         def at(t):
-            f = factors[int(t)]
+            f = pf.loading[int(t)]
             return df.ContactProblem(
                 pf.mesh, df.Elasticity(200.0, 0.3, tractions={"load": lambda x: ufl.as_vector(
                     (f * 0.125, f * (-0.625 + 0.046875 * x[0])))}),
@@ -391,9 +406,11 @@ def test_problem_file_loading(root, capsys):
                                        friction=df.Coulomb(0.4))],
                 decomposition=df.Parts(2))
 
-        sols = df.solve_path(at, range(len(factors)), rtol=1e-8, progress=False)
-        u = np.load(out / "load_path_nodal.npz")["u"]
-        assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+        return at, len(pf.loading)
+
+    with command_path(root, "load_path", capsys, api) as (out, pf, sols):
+        factors = pf.loading
+        assert len(factors) >= 4
         report = json.loads((out / "load_path.json").read_text())
         assert report["converged"]
         assert [s["factor"] for s in report["extra"]["loading"]] == list(factors)
@@ -403,8 +420,6 @@ def test_problem_file_loading(root, capsys):
                                atol=1e-9)
         assert (out / "load_path.xdmf").read_text().count('<Time Value="') == 4 * len(factors)
         assert not any(f.startswith(".") for f in files_in(out))
-    finally:
-        remove_shared(out)
 
 
 def test_problem_file_loading_checked(root, tmp_path):
@@ -437,16 +452,8 @@ def test_problem_file_loading_checked(root, tmp_path):
 def test_problem_file_values_path(root, capsys):
     """``problems/load_path3d.toml`` ([loading] values: the top's displacement per step)
     through the command against the same path written with the Python API."""
-    from cli_helpers import remove_shared, shared_dir
 
-    from dolfinx_feti import problemfile
-    from dolfinx_feti.cli import main
-
-    out = shared_dir("feti-path3d-")
-    try:
-        assert main([str(root / "problems/load_path3d.toml"), "-o", str(out), "-q"]) == 0, \
-            capsys.readouterr().err
-        pf = problemfile.load(root / "problems/load_path3d.toml")
+    def api(pf):
         tops = pf.loading_values["top"]
         assert len(pf.loading) == len(tops) and set(pf.loading) == {1.0}
 
@@ -458,12 +465,10 @@ def test_problem_file_values_path(root, capsys):
                                        friction=df.Coulomb(0.3))],
                 decomposition=df.Parts(4))
 
-        sols = df.solve_path(at, range(len(tops)), rtol=1e-8, progress=False)
-        u = np.load(out / "load_path3d_nodal.npz")["u"]
-        assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+        return at, len(tops)
+
+    with command_path(root, "load_path3d", capsys, api) as (out, _, sols):
         steps = json.loads((out / "load_path3d_history.json").read_text())["steps"]
         assert [s["hessian_mults"] for s in steps] == [s.report.hessian_mults for s in sols]
         # back at the first shift, with tractions locked in: not the first state
         assert ref.rel_max_diff(sols[-1].nodal_values(), sols[0].nodal_values()) > 1e-3
-    finally:
-        remove_shared(out)
