@@ -63,6 +63,14 @@ def test_times_and_problems_checked(hertz_mesh):
     with pytest.raises(df.InputError, match="differs in forms"):
         df.solve_path(lambda t: hertz(hertz_mesh, E=200.0 + t), [0.0, 1.0])
 
+    def fails_on_the_last_rank(t):  # user code failing on one rank stops every rank
+        if MPI.COMM_WORLD.rank == MPI.COMM_WORLD.size - 1:
+            raise RuntimeError("no problem here")
+        return hertz(hertz_mesh)
+
+    with pytest.raises(df.SolveError, match="no problem here"):
+        df.solve_path(fails_on_the_last_rank, [0.0])
+
 
 def test_cases_amortized(hertz_mesh):
     loads = (5.0, 15.0, 10.0)

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from ..errors import InputError
+from ..errors import InputError, collective
 from ..log import Progress
 from ..options import SolverOptions
 from ..problem import ContactProblem
@@ -92,7 +92,9 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
     solver, sols = None, []
     try:
         for k, tk in enumerate(t):
-            problem = _problem(problem_at, tk)
+            problem = None
+            with collective(comm):  # user code: a failure on one rank stops every rank
+                problem = _problem(problem_at, tk)
             if solver is None:
                 if series is not None:
                     series.check(problem)
