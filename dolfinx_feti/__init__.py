@@ -12,6 +12,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 
 # compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
 from . import compat  # noqa: F401
+from .drivers import solve_cases, solve_path
 from .dual import DualQP, dual_qp
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
@@ -39,4 +40,5 @@ __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "
            "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "InputError", "MeshData", "Mortar",
            "NodeToNode", "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
            "SignedDistance", "Solution", "SolveError", "SolverOptions", "Sphere", "Subdomain",
-           "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx", "read_gmsh", "solve"]
+           "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx", "read_gmsh", "solve",
+           "solve_cases", "solve_path"]

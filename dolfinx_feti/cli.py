@@ -178,21 +178,33 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
         _error(f"{PROG}: {pf.path}: {e}")
         return EXIT_USAGE if isinstance(e, InputError) else EXIT_FAILED
 
+    from .drivers import solve_path
     from .solver import solve
 
+    steps = None
     try:
-        solution = solve(pf.problem, comm=comm, options=opts)
+        if pf.loading is None:
+            solution = solve(pf.problem, comm=comm, options=opts)
+        else:  # a load path: the outputs are those of every step
+            steps = solve_path(pf.problem_at, range(len(pf.loading)), comm=comm, options=opts,
+                               progress=opts.verbose > 0)
+            solution = steps[-1]
     except (InputError, SolveError) as e:
         _error(f"{PROG}: {pf.path}: the solve failed: {e}")
         return EXIT_FAILED
     report = solution.report
+    if steps is not None:
+        from .drivers import History
+        report.converged = all(s.report.converged for s in steps)
+        report.extra["loading"] = [dict(History.record(s), factor=f)
+                                   for s, f in zip(steps, pf.loading, strict=True)]
     report.extra["problem"] = pf.summary()
     report.extra["versions"] = postprocess.versions()
     report.extra["results"] = postprocess.results(solution)
     report.extra["command"] = [PROG, str(args.problem), *feti]
     converged = report.converged
     try:
-        written = _write_outputs(pf, solution, args.plot, converged, comm, progress)
+        written = _write_outputs(pf, solution, args.plot, converged, comm, progress, steps)
     except (InputError, SolveError) as e:
         _error(f"{PROG}: {pf.path}: cannot write the outputs (none was written): {e}")
         return EXIT_FAILED
@@ -208,10 +220,13 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
 
 
 def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: bool,
-                   comm: MPI.Comm, progress: Progress) -> list[Path]:
+                   comm: MPI.Comm, progress: Progress, steps=None) -> list[Path]:
     """Write the outputs, all or none (collective; raises on every rank if one failed).
 
-    A converged run writes every output; a run that did not converge only the report.
+    A converged run writes every output; a run that did not converge only the report. A load
+    path (``steps``: a Solution per step) writes the displacement and the contact fields of
+    every step into the XDMF file (the step's index as its time) and the history; the other
+    outputs are those of the last step.
     """
     t0 = time.perf_counter()
     out = pf.output
@@ -229,7 +244,15 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
         if converged:
             if out.xdmf is not None:
                 stage.path(out.xdmf.with_suffix(".h5"))
-                solution.write_xdmf(stage.path(out.xdmf))  # collective
+                if steps is None:
+                    solution.write_xdmf(stage.path(out.xdmf))  # collective
+                else:
+                    _write_series(stage.path(out.xdmf), steps, comm)
+            if steps is not None and out.history is not None:
+                from .drivers import History
+                history = History(stage.path(out.history), comm)
+                for rec in solution.report.extra["loading"]:
+                    history.append(rec)
             solution.nodal_values()  # collective: computed (and cached) on every rank first
             solution.cell_subdomains()
             npz = None if out.nodal_values is None else stage.path(out.nodal_values)
@@ -248,6 +271,18 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
                     solution.report.save_json(report)
     progress.phase("output", time.perf_counter() - t0)
     return stage.committed
+
+
+def _write_series(path: Path, steps, comm: MPI.Comm) -> None:
+    """The steps of a load path in one XDMF file, each at its index as the time."""
+    from .drivers import TimeSeries
+    series = TimeSeries(path, comm)
+    try:
+        for k, sol in enumerate(steps):
+            series.write(sol, float(k))
+        series.close()
+    finally:
+        series.abort()
 
 
 __all__ = ["main", "split_feti_options"]

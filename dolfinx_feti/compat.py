@@ -372,6 +372,16 @@ def write_xdmf(path: str | Path, msh: dolfinx.mesh.Mesh, functions) -> None:
             f.write_function(u)
 
 
+def open_xdmf_series(path: str | Path, msh: dolfinx.mesh.Mesh):
+    """An XDMF file with ``msh`` written, for Functions at several times.
+
+    ``write_function(u, t)`` and ``close()`` are the same calls in every supported version.
+    """
+    f = dolfinx.io.XDMFFile(msh.comm, str(path), "w")
+    f.write_mesh(msh)
+    return f
+
+
 def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolfinx.mesh.Mesh:
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:

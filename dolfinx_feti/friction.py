@@ -11,6 +11,10 @@ g the physical nodal slip bound and s the row scale (1/√2 for node-to-node row
 obstacles), since the physical multiplier is s·λ. Coulomb friction iterates g = 𝓕 λ_N
 (physical normal forces) over warm-started Tresca solves. Only built when a contact condition
 has friction.
+
+On a load path (:func:`dolfinx_feti.solve_path`) a step starts warm: the QP from the last
+step's multipliers (projected onto the new bounds by the QP solver), Coulomb's fixed point from
+the slip bounds of the last step's normal forces instead of g = ∞.
 """
 
 from __future__ import annotations
@@ -36,6 +40,9 @@ class FrictionSolve:
         n: Local index of the normal row of each tangential row.
         g: Nodal slip bound (a force) per local tangential row, of the last Tresca solve.
         at_bound: Per local tangential row: its multiplier is on the bound (the node slips).
+        normal_force: Per local tangential row, the physical normal force of its node after
+            the solve (a warm start's Coulomb bounds).
+        warm: Start the QP from the given iterate (else from λ = λ̂ where feasible).
         info: What is reported in ``report.extra['friction']``.
     """
 
@@ -54,6 +61,8 @@ class FrictionSolve:
         self.nt = data.per_node
         self.g = np.where(self.coulomb_rows, np.inf, self.tresca)
         self.at_bound = np.zeros(self.t.size, dtype=bool)
+        self.normal_force = np.zeros(self.t.size)
+        self.warm = False
         self.multiplier = None
         self.info: dict = {}
         self._ub: PETSc.Vec | None = None
@@ -66,6 +75,19 @@ class FrictionSolve:
         """
         self.t = index[self.t]
         self.n = index[self.n]
+
+    def start_from(self, normal_force: np.ndarray | None) -> None:
+        """Start warm; Coulomb's slip bounds from the normal forces of an earlier solve.
+
+        Args:
+            normal_force: Per local tangential row, as :attr:`normal_force` of that solve;
+                None: Coulomb's fixed point starts from g = ∞ (no slip).
+        """
+        self.warm = True
+        if normal_force is not None:
+            self.g = np.where(self.coulomb_rows,
+                              np.where(self.coulomb_rows, self.coef, 0.0)
+                              * np.maximum(normal_force, 0.0), self.tresca)
 
     # --- the QP ----------------------------------------------------------------------------
     def bounds(self, lb: PETSc.Vec, lam_hat: PETSc.Vec):
@@ -87,19 +109,22 @@ class FrictionSolve:
     def run(self, run_qp: Callable[[], QPResult], x: PETSc.Vec, lam_hat: PETSc.Vec,
             ineq: np.ndarray, progress) -> QPResult:
         """Tresca: one QP solve. Coulomb: the fixed point over warm-started Tresca solves."""
-        x.array[:] = np.where(ineq, np.maximum(0.0, -lam_hat.array_r), 0.0)
+        if not self.warm:
+            x.array[:] = np.where(ineq, np.maximum(0.0, -lam_hat.array_r), 0.0)
         model = "coulomb" if self.data.coulomb else "tresca"
         self.info = {"model": model, "nodes": int(self.data.rows.size // self.nt),
-                     "disc": self.nt == 2}
+                     "disc": self.nt == 2, "warm": self.warm}
         if not self.data.coulomb:
-            return run_qp()
+            res = run_qp()
+            self.normal_force = self._normal_force(x, lam_hat)
+            return res
         comm = self.comm
         steps, results = [], []
         fp_converged = False
         for k in range(self.data.max_steps):
             res = run_qp()
             results.append(res)
-            lam_n = (x.array_r[self.n] + lam_hat.array_r[self.n]) * self.scale_n
+            lam_n = self.normal_force = self._normal_force(x, lam_hat)
             g_new = np.where(self.coulomb_rows, self.coef * np.maximum(lam_n, 0.0), self.tresca)
             c = self.coulomb_rows
             first = comm.allreduce(bool(np.any(np.isinf(self.g[c]))), op=MPI.LOR)
@@ -136,6 +161,10 @@ class FrictionSolve:
         if out.converged and not fp_converged:
             out.converged, out.reason = False, "coulomb_max_steps"
         return out
+
+    def _normal_force(self, x: PETSc.Vec, lam_hat: PETSc.Vec) -> np.ndarray:
+        """The physical normal force λ_N of each tangential row's node, from λ = λ̂ + x."""
+        return (x.array_r[self.n] + lam_hat.array_r[self.n]) * self.scale_n
 
     # --- the recovery ----------------------------------------------------------------------
     def snap(self, lam: PETSc.Vec, at_bound: np.ndarray) -> None:

@@ -221,6 +221,11 @@ def write_xdmf(path: str | os.PathLike, u, functions) -> None:
             for p in (tmp, tmp.with_suffix(".h5")):
                 p.unlink(missing_ok=True)
         raise
+    publish_xdmf(tmp, path, comm)
+
+
+def publish_xdmf(tmp: Path, path: Path, comm: MPI.Comm) -> None:
+    """Rename a finished XDMF file ``tmp`` (and its HDF5 file) to ``path`` (collective)."""
     with collective(comm, "outputs"):
         if comm.rank == 0:
             h5_tmp, h5 = tmp.with_suffix(".h5"), path.with_suffix(".h5")

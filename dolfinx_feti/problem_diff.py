@@ -2,11 +2,14 @@
 
 :meth:`~dolfinx_feti.FetiSolver.update` reuses the decomposition, the rows' structure and the
 factorizations, so the new problem must have the same mesh, groups, decomposition, conditions
-and stiffness; its loads (tractions, body forces), Dirichlet values and rigid obstacles'
-positions may differ.
+and stiffness; its loads (tractions, body forces), Dirichlet values, rigid obstacles'
+positions and friction values (coefficients, Tresca bounds; Tresca for Coulomb and back) may
+differ — not whether a condition has friction (that makes the tangential rows).
 """
 
 from __future__ import annotations
+
+from dataclasses import is_dataclass, replace
 
 import numpy as np
 from mpi4py import MPI
@@ -21,10 +24,14 @@ def _dirichlet_key(bc: Dirichlet) -> tuple:
 
 
 def _contact_key(c) -> tuple:
-    """The parts of a contact condition the set-up depends on (not an obstacle's position)."""
+    """The parts of a contact condition the set-up depends on.
+
+    Not an obstacle's position, nor the friction values: only whether there is friction.
+    """
+    fr = getattr(c, "friction", None) is not None
     if isinstance(c, RigidObstacle):
-        return type(c).__name__, c.group, type(c.obstacle).__name__, c.friction
-    return type(c).__name__, c
+        return type(c).__name__, c.group, type(c.obstacle).__name__, fr
+    return type(c).__name__, replace(c, friction=None) if fr and is_dataclass(c) else c, fr
 
 
 def stiffness_key(forms):
@@ -97,8 +104,8 @@ def check_same_structure(old: ContactProblem, new: ContactProblem, *,
          "other Dirichlet groups or components (their values may change)"),
         ("contact", [_contact_key(c) for c in new.contact]
          == [_contact_key(c) for c in old.contact],
-         "other contact conditions, groups or friction (a rigid obstacle's position may "
-         "change)"),
+         "other contact conditions, groups, or friction where there was none or none where "
+         "there was (a rigid obstacle's position and the friction values may change)"),
     ]
     if stiffness:
         differs = stiffness_key(new.forms) != stiffness_key(old.forms)
@@ -108,8 +115,9 @@ def check_same_structure(old: ContactProblem, new: ContactProblem, *,
     for name, ok, why in same:
         if not ok:
             raise InputError(f"FetiSolver.update: the new problem differs in {name}: {why}. "
-                             "Only loads, Dirichlet values and obstacle positions may change "
-                             "on one set-up; create a new FetiSolver for the rest")
+                             "Only loads, Dirichlet values, obstacle positions and friction "
+                             "values may change on one set-up; create a new FetiSolver for the "
+                             "rest")
 
 
 __all__ = ["check_same_labels", "check_same_structure", "stiffness_key"]

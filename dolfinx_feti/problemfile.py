@@ -67,7 +67,7 @@ from .problem import (
 
 #: Top-level keys.
 TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
-            "decomposition", "solver", "output")
+            "decomposition", "solver", "output", "loading")
 #: ``[[tie]]`` keys.
 TIE_KEYS = ("slave", "master", "search_distance")
 #: ``[model]`` keys by model type.
@@ -95,6 +95,7 @@ DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
                       "grid": ("type", "size", "origin", "gluing")}
 #: ``[output]`` keys.
 OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
+LOADING_KEYS = ("factors", "values", "history")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
@@ -358,6 +359,11 @@ class AffineTraction:
     value: tuple[float, ...]
     gradient: tuple[tuple[float, ...], ...] | None = None
 
+    def scaled(self, s: float) -> AffineTraction:
+        """The traction s·t (a load step of the ``[loading]`` table)."""
+        return AffineTraction(tuple(s * v for v in self.value), None if self.gradient is None
+                              else tuple(tuple(s * g for g in row) for row in self.gradient))
+
     def __call__(self, x) -> Any:
         """t as a UFL vector of the spatial coordinate x."""
         comps = []
@@ -418,10 +424,12 @@ class OutputSpec:
     report: Path | None
     nodal_values: Path | None
     pressure_plot: PlotSpec | None
+    history: Path | None = None  # a load path's JSON history ([loading])
 
     def paths(self) -> list[Path]:
         """Every file that a successful run writes (the XDMF's .h5 included)."""
-        out = [p for p in (self.xdmf, self.report, self.nodal_values) if p is not None]
+        out = [p for p in (self.xdmf, self.report, self.nodal_values, self.history)
+               if p is not None]
         if self.xdmf is not None:
             out.append(self.xdmf.with_suffix(".h5"))
         if self.pressure_plot is not None:
@@ -443,6 +451,9 @@ class ProblemFile:
         solver: The ``[solver]`` table (fields of :class:`~dolfinx_feti.SolverOptions`).
         command_line: ``-feti_<name> value`` pairs given on the command line, checked.
         output: The outputs.
+        loading: The load factors of a load path (``[loading] factors``), or None: one solve.
+        loading_values: Per Dirichlet group, its value at each step (``[loading] values``;
+            they replace the group's value times the factor).
     """
 
     path: Path
@@ -454,6 +465,19 @@ class ProblemFile:
     solver: dict[str, Any]
     output: OutputSpec
     command_line: list[tuple[str, str]] = field(default_factory=list)
+    loading: tuple[float, ...] | None = None
+    loading_values: dict[str, tuple] = field(default_factory=dict)
+
+    def problem_at(self, t: float) -> ContactProblem:
+        """The problem of step ``int(t)`` of the load path.
+
+        Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
+        their value of the step.
+        """
+        from .drivers.scaled import scaled
+        k = int(t)
+        return scaled(self.problem, self.loading[k],
+                      {g: v[k] for g, v in self.loading_values.items()})
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
@@ -607,7 +631,8 @@ class _Reader:
                 c.fault("method", f"{method!r} here, but solver.method is "
                         f"{solver['method']!r}: give it once")
             solver["method"] = method
-        output = self._output(contact)
+        loading, loading_values = self._loading(model, dirichlet, value_size)
+        output = self._output(contact, loading is not None)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
         if c.faults:
@@ -623,7 +648,7 @@ class _Reader:
             raise ProblemFileError(self.path, c.faults)
         pf = ProblemFile(path=self.path, title=title, model=model, mesh=self.mesh,
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
-                         command_line=pairs)
+                         command_line=pairs, loading=loading, loading_values=loading_values)
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
             pf.solver_options()
         except InputError as e:
@@ -1162,7 +1187,86 @@ class _Reader:
             c.fault("solver", str(e))
         return out
 
-    def _output(self, contact: list) -> OutputSpec:
+    def _loading(self, model: str | None, dirichlet: list, value_size: int | None
+                 ) -> tuple[tuple[float, ...] | None, dict[str, tuple]]:
+        """The load factors and the per-step Dirichlet values of ``[loading]``."""
+        c = self.c
+        if "loading" not in self.data:
+            return None, {}
+        t = c.table(self.data["loading"], "loading", LOADING_KEYS)
+        if t is None:
+            return None, {}
+        if "factors" not in t and "values" not in t:
+            c.fault("loading", "expected factors = [...] (the loads' factor per step), values = "
+                    "{ <dirichlet group> = [[...], ...] } (a group's value per step), or both")
+            return None, {}
+        if model is not None and model != "elasticity":
+            c.fault("loading", f"a load path needs model.type = 'elasticity' (its tractions, "
+                    f"body force and Dirichlet values are scaled), got {model!r}")
+            return None, {}
+        factors = None
+        if "factors" in t:
+            factors = c.vector(t["factors"], "loading.factors", None, "load factors")
+            if factors is not None and len(factors) == 0:
+                c.fault("loading.factors", "expected at least one load factor")
+                factors = None
+            if factors is None:
+                return None, {}
+        values = self._loading_values(t.get("values", {}), dirichlet, value_size,
+                                      None if factors is None else len(factors))
+        if values is None:
+            return None, {}
+        if factors is None and not values:
+            c.fault("loading.values", "expected at least one Dirichlet group")
+            return None, {}
+        if factors is None:  # the values alone: the other loads as given
+            factors = [1.0] * len(next(iter(values.values())))
+        return tuple(float(v) for v in factors), values
+
+    def _loading_values(self, v: Any, dirichlet: list, value_size: int | None,
+                        steps: int | None) -> dict[str, tuple] | None:
+        """``[loading] values``: Dirichlet group → one value per step (None on a fault)."""
+        c, key = self.c, "loading.values"
+        if not isinstance(v, dict):
+            c.fault(key, f"expected a table {{ <dirichlet group> = [[...], ...] }}, got "
+                    f"{_describe(v)}")
+            return None
+        out, good = {}, True
+        for group, rows in v.items():
+            gkey = _key(key, group)
+            conds = [d for d in dirichlet if d.group == group]
+            if not conds:
+                c.fault(gkey, f"not the group of a [[dirichlet]] condition (those are "
+                        f"{sorted({d.group for d in dirichlet})})")
+                good = False
+                continue
+            n = {len(d.components) if d.components is not None else value_size for d in conds}
+            if not isinstance(rows, list) or not rows:
+                c.fault(gkey, f"expected an array of one value per step, got {_describe(rows)}")
+                good = False
+                continue
+            vals = [c.vector(r, _key(gkey, i), None) if isinstance(r, list) else
+                    c.number(r, _key(gkey, i), "a number or an array of one per component")
+                    for i, r in enumerate(rows)]
+            if any(x is None for x in vals):
+                good = False
+                continue
+            bad = [i for i, x in enumerate(vals) if isinstance(x, list)
+                   and len(x) != 1 and len(x) not in n]
+            if bad:
+                c.fault(_key(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
+                        f"constrained component), got {len(vals[bad[0]])}")
+                good = False
+                continue
+            if steps is not None and len(vals) != steps:
+                c.fault(gkey, f"expected {steps} values (one per load factor), got {len(vals)}")
+                good = False
+                continue
+            steps = len(vals)
+            out[group] = tuple(tuple(x) if isinstance(x, list) else x for x in vals)
+        return out if good else None
+
+    def _output(self, contact: list, path: bool = False) -> OutputSpec:
         c, stem = self.c, self.path.stem
         o = c.table(self.data.get("output", {}), "output", OUTPUT_KEYS) or {}
         directory = Path(os.path.normpath(
@@ -1185,13 +1289,22 @@ class _Reader:
         xdmf = name("xdmf", f"{stem}.xdmf", ".xdmf")
         report = name("report", f"{stem}.json", None)
         nodal = name("nodal_values", None, ".npz")
+        history = None
+        if path:
+            h = self.data["loading"].get("history", f"{stem}_history.json")
+            if h is not False:
+                if not isinstance(h, str) or not h.endswith(".json"):
+                    c.fault("loading.history", "expected a file name ending in .json or false, "
+                            f"got {_describe(h)}")
+                else:
+                    history = directory / h
         plot = None
         p = o.get("pressure_plot", False)
         if p is True:
             p = {}
         if p is not False:
             plot = self._plot(p, directory, stem, contact)
-        spec = OutputSpec(directory, xdmf, report, nodal, plot)
+        spec = OutputSpec(directory, xdmf, report, nodal, plot, history)
         paths = [q.resolve() for q in spec.paths()]
         if len(set(paths)) != len(paths):
             c.fault("output", "two outputs have the same file name: "

@@ -279,11 +279,23 @@ class Solution:
         Of the problem's degree unless ``degree`` is given (1: the values at the vertices);
         zero off the contact surfaces.
         """
+        return self.contact_function(self.contact.pressure, "contact_pressure", degree)
+
+    def contact_function(self, values: np.ndarray, name: str, degree: int | None = None):
+        """A Lagrange Function on the whole mesh of values per contact node; zero elsewhere.
+
+        Args:
+            values: Per node of :attr:`contact` (its order), shape (n,) or (n, k).
+            name: The Function's name.
+            degree: Its degree (default: the problem's; 1: the values at the vertices).
+        """
         from .output import distributed_function
         c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
-        return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
-                                    "contact_pressure", self._points(), degree,
-                                    local=True, msh=self.u.function_space.mesh)
+        v = np.asarray(values, dtype=float)
+        v = v[:, None] if v.ndim == 1 else v
+        return distributed_function(self.problem.mesh, c.node, v, self.comm, name,
+                                    self._points(), degree, local=True,
+                                    msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:
         """Write the solution to XDMF (for ParaView), atomically.

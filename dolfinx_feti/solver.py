@@ -27,6 +27,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import compat
+from .constraints.friction_values import friction_key, with_friction_of
 from .constraints.load_rows import LoadRows
 from .dual import DualQP, SharedProblem, qp_of_share, share_problem
 from .dual_solve import solve_qp, warn_loose_stop
@@ -90,21 +91,25 @@ class FetiSolver:
         self._new_preconditioner()
         self._lam: PETSc.Vec | None = None
         self._mu: np.ndarray | None = None
+        self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
+        self._normal_force: np.ndarray | None = None  # of the last friction solve
         self.solves = 0
 
     # --- what changes between solves ---------------------------------------------------------
-    def update(self, problem: ContactProblem, *, check_stiffness: bool = False) -> None:
+    def update(self, problem: ContactProblem, *, check_stiffness: bool = False,
+               slip_from: Solution | None = None) -> None:
         """Take a new load case: tractions, body forces, Dirichlet values, obstacle positions.
 
         See :meth:`_update` (arguments, what is recomputed); afterwards the PETSc objects let go
         of are destroyed, as after :meth:`solve`.
         """
         try:
-            self._update(problem, check_stiffness)
+            self._update(problem, check_stiffness, slip_from)
         finally:
             compat.garbage_cleanup(self.comm)
 
-    def _update(self, problem: ContactProblem, check_stiffness: bool) -> None:
+    def _update(self, problem: ContactProblem, check_stiffness: bool,
+                slip_from: Solution | None) -> None:
         """Take a new load case: tractions, body forces, Dirichlet values, obstacle positions.
 
         Recomputes the load f, the right-hand sides c of the Dirichlet and obstacle rows, and
@@ -118,6 +123,12 @@ class FetiSolver:
                 :class:`~dolfinx_feti.Poisson`; for other forms with ``check_stiffness``, by
                 assembling K again, or use :meth:`update_stiffness`).
             check_stiffness: Reassemble K and refuse the update if it changed.
+            slip_from: With friction, the previous step of a load path (a Solution of this
+                set-up): the friction rows act on the slip increment since it (their right-hand
+                sides c_t = B_t u of that solution: a node that sticks keeps its tangential
+                displacement). None: a load case from the unloaded state (c_t = 0).
+
+        Friction coefficients and Tresca bounds (numbers) may change too.
 
         Raises:
             InputError: Naming what differs, for a problem whose changes cannot reuse the
@@ -130,9 +141,11 @@ class FetiSolver:
             check_same_labels(problem.decomposition, self._shared.share, self.comm)
         if check_stiffness:
             self._check_stiffness(problem)
+        self._tangential = self._slip_of(slip_from)
+        self._new_friction_values(problem)
         f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
         with self._timer.phase("constraints"):
-            rows, moved = self._loads.rows(problem, self.comm)
+            rows, moved = self._loads.rows(problem, self.comm, self._tangential)
         if moved:  # B changes with the obstacle's normals
             self.problem = problem
             self._data = replace(self._data, f=f)
@@ -185,7 +198,7 @@ class FetiSolver:
                                          self._timer, self._data.assemblers,
                                          keep=self._data.assemblers is not None)
         with self._timer.phase("constraints"):
-            rows, _ = self._loads.rows(self.problem, self.comm)
+            rows, _ = self._loads.rows(self.problem, self.comm, self._tangential)
         self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
@@ -199,6 +212,28 @@ class FetiSolver:
             raise InputError(f"FetiSolver.{what}: not available for method='tbeti' (its "
                              "boundary element subdomains are set up per problem); create a "
                              "new FetiSolver")
+
+    def _slip_of(self, sol: Solution | None) -> np.ndarray | None:
+        """B_t u of ``sol`` on this rank's tangential rows (None without ``sol``)."""
+        if sol is None or self.qp.friction is None:
+            return None
+        if not isinstance(sol, Solution) or sol.feti.B.getSize() != self.qp.system.B.getSize():
+            raise InputError("slip_from: a Solution of this solver's set-up expected")
+        Bu = sol.feti.B.createVecLeft()
+        sol.feti.B.mult(sol.u_vec, Bu)
+        out = Bu.array_r[self._loads.tangential].copy()
+        Bu.destroy()
+        return out
+
+    def _new_friction_values(self, problem: ContactProblem) -> None:
+        """Take the friction coefficients and Tresca bounds of ``problem`` (if they changed)."""
+        old = self.problem
+        if self.qp.friction is None or [friction_key(c) for c in old.contact] == \
+                [friction_key(c) for c in problem.contact]:
+            return
+        fdata = with_friction_of(self.qp.friction, old, problem, self._shared.share.rows)
+        self.qp.friction = fdata
+        self._shared = replace(self._shared, friction=fdata)
 
     def _adopt(self, qp: DualQP, rows) -> None:
         """Make ``qp`` (with ``rows``) the current QP; keep what the set-up found."""
@@ -248,7 +283,8 @@ class FetiSolver:
                 start; the default start on the first solve), ``"cold"`` for the default
                 start (λ = λ̂ where feasible), a :class:`~dolfinx_feti.Solution` of this
                 problem's set-up for its multipliers, or a Vec of multipliers of the QP's rows.
-                Friction solves start cold (their bounds move with the state).
+                With Coulomb friction a warm start's fixed point starts from the slip bounds
+                of the last solve's normal forces (scaled by the same load factor).
 
         Returns:
             The solution (displacement, multipliers, contact pressure, report). A solve that
@@ -268,7 +304,10 @@ class FetiSolver:
         fdata = qp.friction
         friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
         mults0 = qp.feti.hessian_mults
-        start, scale = self._start(x0) if friction is None else (None, 1.0)
+        start, scale = self._start(x0)
+        if friction is not None and start is not None:
+            friction.start_from(self._normal_force * scale if x0 is None and
+                                self._normal_force is not None else None)
         mu = self._mu * scale if x0 is None and start is not None and self._mu is not None \
             else None
         start_mults = qp.feti.hessian_mults - mults0
@@ -280,6 +319,8 @@ class FetiSolver:
         if start is not None:
             start.destroy()
         self._remember(out)
+        if friction is not None:
+            self._normal_force = friction.normal_force
         sol = self._solution(out, report, friction)
         warn_loose_stop(report, opts.rtol)
         report.timings = timer.reduced(comm)

@@ -162,28 +162,38 @@ class FrictionReference:
         pairs = np.stack([k + np.arange(k), 2 * k + np.arange(k)], axis=1)
         return cone_qp.ConeSet(lb, ub, pairs, np.zeros((k, 2)), g)
 
-    def solve_bound(self, g: np.ndarray, lam0=None) -> FrictionSolution:
-        """Tresca with nodal bounds g (forces)."""
+    def solve_bound(self, g: np.ndarray, lam0=None, slip0=None) -> FrictionSolution:
+        """Tresca with nodal bounds g (forces).
+
+        ``slip0``: the tangential rows' right-hand sides (a load path's previous step,
+        :meth:`tangential_displacement`; the rows then measure the slip increment); None: 0.
+        """
         cs = self.cone(np.asarray(g, dtype=float))
-        lam = cone_qp.solve(self.S, self.d, cs)
-        return self._solution(lam, cs, g)
+        d = self.d if slip0 is None else self.d - np.concatenate([np.zeros(self.k), slip0])
+        lam = cone_qp.solve(self.S, d, cs)
+        return self._solution(lam, cs, g, d)
+
+    def tangential_displacement(self, u: np.ndarray) -> np.ndarray:
+        """The tangential rows' B_t u of nodal values u (the next step's ``slip0``)."""
+        return (self.B @ np.asarray(u).ravel())[self.k:]
 
     def solve_tresca(self, traction_bound: float) -> FrictionSolution:
         """Tresca with a constant traction bound (× the lumped areas)."""
         return self.solve_bound(traction_bound * self.area)
 
-    def solve_coulomb(self, coefficient: float, max_steps: int = 200) -> FrictionSolution:
+    def solve_coulomb(self, coefficient: float, max_steps: int = 200,
+                      slip0=None) -> FrictionSolution:
         """The Coulomb fixed point g = 𝓕 λ_N from g = ∞, to round-off."""
         g = np.full(self.k, np.inf)
         for _ in range(max_steps):
-            sol = self.solve_bound(g)
+            sol = self.solve_bound(g, slip0=slip0)
             g_new = coefficient * sol.normal_force
             if np.all(np.isfinite(g)) and np.abs(g_new - g).max() <= 1e-13 * g_new.max():
                 return sol
             g = g_new
         raise RuntimeError("the reference Coulomb fixed point did not converge")
 
-    def _solution(self, lam, cs, g) -> FrictionSolution:
+    def _solution(self, lam, cs, g, d) -> FrictionSolution:
         k, nt, bs = self.k, self.nt, self.bs
         u = self.uD.copy()
         u[self.free] = self.lu.solve(self.rhs0 - self.B[:, self.free].T @ lam)
@@ -194,4 +204,4 @@ class FrictionReference:
             u=u.reshape(-1, bs), slave=self.slave, normal_force=lam[:k],
             tangential_force=-(lt @ self.T), slip=slip_c @ self.T,
             bound=np.broadcast_to(np.asarray(g, dtype=float), (k,)).copy(), lam=lam,
-            natural_residual=cone_qp.natural_residual(self.S, self.d, cs, lam), energy=energy)
+            natural_residual=cone_qp.natural_residual(self.S, d, cs, lam), energy=energy)

@@ -11,7 +11,10 @@ every way of holding the mesh:
   node, so each rank evaluates its conditions on its own facets' points and the values meet
   at the node's home rank (:func:`.distributed_rows.settle_conditions`);
 - an obstacle row's node is a point of the owner's subdomain; the rows of the whole problem
-  that every rank keeps (``RankRows.contact``) get the new gaps and normals by one gather.
+  that every rank keeps (``RankRows.contact``) get the new gaps and normals by one gather;
+- a friction (tangential) row's right-hand side is 0 for a load case from the unloaded state,
+  or, on a load path, the relative tangential displacement B_t u of the previous step (the row
+  then measures the slip increment of the step), given by the caller for the rows it owns.
 """
 
 from __future__ import annotations
@@ -45,14 +48,22 @@ class LoadRows:
         own = share.rows.own
         self._dirichlet = np.flatnonzero(own.kind == Kind.DIRICHLET)
         self._obstacle = np.flatnonzero(own.kind == Kind.OBSTACLE)
+        self.tangential = np.flatnonzero(own.kind == Kind.TANGENT)
         comp = np.zeros(own.size, dtype=np.int64)
         comp[own.e_row] = own.e_comp  # a Dirichlet row has one entry
         self._comp = comp[self._dirichlet]
         self._dir_nodes, self._dir_pos = np.unique(own.node[self._dirichlet],
                                                    return_inverse=True)
 
-    def rows(self, problem: ContactProblem, comm: MPI.Comm):
+    def rows(self, problem: ContactProblem, comm: MPI.Comm,
+             tangential: np.ndarray | None = None):
         """This rank's rows with the right-hand sides of ``problem`` (collective).
+
+        Args:
+            problem: The new load case.
+            comm: The ranks of the set-up.
+            tangential: The right-hand sides of this rank's tangential rows (in the order of
+                :attr:`tangential`); None for 0 (no slip before the load case).
 
         Returns:
             The new :class:`~dolfinx_feti.share.RankRows`, and whether B changed (an
@@ -77,6 +88,7 @@ class LoadRows:
             rhs[self._dirichlet] = new
             gap, normal = self._obstacles(problem)
         rhs[self._obstacle] = gap
+        rhs[self.tangential] = 0.0 if tangential is None else tangential
         moved = comm.allreduce(bool(np.any(
             np.abs(normal - own.normal[self._obstacle]) > NORMAL_TOL)), op=MPI.LOR)
         coef = own.e_coef

@@ -1,0 +1,69 @@
+"""The friction values of a new load case on the friction rows of a set-up.
+
+On a load path the friction coefficient or the Tresca bound may change from step to step (a
+lubricant, a temperature): the tangential rows stay, their slip bounds change. The rows'
+structure (which conditions have friction) is that of the set-up; per condition the model may
+go from Tresca to Coulomb and back, the values may change. A Tresca bound given as a function
+of the position may not change (its values at the nodes are the set-up's): give a number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import InputError
+from ..problem import ContactProblem, Coulomb, Tresca
+from ..share import RankRows
+from .friction import FrictionData
+
+
+def friction_key(c) -> tuple:
+    """What of a condition's friction the rows' values depend on (None: frictionless)."""
+    fr = getattr(c, "friction", None)
+    if fr is None:
+        return (None,)
+    if isinstance(fr, Coulomb):
+        return "coulomb", float(fr.coefficient), float(fr.rtol), int(fr.max_steps)
+    return "tresca", fr.bound if callable(fr.bound) else float(fr.bound)
+
+
+def with_friction_of(data: FrictionData, old: ContactProblem, new: ContactProblem,
+                     rows: RankRows) -> FrictionData:
+    """``data`` with the coefficients and Tresca bounds of ``new``'s conditions.
+
+    Args:
+        data: The friction rows of the set-up (global, the same on every rank).
+        old: The problem ``data`` holds the values of.
+        new: The new load case (same conditions, checked by the caller).
+        rows: This rank's rows (the contact rows every rank keeps give each row's condition).
+
+    Raises:
+        InputError: For a Tresca bound given as a function that changed.
+    """
+    spec = rows.contact.spec[rows.contact_rows(data.rows)]
+    tresca, coefficient = data.tresca.copy(), data.coefficient.copy()
+    rtol, max_steps = np.inf, 0
+    for i, (c_old, c_new) in enumerate(zip(old.contact, new.contact, strict=True)):
+        fr = c_new.friction
+        m = spec == i
+        if isinstance(fr, Coulomb):
+            rtol, max_steps = min(rtol, float(fr.rtol)), max(max_steps, int(fr.max_steps))
+        if friction_key(c_old) == friction_key(c_new) or not np.any(m):
+            continue
+        if isinstance(fr, Coulomb):
+            tresca[m], coefficient[m] = np.nan, float(fr.coefficient)
+        elif isinstance(fr, Tresca):
+            if callable(fr.bound) or (isinstance(c_old.friction, Tresca)
+                                      and callable(c_old.friction.bound)):
+                raise InputError(f"update: the Tresca bound on {c_new.group!r} is a function "
+                                 "that changed; on one set-up a Tresca bound may change as a "
+                                 "number only")
+            tresca[m], coefficient[m] = float(fr.bound) * data.area[m], np.nan
+    return replace(data, tresca=tresca, coefficient=coefficient,
+                   rtol=float(rtol) if np.isfinite(rtol) else data.rtol,
+                   max_steps=int(max_steps) if max_steps else data.max_steps)
+
+
+__all__ = ["friction_key", "with_friction_of"]
