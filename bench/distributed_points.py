@@ -27,11 +27,11 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
+from dolfinx_feti.io.meshes import _kuhn_simplices
 from dolfinx_feti.mesh import distributed_points as dp
 from dolfinx_feti.mesh import dofpoints
 from dolfinx_feti.mesh.decompose import _build as decomposition
 from dolfinx_feti.mesh.decompose import rcb
-from dolfinx_feti.meshes import _kuhn_simplices
 
 COMM = MPI.COMM_WORLD
 

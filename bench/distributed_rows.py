@@ -40,7 +40,7 @@ from dolfinx_feti.constraints.distributed_rows import (
 )
 from dolfinx_feti.constraints.gluing import gluing_rows
 from dolfinx_feti.mesh.decompose import decompose
-from dolfinx_feti.share import row_ranges, row_slice
+from dolfinx_feti.setup.share import row_ranges, row_slice
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from distributed_inputs import RankInputs  # noqa: E402

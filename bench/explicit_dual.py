@@ -39,10 +39,10 @@ from fmult_split import timed  # noqa: E402  (median over repeats of the slowest
 
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
-from dolfinx_feti import meshes_occ  # noqa: E402
 from dolfinx_feti.feti import explicit  # noqa: E402
 from dolfinx_feti.feti.dualize import ImplicitDual  # noqa: E402
 from dolfinx_feti.feti.preconditioner import make_preconditioner  # noqa: E402
+from dolfinx_feti.io import meshes_occ  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 

@@ -27,9 +27,9 @@ from petsc4py import PETSc
 
 import problems
 from dolfinx_feti import compat
-from dolfinx_feti.dual import dual_qp
 from dolfinx_feti.factor import available_factors, default_factor
 from dolfinx_feti.feti.kplus import choose_fixing_dofs
+from dolfinx_feti.setup.stages import dual_qp
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Without reordering a 3D matrix fills in completely: measured only up to this size.

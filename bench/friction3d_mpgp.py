@@ -21,7 +21,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 # the module (dolfinx_feti.qp.smalbe as an attribute is the function of the same name)
 smalbe_module = importlib.import_module("dolfinx_feti.qp.smalbe")

@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 ROOT = Path(__file__).resolve().parent.parent
 E, NU, SHIFT = 21.19, 0.277, (0.02, -0.02)

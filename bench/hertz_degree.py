@@ -28,7 +28,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 R, P, E, NU = 8.0, 10.0, 200.0, 0.3
 E_STAR = E / (2.0 * (1.0 - NU**2))

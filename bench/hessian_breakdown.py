@@ -15,7 +15,7 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 from dolfinx_feti.qp import Projector, RowBlockConstraint, orthonormalize, projected_operator
 
 

@@ -33,8 +33,8 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
-from dolfinx_feti.drivers import setup_seconds
+from dolfinx_feti.drivers.path_output import setup_seconds
+from dolfinx_feti.io import meshes
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))

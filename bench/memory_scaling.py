@@ -51,7 +51,7 @@ def worker(n: int, parts: int, layout: int) -> None:
     sys.path.insert(0, str(ROOT / "bench"))
     import dolfinx_feti as df
     import problems as P
-    from dolfinx_feti import meshes
+    from dolfinx_feti.io import meshes
 
     comm = MPI.COMM_WORLD
     base = vm_hwm_mib()

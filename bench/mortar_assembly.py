@@ -27,10 +27,10 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes_occ
 from dolfinx_feti.constraints.mortar import mortar_coupling
 from dolfinx_feti.constraints.mortar_rows import mortar_contact_rows
 from dolfinx_feti.fem.subdomain import Subdomain
+from dolfinx_feti.io import meshes_occ
 from dolfinx_feti.mesh.decompose import decompose
 
 SIZES = {2: [1e-2, 1e-3, 1e-4], 3: [0.04, 0.02, 0.01, 0.006, 0.004]}

@@ -21,7 +21,7 @@ from qp_helpers import make_mat, make_vec, obstacle, random_spd  # noqa: E402
 from test_qp_mpgp import disc_problem, local_discs  # noqa: E402
 
 import dolfinx_feti as df  # noqa: E402
-from dolfinx_feti import meshes  # noqa: E402
+from dolfinx_feti.io import meshes  # noqa: E402
 from dolfinx_feti.qp import mpgp, mprgp  # noqa: E402
 
 out = {}

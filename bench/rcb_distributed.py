@@ -22,9 +22,9 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from dolfinx_feti.exchange import Blocks
 from dolfinx_feti.mesh.decompose import rcb
 from dolfinx_feti.mesh.distributed_decompose import rcb_distributed
+from dolfinx_feti.parallel.exchange import Blocks
 
 
 class Counting:

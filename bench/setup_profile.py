@@ -50,7 +50,7 @@ from memory_scaling import vm_hwm_mib  # noqa: E402
 
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
-from dolfinx_feti import meshes  # noqa: E402
+from dolfinx_feti.io import meshes  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 BEFORE_ITERATIONS = ("problem (checks)", "decomposition", "distribution", "assembly",

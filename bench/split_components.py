@@ -37,7 +37,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 from dolfinx_feti.mesh import distributed_decompose as dd
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

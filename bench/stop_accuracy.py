@@ -32,7 +32,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes_occ
+from dolfinx_feti.io import meshes_occ
 
 precond = sys.modules["dolfinx_feti.feti.precond"]
 ROOT = Path(__file__).resolve().parent.parent

@@ -32,7 +32,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 import stress_cases as sc  # noqa: E402
 
 import dolfinx_feti as df  # noqa: E402
-from dolfinx_feti import meshes  # noqa: E402
+from dolfinx_feti.io import meshes  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 ROWS: list[tuple[str, str, str, str]] = []  # (group, case, outcome, key)
@@ -331,7 +331,7 @@ def hostile() -> None:
 
     saved = checks.check_conforming
     checks.check_conforming = lambda *a, **k: None
-    import dolfinx_feti.problem as problem_module
+    import dolfinx_feti.problem.contact_problem as problem_module
 
     problem_module.check_conforming = checks.check_conforming
     try:

@@ -26,8 +26,8 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes_occ
-from dolfinx_feti.postprocess import pressure_profile
+from dolfinx_feti.io import meshes_occ
+from dolfinx_feti.results.postprocess import pressure_profile
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--h", type=float, nargs="+", default=[0.2, 0.1, 0.05],

@@ -28,7 +28,7 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--h", type=float, default=0.1, help="node spacing in the contact zone")

@@ -22,7 +22,7 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--n", type=int, default=32, help="elements per unit length")

@@ -26,8 +26,8 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes_occ
 from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.io import meshes_occ
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--h", type=float, default=0.1,

@@ -19,7 +19,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--n", type=int, default=8, help="elements per unit length")

@@ -34,7 +34,7 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.meshes import physical_groups
+from dolfinx_feti.io.meshes import physical_groups
 
 parser = argparse.ArgumentParser(description=__doc__)
 parser.add_argument("--h", type=float, default=0.1, help="element size")

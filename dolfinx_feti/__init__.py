@@ -12,13 +12,12 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 
 # compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
 from . import compat  # noqa: F401
-from .drivers import solve_cases, solve_path
-from .dual import DualQP, dual_qp
+from .drivers.load_path import solve_cases, solve_path
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
 from .options import SolverOptions
-from .problem import (
+from .problem.contact_problem import (
                       ContactProblem,
                       Coulomb,
                       Cylinder,
@@ -32,8 +31,9 @@ from .problem import (
                       Tie,
                       Tresca,
 )
-from .report import Report
-from .solution import ContactData, Solution
+from .results.report import Report
+from .results.solution import ContactData, Solution
+from .setup.stages import DualQP, dual_qp
 from .solver import FetiSolver, solve
 
 __all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",

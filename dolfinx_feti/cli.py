@@ -29,12 +29,12 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import postprocess
 from .errors import InputError, SolveError, collective
+from .io.problemfile import ProblemFile, ProblemFileError, load
+from .io.staging import check_outputs, staged
 from .log import Progress, logger
 from .options import option_value
-from .problemfile import ProblemFile, ProblemFileError, load
-from .staging import check_outputs, staged
+from .results import postprocess
 
 PROG = "dolfinx-feti"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
@@ -178,7 +178,7 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
         _error(f"{PROG}: {pf.path}: {e}")
         return EXIT_USAGE if isinstance(e, InputError) else EXIT_FAILED
 
-    from .drivers import solve_path
+    from .drivers.load_path import solve_path
     from .solver import solve
 
     steps = None
@@ -194,7 +194,7 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
         return EXIT_FAILED
     report = solution.report
     if steps is not None:
-        from .drivers import History
+        from .drivers.path_output import History
         report.converged = all(s.report.converged for s in steps)
         report.extra["loading"] = [dict(History.record(s), factor=f)
                                    for s, f in zip(steps, pf.loading, strict=True)]
@@ -232,7 +232,7 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
     out = pf.output
     plot = out.pressure_plot
     if plot is None and plot_on_request and pf.problem.contact:
-        from .problemfile import PlotSpec
+        from .io.problemfile import PlotSpec
 
         spec = pf.problem.contact[0]
         group = getattr(spec, "slave", None) or spec.group
@@ -249,7 +249,7 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
                 else:
                     _write_series(stage.path(out.xdmf), steps, comm)
             if steps is not None and out.history is not None:
-                from .drivers import History
+                from .drivers.path_output import History
                 history = History(stage.path(out.history), comm)
                 for rec in solution.report.extra["loading"]:
                     history.append(rec)
@@ -275,7 +275,7 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
 
 def _write_series(path: Path, steps, comm: MPI.Comm) -> None:
     """The steps of a load path in one XDMF file, each at its index as the time."""
-    from .drivers import TimeSeries
+    from .drivers.path_output import TimeSeries
     series = TimeSeries(path, comm)
     try:
         for k, sol in enumerate(steps):

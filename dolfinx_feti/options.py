@@ -66,7 +66,7 @@ FETI = OptionSet(
                   "subdomain floats), 'feti1' (Dirichlet conditions eliminated, kernels only for "
                   "the floating subdomains), 'fetidp' (FETI-DP: corner dofs primal too, no "
                   "coarse space when every body is held), 'auto' (the rule of "
-                  "dolfinx_feti.dual.choose_method, docs/solvers.md) or 'tbeti' (Total BETI: "
+                  "setup.stages.choose_method, docs/solvers.md) or 'tbeti' (Total BETI: "
                   "boundary element subdomains, 2D, no volume loads; docs/beti.md)"),
     rtol=Option(1e-6, _TOL, "stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term)"),
     eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "

@@ -29,20 +29,20 @@ from petsc4py import PETSc
 from . import compat
 from .constraints.friction_values import friction_key, with_friction_of
 from .constraints.load_rows import LoadRows
-from .dual import DualQP, SharedProblem, qp_of_share, share_problem
-from .dual_solve import solve_qp, warn_loose_stop
+from .drivers.friction import FrictionSolve
+from .drivers.qp_solve import solve_qp, warn_loose_stop
 from .errors import InputError, NotConverged
 from .fem.assembly import assemble_loads, assemble_subdomains
 from .feti.preconditioner import make_preconditioner
-from .friction import FrictionSolve
 from .log import Progress
-from .mortar_report import mortar_warnings
 from .options import SolverOptions
-from .problem import ContactProblem
-from .problem_diff import check_same_labels, check_same_structure
+from .problem.changes import check_same_labels, check_same_structure
+from .problem.contact_problem import ContactProblem
 from .qp import ConvergedReason
-from .report import Report
-from .solution import Solution
+from .results.mortar_report import mortar_warnings
+from .results.report import Report
+from .results.solution import Solution
+from .setup.stages import DualQP, SharedProblem, qp_of_share, share_problem
 from .timing import Timer
 
 #: Starts :meth:`FetiSolver.solve` accepts besides a Solution or a Vec.

@@ -20,9 +20,10 @@ PACKAGE = "dolfinx_feti"
 CONDITIONS = {"Mortar", "NodeToNode", "RigidObstacle", "Tie", "Tresca", "Coulomb"}
 #: The modules that decompose, number the points, build the rows and the corners and hand out
 #: the shares (both ways of holding the mesh).
-SETUP = ("share.py", "share_distributed.py", "mesh/decompose.py", "mesh/dofpoints.py",
-         "mesh/distributed_decompose.py", "mesh/distributed_points.py", "fem/corners.py",
-         "fem/distributed_corners.py", "constraints/build.py", "constraints/distributed_rows.py")
+SETUP = ("share.py", "share_distributed.py", "setup/share.py", "setup/share_distributed.py",
+         "mesh/decompose.py", "mesh/dofpoints.py", "mesh/distributed_decompose.py",
+         "mesh/distributed_points.py", "fem/corners.py", "fem/distributed_corners.py",
+         "constraints/build.py", "constraints/distributed_rows.py")
 
 
 def sources(rev: str | None) -> dict[str, str]:

@@ -21,11 +21,11 @@ ROOT = Path(__file__).resolve().parents[1]
 #: (module, names or None for the module's ``__all__``), in the order of the page.
 SECTIONS = [
     ("dolfinx_feti", None),
-    ("dolfinx_feti.problemfile", ["load", "ProblemFile", "ProblemFileError", "Fault",
+    ("dolfinx_feti.io.problemfile", ["load", "ProblemFile", "ProblemFileError", "Fault",
                                   "OutputSpec", "PlotSpec", "FilePoisson", "SourceBox",
                                   "AffineTraction", "GridLabels", "generators",
                                   "check_command_line"]),
-    ("dolfinx_feti.postprocess", None),
+    ("dolfinx_feti.results.postprocess", None),
     ("dolfinx_feti.qp", ["QP", "QPSolver", "CG", "MPGP", "MPRGP", "SMALBE", "Absolute",
                          "QPResult", "ConvergedReason"]),
     ("dolfinx_feti.cli", ["main"]),

@@ -138,7 +138,7 @@ def _mortar_demo_problem(name: str) -> df.ContactProblem:
 
 def _friction_problem(name: str) -> df.ContactProblem:
     """The problems of the friction demos (tresca2d, tresca3d, coulomb_cylinders)."""
-    from dolfinx_feti import meshes
+    from dolfinx_feti.io import meshes
 
     if name == "tresca2d":
         mesh = df.build_mesh(meshes.tresca2d, n=16)

@@ -6,7 +6,7 @@ import gmsh
 import numpy as np
 
 import dolfinx_feti as df
-from dolfinx_feti.meshes import physical_groups
+from dolfinx_feti.io.meshes import physical_groups
 
 
 def _group(dim, ents, tag, name):

@@ -169,7 +169,7 @@ def test_xdmf_reopens_with_the_named_fields(name, fields, outdir):
 
 def test_von_mises_and_subdomains_in_the_solution(outdir):
     """The DG0 fields hold the values computed from the nodal solution."""
-    from dolfinx_feti.postprocess import output_functions, von_mises
+    from dolfinx_feti.results.postprocess import output_functions, von_mises
 
     problem = api_problem("blocks3d")
     sol = df.solve(problem, rtol=1e-8)

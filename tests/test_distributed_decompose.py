@@ -16,7 +16,7 @@ from mpi4py import MPI
 from test_decompose import _mesh_of
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 from dolfinx_feti.mesh import topology
 from dolfinx_feti.mesh.decompose import (
     ByFunction,

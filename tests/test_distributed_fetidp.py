@@ -20,7 +20,7 @@ from mpi4py import MPI
 from test_distributed_input import CASES as INPUT_CASES
 
 import dolfinx_feti as df
-from dolfinx_feti import dual
+from dolfinx_feti.setup import stages as dual
 
 COMM = MPI.COMM_WORLD
 

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
-from dolfinx_feti.distributed_graph import component_minima
+from dolfinx_feti.parallel.distributed_graph import component_minima
 
 COMM = MPI.COMM_WORLD
 

@@ -20,7 +20,7 @@ from test_share import hexahedra_q2
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import Rows
-from dolfinx_feti.meshes_occ import stacked_blocks
+from dolfinx_feti.io.meshes_occ import stacked_blocks
 
 COMM = MPI.COMM_WORLD
 
@@ -208,7 +208,7 @@ def test_a_distributed_mesh_needs_its_communicator(root):
 def test_local_vertex_numbers_are_those_of_unique(spread):
     """The rank's vertices and its cells in local numbers, by a mask over a dense range of
     global numbers or by a sort over a sparse one: np.unique's values and inverse."""
-    from dolfinx_feti.share_distributed import _compact
+    from dolfinx_feti.setup.share_distributed import _compact
 
     rng = np.random.default_rng(3)
     cells = 5000 + spread * rng.integers(0, 700, size=(400, 3))

@@ -17,8 +17,8 @@ import pytest
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
 from dolfinx_feti.errors import InputError
+from dolfinx_feti.io import meshes
 from dolfinx_feti.mesh import distributed_points as dp
 from dolfinx_feti.mesh.decompose import Parts, decompose
 from dolfinx_feti.mesh.dofpoints import dof_points

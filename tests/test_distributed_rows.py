@@ -17,7 +17,6 @@ from distributed_inputs import RankInputs
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
 from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.constraints.build import surface_rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask
@@ -26,8 +25,9 @@ from dolfinx_feti.constraints.distributed_rows import (
     own_rows,
     shared_points,
 )
+from dolfinx_feti.io import meshes
 from dolfinx_feti.mesh.decompose import decompose
-from dolfinx_feti.share import row_ranges, row_slice
+from dolfinx_feti.setup.share import row_ranges, row_slice
 
 COMM = MPI.COMM_WORLD
 SCHEMES = ["orthonormal", "redundant", "nonredundant"]

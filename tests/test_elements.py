@@ -199,7 +199,7 @@ def test_degree2_on_the_users_quadrilateral_mesh(quads_dolfinx):
 
 def test_degree2_xdmf_and_von_mises(mesh_of, tmp_path_factory):
     """XDMF of a Q2 solution (vertex values), von Mises = p in the uniaxial state."""
-    from dolfinx_feti.postprocess import output_functions
+    from dolfinx_feti.results.postprocess import output_functions
 
     mesh = mesh_of("quadrilateral")
     sol = df.solve(uniaxial(mesh, 2), rtol=RTOL)

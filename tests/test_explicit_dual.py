@@ -16,11 +16,11 @@ import test_hertz2d as h2
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.dual import dual_qp
 from dolfinx_feti.feti import explicit
 from dolfinx_feti.feti.dualize import Dualization, ImplicitDual
 from dolfinx_feti.feti.explicit import ExplicitDual
 from dolfinx_feti.feti.preconditioner import make_preconditioner
+from dolfinx_feti.setup.stages import dual_qp
 
 comm = MPI.COMM_WORLD
 METHODS = ("tfeti", "feti1", "fetidp")

@@ -15,10 +15,10 @@ import scipy.sparse as sp
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.dual import chain_qp
-from dolfinx_feti.dual_solve import solve_qp
+from dolfinx_feti.drivers.qp_solve import solve_qp
 from dolfinx_feti.feti import BlockSystem, EliminateCorners, EliminateDirichlet
 from dolfinx_feti.feti.system import EQUALITY, INEQUALITY, petsc_aij
+from dolfinx_feti.setup.stages import chain_qp
 
 comm = MPI.COMM_WORLD
 Q1 = np.array([[4, -1, -2, -1], [-1, 4, -1, -2], [-2, -1, 4, -1], [-1, -2, -1, 4]]) / 6.0

@@ -10,8 +10,8 @@ from friction_reference import FrictionReference
 from scipy.optimize import minimize
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
 from dolfinx_feti.constraints import Kind
+from dolfinx_feti.io import meshes
 
 E, NU = 21.19, 0.277  # the seed's material
 SHIFT = (0.02, -0.02)  # the block's top: sheared and pressed

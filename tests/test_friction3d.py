@@ -9,7 +9,7 @@ import reference as ref
 from friction_reference import FrictionReference
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 E, NU = 1.0, 0.3
 SHIFT = (0.02, 0.01, -0.02)

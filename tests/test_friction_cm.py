@@ -15,7 +15,7 @@ import pytest
 import ufl
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 R, P, E, NU, F = 8.0, 10.0, 200.0, 0.3, 0.4
 H = 0.1

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
 from dolfinx_feti.constraints.friction import tangent_basis
+from dolfinx_feti.io import meshes
 
 
 def contact_abscissae(mesh, group):

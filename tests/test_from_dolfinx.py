@@ -13,7 +13,7 @@ from mpi4py import MPI
 from scipy.spatial import cKDTree
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 COMM = MPI.COMM_WORLD
 RTOL = 1e-10

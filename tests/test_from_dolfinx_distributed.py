@@ -16,7 +16,7 @@ from test_from_dolfinx import RTOL, hertz_problem
 
 import dolfinx_feti as df
 from dolfinx_feti import compat
-from dolfinx_feti.postprocess import output_functions
+from dolfinx_feti.results.postprocess import output_functions
 
 COMM = MPI.COMM_WORLD
 
@@ -24,7 +24,7 @@ COMM = MPI.COMM_WORLD
 @pytest.fixture(scope="module")
 def hertz():
     """The Hertz half model (h = 0.2) as a DOLFINx mesh distributed by gmshio."""
-    from dolfinx_feti import meshes
+    from dolfinx_feti.io import meshes
 
     return gmsh_both(meshes.hertz2d, h_contact=0.2, h_far=2.0, gdim=2)[1]
 

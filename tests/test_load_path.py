@@ -23,7 +23,7 @@ from mpi4py import MPI
 from test_feti_solver import assert_no_setup, assert_same, hertz
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 RTOL = 1e-10
 
@@ -381,8 +381,8 @@ def command_path(root, name: str, capsys, problem_at_of):
     folder, the problem file and the API's Solutions."""
     from cli_helpers import remove_shared, shared_dir
 
-    from dolfinx_feti import problemfile
     from dolfinx_feti.cli import main
+    from dolfinx_feti.io import problemfile
 
     out = shared_dir("feti-path-")
     try:
@@ -433,7 +433,7 @@ def test_problem_file_loading(root, capsys):
 def test_problem_file_loading_checked(root, tmp_path):
     from cli_helpers import write_text
 
-    from dolfinx_feti import problemfile
+    from dolfinx_feti.io import problemfile
 
     text = (root / "problems/load_path.toml").read_text()
     text = text.replace("factors = [0.25, 0.5, 0.75, 1.0, 0.75, 0.5]",

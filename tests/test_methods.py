@@ -21,11 +21,11 @@ from friction_reference import FrictionReference
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
-from dolfinx_feti import problemfile as pfile
-from dolfinx_feti.dual import dual_qp
 from dolfinx_feti.factor import available_factors
 from dolfinx_feti.feti.system import local_csr
+from dolfinx_feti.io import meshes
+from dolfinx_feti.io import problemfile as pfile
+from dolfinx_feti.setup.stages import dual_qp
 
 RTOL = 1e-10
 TOL = 1e-6  # what the issue asks: the same solution as TFETI and the reference to 1e-6

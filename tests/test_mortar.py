@@ -17,7 +17,7 @@ import scipy.sparse.linalg  # noqa: F401 - sp.linalg.norm
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
 from dolfinx_feti.constraints.mortar_rows import mortar_contact_rows
-from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 
 def occ_mesh(model, *args, subdivide: int = 0, quads: bool = False, **kwargs) -> df.MeshData:

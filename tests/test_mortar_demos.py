@@ -29,7 +29,7 @@ from mpi4py import MPI
 from stack import mpi_launcher
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes_occ
+from dolfinx_feti.io import meshes_occ
 
 ROOT = Path(__file__).resolve().parents[1]
 

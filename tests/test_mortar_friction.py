@@ -18,7 +18,7 @@ from test_mortar import occ_mesh
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
-from dolfinx_feti.meshes_occ import stacked_blocks
+from dolfinx_feti.io.meshes_occ import stacked_blocks
 
 E, NU = 21.19, 0.277
 RTOL = 1e-10

@@ -17,8 +17,8 @@ import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_quad
 from dolfinx_feti.constraints.mortar import mortar_coupling, penetration
 from dolfinx_feti.errors import InputError
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 from dolfinx_feti.mesh.topology import facet_normals, nodal_normals_and_areas
-from dolfinx_feti.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 # -- the dual basis and the mortar matrices on hand-made facets ---------------------------------
 

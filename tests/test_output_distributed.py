@@ -11,7 +11,7 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti import compat
 from dolfinx_feti.fem.dofmap import dof_points_of_space
-from dolfinx_feti.output import distributed_function, node_values
+from dolfinx_feti.results.output import distributed_function, node_values
 
 COMM = MPI.COMM_WORLD
 
@@ -109,7 +109,7 @@ def test_xdmf_is_written(solution, tmp_path_factory):
 
 
 def test_von_mises_from_the_local_cells(solution):
-    from dolfinx_feti.postprocess import output_functions, von_mises
+    from dolfinx_feti.results.postprocess import output_functions, von_mises
 
     vm = {f.name: f for f in output_functions(solution)}["von_mises"]
     Q = vm.function_space

@@ -9,7 +9,7 @@ from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti import compat
-from dolfinx_feti.output import parent_mesh
+from dolfinx_feti.results.output import parent_mesh
 
 MESHES = Path(__file__).resolve().parents[1] / "meshes"
 

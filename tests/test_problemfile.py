@@ -23,9 +23,9 @@ from cli_helpers import (
 
 import dolfinx_feti as df
 from dolfinx_feti import compat
-from dolfinx_feti import problemfile as pfile
 from dolfinx_feti.cli import main
-from dolfinx_feti.postprocess import surface_arclength, von_mises
+from dolfinx_feti.io import problemfile as pfile
+from dolfinx_feti.results.postprocess import surface_arclength, von_mises
 
 
 @pytest.fixture(scope="module")

@@ -17,8 +17,8 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
 from dolfinx_feti.feti.preconditioner import make_preconditioner
+from dolfinx_feti.io import meshes
 from dolfinx_feti.qp import (
     CG,
     MPRGP,

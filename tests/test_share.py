@@ -19,7 +19,7 @@ from dolfinx_feti.constraints import Rows, build_rows
 from dolfinx_feti.mesh.decompose import decompose
 from dolfinx_feti.mesh.dofpoints import degree2_entities
 from dolfinx_feti.mesh.topology import row_keys
-from dolfinx_feti.share import share_out
+from dolfinx_feti.setup.share import share_out
 
 COMM = MPI.COMM_WORLD
 
@@ -217,7 +217,7 @@ def test_a_mesh_only_rank_0_holds_needs_its_communicator(root):
 
 def test_a_failure_while_handing_out_ends_every_rank(case, monkeypatch):
     """Rank 0 makes the pieces one by one; if one fails, every rank raises the same error."""
-    from dolfinx_feti import share
+    from dolfinx_feti.setup import share
 
     problem, _ = case
     made = share._piece

@@ -14,7 +14,7 @@ import pytest
 import stress_cases as sc
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes
+from dolfinx_feti.io import meshes
 
 KKT_TOL = 1e-6  # on every residual of the report, at rtol 1e-8
 

@@ -26,7 +26,7 @@ import reference as ref  # noqa: E402  (tests/reference.py)
 
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402  (bench/problems.py)
-from dolfinx_feti import meshes  # noqa: E402
+from dolfinx_feti.io import meshes  # noqa: E402
 
 # B2, 3D rigid sphere pressed into the quarter cube
 SPHERE_R, SPHERE_D, SPHERE_E, SPHERE_NU = 0.5, 0.02, 10.0, 0.3

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import gmsh
 
-from ..meshes import add_group, add_structured_box, physical_groups, set_output_options
+from ..io.meshes import add_group, add_structured_box, physical_groups, set_output_options
 
 
 def two_squares(n: int, m: int | None = None, *, stacked: bool = False

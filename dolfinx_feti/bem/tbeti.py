@@ -24,7 +24,7 @@ from ..fem.forms import Elasticity, Poisson
 from ..fem.rigid import rigid_modes
 from ..feti.chain import chain_qp
 from ..feti.system import BlockSystem
-from ..problem import ContactProblem
+from ..problem.contact_problem import ContactProblem
 from ..timing import Timer
 from .boundary import Boundaries, pair_keys, subdomain_boundaries
 from .operators import lame_operators, laplace_operators

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.decompose import Decomposition
-from ..problem import ContactProblem, Mortar, NodeToNode, RigidObstacle, Tie
+from ..problem.contact_problem import ContactProblem, Mortar, NodeToNode, RigidObstacle, Tie
 from .contact import node_to_node_rows, obstacle_rows
 from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.data import MeshData
-from ..problem import ContactProblem, Dirichlet
+from ..problem.contact_problem import ContactProblem, Dirichlet
 from ..validation import evaluate
 from .rows import Kind, Rows
 

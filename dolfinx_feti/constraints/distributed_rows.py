@@ -24,8 +24,8 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
-from ..exchange import Blocks, answer, exchange, exclusive_scan
-from ..problem import Dirichlet
+from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
+from ..problem.contact_problem import Dirichlet
 from .dirichlet import condition_values, dirichlet_rows
 from .gluing import gluing_rows
 from .rows import Rows

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.data import MeshData
-from ..problem import ContactProblem, Coulomb, Tresca
+from ..problem.contact_problem import ContactProblem, Coulomb, Tresca
 from ..validation import evaluate
 from .contact import surface
 from .rows import Kind, Rows

@@ -14,8 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InputError
-from ..problem import ContactProblem, Coulomb, Tresca
-from ..share import RankRows
+from ..problem.contact_problem import ContactProblem, Coulomb, Tresca
+from ..setup.share import RankRows
 from .friction import FrictionData
 
 

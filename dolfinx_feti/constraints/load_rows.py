@@ -25,7 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
-from ..problem import ContactProblem
+from ..problem.contact_problem import ContactProblem
 from .contact import obstacle_gaps
 from .dirichlet import condition_values
 from .distributed_rows import settle_conditions

@@ -22,7 +22,7 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.checks import boundary_facets
 from ..mesh.data import MeshData
-from ..problem import Mortar, Tie
+from ..problem.contact_problem import Mortar, Tie
 from .contact import surface
 from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
 from .rows import Kind, Rows

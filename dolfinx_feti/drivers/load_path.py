@@ -25,8 +25,8 @@ from mpi4py import MPI
 from ..errors import InputError, collective
 from ..log import Progress
 from ..options import SolverOptions
-from ..problem import ContactProblem
-from ..solution import Solution
+from ..problem.contact_problem import ContactProblem
+from ..results.solution import Solution
 from ..solver import COLD, FetiSolver
 from .path_output import History, TimeSeries, setup_seconds
 

@@ -19,9 +19,9 @@ from mpi4py import MPI
 from .. import compat
 from ..constraints.friction import SLIP, STICK
 from ..errors import InputError, collective
-from ..output import publish_xdmf
-from ..problem import ContactProblem
-from ..solution import Solution
+from ..problem.contact_problem import ContactProblem
+from ..results.output import publish_xdmf
+from ..results.solution import Solution
 
 #: Phases of a report's timings that are the solve itself; the rest is set-up or update.
 SOLVE_PHASES = ("iterations", "recovery")

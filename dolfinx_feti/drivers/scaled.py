@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fem import Elasticity
-from ..problem import ContactProblem, Dirichlet
+from ..problem.contact_problem import ContactProblem, Dirichlet
 
 
 def _scaled_value(v, s: float):

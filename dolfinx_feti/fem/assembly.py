@@ -13,8 +13,8 @@ import scipy.sparse as sp
 from mpi4py import MPI
 
 from ..errors import collective
-from ..problem import ContactProblem
-from ..share import RankShare
+from ..problem.contact_problem import ContactProblem
+from ..setup.share import RankShare
 from ..timing import Timer
 from .rigid import rigid_modes
 from .subdomain import Subdomain

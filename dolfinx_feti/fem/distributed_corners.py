@@ -39,9 +39,9 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import collective
-from ..exchange import Blocks, answer, exchange, exclusive_scan
 from ..mesh.distributed_points import index_ranges
 from ..mesh.topology import REFERENCE, cell_facets, row_keys
+from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
 from .corners import (
     body_label,
     box_scale,

@@ -28,7 +28,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
-from ..exchange import hand_out
+from ..parallel.exchange import hand_out
 from .checks import (
     boundary_group_verdicts,
     check_conforming,

@@ -30,9 +30,9 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
-from ..distributed_graph import component_minima
 from ..errors import InputError, collective
-from ..exchange import Blocks, answer, exchange, exclusive_scan
+from ..parallel.distributed_graph import component_minima
+from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
 from .topology import cell_facets, cell_volumes, reference, row_keys
 

@@ -29,7 +29,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
-from ..exchange import Blocks, answer, exchange
+from ..parallel.exchange import Blocks, answer, exchange
 from .decompose import assign_ranks
 from .dofpoints import degree2_entities
 from .topology import REFERENCE, row_keys

@@ -24,7 +24,7 @@ from mpi4py import MPI
 
 from .. import compat
 from ..errors import InputError, collective
-from ..exchange import answer, exchange
+from ..parallel.exchange import answer, exchange
 from .data import MeshData, answered_by_root
 from .dofpoints import degree2_entities
 from .topology import REFERENCE, cell_facets, locate_facets, row_keys

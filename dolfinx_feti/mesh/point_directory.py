@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from ..exchange import answer, exchange
+from ..parallel.exchange import answer, exchange
 from .dofpoints import degree2_entities
 from .topology import row_keys
 

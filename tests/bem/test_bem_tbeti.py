@@ -149,7 +149,7 @@ def test_tresca_friction_tbeti_vs_tfeti():
     on a rigid plane: the total normal and friction forces of TBETI approach TFETI's."""
     import test_friction as tf
 
-    from dolfinx_feti import meshes
+    from dolfinx_feti.io import meshes
 
     gaps = {}
     plane = df.Plane((0.0, 0.0), (0.0, 1.0))

@@ -25,14 +25,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 from mpi4py import MPI
 
-from .constraints.build import surface_rows
-from .constraints.distributed_rows import dirichlet_mask_distributed, own_rows, shared_points
-from .constraints.friction import friction_data
-from .constraints.rows import Rows
-from .errors import InputError, collective
-from .exchange import answer, exchange
-from .mesh.distributed_decompose import decompose_distributed
-from .mesh.distributed_points import (
+from ..constraints.build import surface_rows
+from ..constraints.distributed_rows import dirichlet_mask_distributed, own_rows, shared_points
+from ..constraints.friction import friction_data
+from ..constraints.rows import Rows
+from ..errors import InputError, collective
+from ..mesh.distributed_decompose import decompose_distributed
+from ..mesh.distributed_points import (
     SubdomainDirectory,
     index_ranges,
     migrate,
@@ -41,11 +40,12 @@ from .mesh.distributed_points import (
     point_coordinates,
     unique_sorted,
 )
-from .mesh.dofpoints import DofPoints, dof_points
-from .mesh.topology import REFERENCE, locate_few_facets
-from .problem import RigidObstacle
+from ..mesh.dofpoints import DofPoints, dof_points
+from ..mesh.topology import REFERENCE, locate_few_facets
+from ..parallel.exchange import answer, exchange
+from ..problem.contact_problem import RigidObstacle
+from ..timing import Timer
 from .share import LocalDecomposition, RankRows, RankShare, local_entities, row_subset
-from .timing import Timer
 
 
 @dataclass

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints.mortar import mean_facet_size, penetration
-from .constraints.mortar_rows import MortarInfo
-from .mesh.topology import facets_in_cell_order, nodal_normals_and_areas
+from ..constraints.mortar import mean_facet_size, penetration
+from ..constraints.mortar_rows import MortarInfo
+from ..mesh.topology import facets_in_cell_order, nodal_normals_and_areas
 
 #: A penetration deeper than this times the mean facet size of the two surfaces gets a warning.
 PENETRATION_RTOL = 1e-2

@@ -23,14 +23,14 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 from mpi4py import MPI
 
-from .constraints.rows import Rows
-from .errors import InputError, collective
-from .exchange import hand_out
-from .mesh.checks import boundary_group_verdicts
-from .mesh.data import MeshData
-from .mesh.decompose import Decomposition
-from .mesh.dofpoints import DofPoints, degree2_entities
-from .mesh.topology import REFERENCE, locate_facets, row_keys
+from ..constraints.rows import Rows
+from ..errors import InputError, collective
+from ..mesh.checks import boundary_group_verdicts
+from ..mesh.data import MeshData
+from ..mesh.decompose import Decomposition
+from ..mesh.dofpoints import DofPoints, degree2_entities
+from ..mesh.topology import REFERENCE, locate_facets, row_keys
+from ..parallel.exchange import hand_out
 
 
 @dataclass

@@ -8,17 +8,17 @@ from typing import Protocol
 
 import numpy as np
 
-from .errors import InputError, collective
-from .mesh.checks import (
+from ..errors import InputError, collective
+from ..mesh.checks import (
     check_boundary_group,
     check_conforming,
     check_contact_surface,
     check_mesh,
 )
-from .mesh.data import MeshData
-from .mesh.decompose import ByFunction, ByTags, Parts
-from .mesh.dofpoints import facet_weights
-from .validation import (
+from ..mesh.data import MeshData
+from ..mesh.decompose import ByFunction, ByTags, Parts
+from ..mesh.dofpoints import facet_weights
+from ..validation import (
     Choice,
     Either,
     Function,
@@ -430,7 +430,7 @@ class ContactProblem:
     @property
     def dof_points(self):
         """The global dof points of the space (:mod:`.mesh.dofpoints`): the vertices for P1."""
-        from .mesh.dofpoints import dof_points
+        from ..mesh.dofpoints import dof_points
         return dof_points(self.mesh, self.degree)
 
 

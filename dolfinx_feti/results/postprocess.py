@@ -26,10 +26,10 @@ from pathlib import Path
 import numpy as np
 import ufl
 
-from . import compat
-from .errors import InputError
-from .fem import Elasticity
-from .mesh.data import MeshData
+from .. import compat
+from ..errors import InputError
+from ..fem import Elasticity
+from ..mesh.data import MeshData
 
 
 @contextmanager

@@ -14,9 +14,9 @@ from dataclasses import is_dataclass, replace
 import numpy as np
 from mpi4py import MPI
 
-from .errors import InputError, collective
-from .mesh.decompose import ByFunction
-from .problem import ContactProblem, Dirichlet, RigidObstacle
+from ..errors import InputError, collective
+from ..mesh.decompose import ByFunction
+from .contact_problem import ContactProblem, Dirichlet, RigidObstacle
 
 
 def _dirichlet_key(bc: Dirichlet) -> tuple:

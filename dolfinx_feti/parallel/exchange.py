@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from .errors import SolveError
+from ..errors import SolveError
 
 
 def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):

@@ -45,11 +45,11 @@ import numpy as np
 import ufl
 from mpi4py import MPI
 
-from .errors import InputError, SolveError, collective
-from .fem import Elasticity, Poisson
-from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
-from .options import DECLARED, SolverOptions, kind, option_value, parse_text
-from .problem import (
+from ..errors import InputError, SolveError, collective
+from ..fem import Elasticity, Poisson
+from ..mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
+from ..problem.contact_problem import (
     ContactProblem,
     Cylinder,
     Dirichlet,
@@ -474,7 +474,7 @@ class ProblemFile:
         Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
         their value of the step.
         """
-        from .drivers.scaled import scaled
+        from ..drivers.scaled import scaled
         k = int(t)
         return scaled(self.problem, self.loading[k],
                       {g: v[k] for g, v in self.loading_values.items()})
@@ -967,7 +967,7 @@ class _Reader:
 
     def _friction(self, t: Any, key: str, condition: type, model: str | None):
         """A friction law (``Tresca`` or ``Coulomb`` of dolfinx_feti.problem), or None."""
-        from . import problem as api
+        from ..problem import contact_problem as api
 
         c = self.c
         if not isinstance(t, dict):
@@ -1045,8 +1045,8 @@ class _Reader:
 
     def _dry_run_contact(self, problem: ContactProblem) -> None:
         """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
-        from .constraints.contact import node_to_node_rows, obstacle_rows
-        from .constraints.mortar_rows import mortar_contact_rows
+        from ..constraints.contact import node_to_node_rows, obstacle_rows
+        from ..constraints.mortar_rows import mortar_contact_rows
 
         mesh = problem.mesh
         node_ptr = np.arange(mesh.num_nodes + 1, dtype=np.int64)
@@ -1350,7 +1350,7 @@ class _Reader:
                 nodes = np.unique(mesh.facet_groups[surface])
                 along = "xyz"[int(np.argmax(np.ptp(mesh.x[nodes], axis=0)))]
             elif along == "arclength":
-                from .postprocess import surface_arclength
+                from ..results.postprocess import surface_arclength
                 try:
                     surface_arclength(mesh, surface)
                 except InputError as e:

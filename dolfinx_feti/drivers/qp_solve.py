@@ -22,13 +22,12 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-from .feti.chain import DualQP
-from .feti.free_motions import remove_free_motions
-from .feti.preconditioner import make_preconditioner
-from .friction import FrictionSolve
-from .log import Progress
-from .options import PENALTY, SolverOptions
-from .qp import (
+from ..feti.chain import DualQP
+from ..feti.free_motions import remove_free_motions
+from ..feti.preconditioner import make_preconditioner
+from ..log import Progress
+from ..options import PENALTY, SolverOptions
+from ..qp import (
     CG,
     MPGP,
     MPRGP,
@@ -39,10 +38,11 @@ from .qp import (
     QPSolver,
     projected_operator,
 )
-from .qp.mprgp import OPTIONS as MPRGP_OPTIONS
-from .qp.smalbe import OPTIONS as SMALBE_OPTIONS
-from .report import Report
-from .timing import Timer
+from ..qp.mprgp import OPTIONS as MPRGP_OPTIONS
+from ..qp.smalbe import OPTIONS as SMALBE_OPTIONS
+from ..results.report import Report
+from ..timing import Timer
+from .friction import FrictionSolve
 
 #: A converged solve whose KKT residuals exceed KKT_WARN · rtol gets a warning.
 KKT_WARN = 1e3

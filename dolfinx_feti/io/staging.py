@@ -21,7 +21,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from .errors import InputError, collective
+from ..errors import InputError, collective
 
 _STAGING_PREFIX = ".dolfinx-feti-staging-"
 

@@ -20,12 +20,12 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from . import compat
-from .errors import collective
-from .exchange import Blocks, RankNumbering, answer, exchange
-from .fem.dofmap import dof_points_of_space
-from .mesh.data import MeshData
-from .mesh.dofpoints import DofPoints, RootLookup, dof_points
+from .. import compat
+from ..errors import collective
+from ..fem.dofmap import dof_points_of_space
+from ..mesh.data import MeshData
+from ..mesh.dofpoints import DofPoints, RootLookup, dof_points
+from ..parallel.exchange import Blocks, RankNumbering, answer, exchange
 
 #: The last parent mesh built: (the MeshData it was built from, communicator handle, mesh). The
 #: MeshData itself is held (not its id): an id is reused once an object is freed, and a later

@@ -26,7 +26,7 @@ import math
 import gmsh
 import numpy as np
 
-from .mesh.topology import row_keys
+from ..mesh.topology import row_keys
 
 #: gmsh element types of first-order simplices by topological dimension.
 _SIMPLEX_TYPE = {1: 1, 2: 2, 3: 4}

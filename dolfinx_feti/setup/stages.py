@@ -30,20 +30,20 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from .constraints import Kind, build_rows
-from .constraints.dirichlet import dirichlet_mask
-from .constraints.friction import friction_data
-from .errors import InputError, collective
-from .fem.assembly import assemble_subdomains
-from .fem.corners import choose_corners, floating_motions, primal_components
-from .feti.chain import DualQP, chain_qp
-from .feti.corners import EliminateCorners
-from .feti.system import BlockSystem
-from .feti.transforms import EliminateDirichlet
-from .mesh.decompose import decompose
-from .problem import ContactProblem
+from ..constraints import Kind, build_rows
+from ..constraints.dirichlet import dirichlet_mask
+from ..constraints.friction import friction_data
+from ..errors import InputError, collective
+from ..fem.assembly import assemble_subdomains
+from ..fem.corners import choose_corners, floating_motions, primal_components
+from ..feti.chain import DualQP, chain_qp
+from ..feti.corners import EliminateCorners
+from ..feti.system import BlockSystem
+from ..feti.transforms import EliminateDirichlet
+from ..mesh.decompose import decompose
+from ..problem.contact_problem import ContactProblem
+from ..timing import Timer
 from .share import share_out
-from .timing import Timer
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
 CORNERS_ON_CONTACT = True
@@ -118,7 +118,7 @@ def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: T
     if method not in (*METHODS, "auto", "tbeti"):
         raise InputError(f"method must be one of {(*METHODS, 'auto', 'tbeti')}, got {method!r}")
     if method == "tbeti":  # Total BETI (dolfinx_feti/bem): refuse what it cannot take, early
-        from .bem.tbeti import check_problem
+        from ..bem.tbeti import check_problem
         check_problem(problem)
     held = problem.mesh.root_only
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
@@ -166,7 +166,7 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     """
     timer = Timer() if timer is None else timer
     if shared.method == "tbeti":
-        from .bem.tbeti import tbeti_qp
+        from ..bem.tbeti import tbeti_qp
         return tbeti_qp(problem, shared.share, shared.comm, factor, norm_rtol, timer,
                         shared.mortar, shared.friction, shared.surface)
     with timer.phase("constraints"):
@@ -201,7 +201,7 @@ def method_steps(total: BlockSystem, shared: SharedProblem) -> list:
 def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, method: str
                        ) -> SharedProblem:
     """:func:`share_problem` on a distributed mesh: every rank builds its own share."""
-    from .fem.distributed_corners import fetidp_share
+    from ..fem.distributed_corners import fetidp_share
     from .share_distributed import share_from_parts, surface_friction
 
     if method in ("fetidp", "auto") and not CORNERS_ON_CONTACT:

@@ -10,13 +10,13 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .constraints.contact import surface
-from .constraints.friction import FRICTIONLESS, SLIP, STICK
-from .constraints.rows import Kind
-from .feti.system import BlockSystem
-from .problem import ContactProblem, RigidObstacle
+from ..constraints.contact import surface
+from ..constraints.friction import FRICTIONLESS, SLIP, STICK
+from ..constraints.rows import Kind
+from ..feti.system import BlockSystem
+from ..problem.contact_problem import ContactProblem, RigidObstacle
+from ..setup.share import RankShare
 from .report import Report
-from .share import RankShare
 
 
 @dataclass
@@ -268,7 +268,7 @@ class Solution:
         if self.problem.mesh.part is None:
             return self.problem.dof_points
         if self._directory is None:
-            from .mesh.point_directory import PointDirectory
+            from ..mesh.point_directory import PointDirectory
             self._directory = PointDirectory(self.problem.mesh.cell_type, self.problem.degree,
                                              self.problem.mesh.num_nodes, self.comm, self.share)
         return self._directory

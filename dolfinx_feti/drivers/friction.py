@@ -26,9 +26,9 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .constraints.friction import SLIP, STICK, FrictionData
-from .qp import Discs, QPResult
-from .share import RankRows
+from ..constraints.friction import SLIP, STICK, FrictionData
+from ..qp import Discs, QPResult
+from ..setup.share import RankRows
 
 
 class FrictionSolve:

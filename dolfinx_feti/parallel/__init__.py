@@ -1,0 +1,1 @@
+"""Communication patterns over the ranks: exchanges with directories, distributed graphs."""
