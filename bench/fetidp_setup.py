@@ -26,8 +26,9 @@ ROOT = Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
-from dolfinx_feti import dual, meshes  # noqa: E402
 from dolfinx_feti.fem import distributed_corners  # noqa: E402
+from dolfinx_feti.io import meshes  # noqa: E402
+from dolfinx_feti.setup import stages as dual  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 

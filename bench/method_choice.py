@@ -5,7 +5,8 @@ Problems with and without floating bodies, in 2D and 3D, with few and many subdo
 Each row: the problem, whether some body floats (rigid motions its Dirichlet conditions leave
 free), the number of subdomains, and per method (TFETI, FETI-1, FETI-DP; default options) the
 F-multiplications and the total time of ``df.solve`` (setup included: FETI-DP's coarse problem
-costs more to build). The rule in :func:`dolfinx_feti.dual.choose_method` and docs/solvers.md
+costs more to build). The rule in :func:`dolfinx_feti.setup.stages.choose_method` and
+docs/solvers.md
 reads this table.
 
 Run: ``python bench/method_choice.py`` (~1 min on an idle machine). Writes

@@ -76,13 +76,13 @@ def membranes_held_mesh(n: int) -> df.MeshData:
 
 @functools.lru_cache(maxsize=4)
 def hertz2d_mesh(h_contact: float = 0.05, h_far: float = 1.0) -> df.MeshData:
-    """The 2D Hertz half model of :func:`dolfinx_feti.meshes.hertz2d` (cached)."""
+    """The 2D Hertz half model of :func:`dolfinx_feti.io.meshes.hertz2d` (cached)."""
     return gmsh_mesh(lambda: meshes.hertz2d(h_contact=h_contact, h_far=h_far))
 
 
 @functools.lru_cache(maxsize=4)
 def blocks3d_mesh(n: int = 4) -> df.MeshData:
-    """Two stacked 3D blocks of :func:`dolfinx_feti.meshes.blocks3d` (cached)."""
+    """Two stacked 3D blocks of :func:`dolfinx_feti.io.meshes.blocks3d` (cached)."""
     return gmsh_mesh(lambda: meshes.blocks3d(n))
 
 

@@ -32,7 +32,7 @@ import ufl
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti import meshes, meshes_occ
+from dolfinx_feti.io import meshes, meshes_occ
 
 E = {"lower": 1000.0, "upper": 500.0}
 NU = 0.3

@@ -44,7 +44,7 @@ comm = MPI.COMM_WORLD
 
 # ## The geometry
 #
-# `dolfinx_feti.meshes_occ.disk_on_block` builds the quarter disk and the half block as two
+# `dolfinx_feti.io.meshes_occ.disk_on_block` builds the quarter disk and the half block as two
 # OCC surfaces, each with its own element size near the contact, and meshes them with one
 # `generate` call: the nodes on the arc and on the block's top do not match. Physical groups
 # name the bodies (`disk`, `block`) and the boundary parts (`disk_contact` = the whole arc,

@@ -51,7 +51,7 @@ comm = MPI.COMM_WORLD
 
 # ## The model
 #
-# `dolfinx_feti.meshes_occ.slab_with_inclusions` builds the slab $[0, 2] \times [0, 0.6]$
+# `dolfinx_feti.io.meshes_occ.slab_with_inclusions` builds the slab $[0, 2] \times [0, 0.6]$
 # with inclusions of radius 0.18 at $x = 0.4, 1.0, 1.6$ and the foundation
 # $[0, 3] \times [-1, 0]$. Its physical groups: the bodies `matrix`, `inclusions` (the three
 # disks), `foundation`; the boundaries `load` (the top on $x < 0.8$), `slab_bottom`,

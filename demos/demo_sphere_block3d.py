@@ -46,7 +46,7 @@ comm = MPI.COMM_WORLD
 
 # ## The geometry
 #
-# `dolfinx_feti.meshes_occ.sphere_on_block` builds the lower half of the ball (cut to
+# `dolfinx_feti.io.meshes_occ.sphere_on_block` builds the lower half of the ball (cut to
 # $x, y \ge 0$) and the block $[0, 8]^2 \times [-8, 0]$ as two OCC volumes that are *not*
 # fragmented against each other, sizes the mesh near the contact point ($h$ on the sphere,
 # `ratio` $\cdot h$ on the block, growing to 2 away from it) and meshes both with one

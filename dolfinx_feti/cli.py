@@ -9,7 +9,7 @@ The problem file is read and checked completely (every fault reported, with the 
 key) before anything heavy starts; then the problem is solved by Total FETI on all ranks of
 ``MPI.COMM_WORLD`` and the outputs are written, all or none: the output folder is checked before
 the solve, the files are staged beside their targets and moved into place together
-(:mod:`dolfinx_feti.staging`).
+(:mod:`dolfinx_feti.io.staging`).
 
 Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, outputs
 that could not be written: then none is); 2 the command line, the problem file or the output

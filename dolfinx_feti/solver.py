@@ -65,7 +65,7 @@ class FetiSolver:
     Attributes:
         problem: The problem of the next solve (the last one given to :meth:`update`).
         options: The solver options.
-        qp: The dual QP and its chain of transforms (:class:`~dolfinx_feti.dual.DualQP`).
+        qp: The dual QP and its chain of transforms (:class:`~dolfinx_feti.setup.stages.DualQP`).
         preconditioner: The dual preconditioner (None for ``preconditioner="none"``).
         solves: Number of solves so far.
     """
@@ -162,7 +162,7 @@ class FetiSolver:
         """Take new constraint rows on the same decomposition (e.g. after a new contact search).
 
         Args:
-            rows: This rank's rows (:class:`~dolfinx_feti.share.RankRows`) in the layout of
+            rows: This rank's rows (:class:`~dolfinx_feti.setup.share.RankRows`) in the layout of
                 the set-up's: the same rows, with new coefficients or right-hand sides.
 
         B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the

@@ -1,4 +1,4 @@
-"""Write the benchmark meshes of dolfinx_feti.meshes as gmsh 4.1 files.
+"""Write the benchmark meshes of dolfinx_feti.io.meshes as gmsh 4.1 files.
 
 Usage: python meshes/generate.py [--out DIR]   (DIR defaults to this script's directory)
 """
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import gmsh
 
-from dolfinx_feti import meshes, meshes_occ
+from dolfinx_feti.io import meshes, meshes_occ
 
 #: file name → function that builds the model in the current gmsh session.
 MESHES: dict[str, Callable[[], object]] = {

@@ -120,7 +120,7 @@ with open("pyproject.toml", "rb") as f:
 for req in $lint_reqs; do
     name="${req%%==*}"
     version="${req#*==}"
-    have="$("$VENV/bin/pip" show "$name" 2>/dev/null | sed -n 's/^Version: //p')"
+    have="$("$VENV/bin/pip" show "$name" 2>/dev/null | sed -n 's/^Version: //p')" || have=""
     if [ "$have" = "$version" ]; then
         say "$name: $version present"
     else

@@ -1,6 +1,7 @@
 """A mesh read with ``distribute=True``: every rank builds its share from its block of cells.
 
-The distributed set-up (dolfinx_feti.share_distributed) must give exactly the shares that rank 0
+The distributed set-up (dolfinx_feti.setup.share_distributed) must give exactly the shares that
+rank 0
 hands out when it holds the whole mesh — the same subdomains, dof points, pairs, rows and
 columns — and so the same solution, on 1, 2 and 3 ranks; no rank may hold the whole mesh.
 """

@@ -1,7 +1,7 @@
 """Cattaneo–Mindlin: 2D Hertz contact with Coulomb friction and a tangential load Q < 𝓕P.
 
 A disk (R = 8) on a block, both E = 200, ν = 0.3 (elastically similar: the normal and the
-tangential problems decouple), the full model :func:`dolfinx_feti.meshes.hertz2d_full`. The
+tangential problems decouple), the full model :func:`dolfinx_feti.io.meshes.hertz2d_full`. The
 disk's flat top carries the traction (Q, −P)/(2R) plus a linear normal part that cancels the
 moment of Q about the contact point, so the pressure stays Hertzian. The disk floats: only the
 contact (and friction) holds it. Theory: a central stick zone of half-width

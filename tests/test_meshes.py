@@ -1,4 +1,4 @@
-"""The benchmark geometries of dolfinx_feti.meshes and the committed .msh files in meshes/."""
+"""The benchmark geometries of dolfinx_feti.io.meshes and the committed .msh files in meshes/."""
 
 import math
 import subprocess
@@ -9,7 +9,8 @@ import gmsh
 import numpy as np
 import pytest
 
-from dolfinx_feti import compat, meshes
+from dolfinx_feti import compat
+from dolfinx_feti.io import meshes
 
 ROOT = Path(__file__).resolve().parents[1]
 MESH_DIR = ROOT / "meshes"

@@ -1,4 +1,4 @@
-"""What a rank holds after the set-up (dolfinx_feti.share): its part, not the whole problem.
+"""What a rank holds after the set-up (dolfinx_feti.setup.share): its part, not the whole problem.
 
 Under ``mpirun -n 2`` each rank must hold about half of the cells, dof points, pairs and rows,
 and the shares together must be exactly the global decomposition and rows that rank 0 built.

@@ -51,7 +51,7 @@ def pair_keys(share) -> np.ndarray:
 
 
 def subdomain_boundaries(share) -> Boundaries:
-    """The boundary polygon of every local subdomain of a :class:`~dolfinx_feti.share.RankShare`.
+    """The boundary polygon of every local subdomain of a rank's share.
 
     Raises:
         InputError: When a subdomain's boundary is not a union of closed polygons (it touches

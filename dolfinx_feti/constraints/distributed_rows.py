@@ -2,7 +2,7 @@
 
 The serial set-up (:func:`~.build.build_rows`) builds every row from the global node →
 subdomains map and hands each rank the rows whose smallest subdomain it owns
-(:func:`~dolfinx_feti.share.row_ranges`). Here a rank builds those rows itself, from what it
+(:func:`~dolfinx_feti.setup.share.row_ranges`). Here a rank builds those rows itself, from what it
 holds of the distributed mesh: the sorted global dof points of its cells, each with the sorted
 list of ALL subdomains that hold it, and the owner rank of every subdomain. The rows are the
 serial ones, in the serial order, with the same entries in the same order.
@@ -13,7 +13,7 @@ rows of its points and keep the ones it owns. Only the Dirichlet mask needs an e
 point on a Dirichlet facet may be held by a rank whose cells do not hold that facet (a
 subdomain touching the boundary at a vertex or an edge only). Points that only one rank holds
 have all their cells, and so all their facets, on that rank; the others are settled in a
-:class:`~dolfinx_feti.exchange.Blocks` directory of the points.
+:class:`~dolfinx_feti.parallel.exchange.Blocks` directory of the points.
 """
 
 from __future__ import annotations

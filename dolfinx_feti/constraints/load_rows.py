@@ -39,7 +39,7 @@ class LoadRows:
     """Recomputes the load-dependent right-hand sides of one rank's rows.
 
     Args:
-        share: This rank's share (:class:`~dolfinx_feti.share.RankShare`).
+        share: This rank's share (:class:`~dolfinx_feti.setup.share.RankShare`).
         bs: Components per node.
     """
 
@@ -66,7 +66,7 @@ class LoadRows:
                 :attr:`tangential`); None for 0 (no slip before the load case).
 
         Returns:
-            The new :class:`~dolfinx_feti.share.RankRows`, and whether B changed (an
+            The new :class:`~dolfinx_feti.setup.share.RankRows`, and whether B changed (an
             obstacle's normals moved).
 
         Raises:

@@ -222,7 +222,7 @@ class FrictionSolve:
 
     def contact_fields(self, lam_phys: np.ndarray, viol: np.ndarray, gdim: int
                        ) -> dict[str, np.ndarray]:
-        """The friction fields of :class:`~dolfinx_feti.solution.ContactData`.
+        """The friction fields of :class:`~dolfinx_feti.results.solution.ContactData`.
 
         Per contact node in the order of the normal rows, on every rank.
         """

@@ -145,7 +145,7 @@ def assemble_subdomains(problem: ContactProblem, share: RankShare, comm: MPI.Com
     Consecutive subdomains of a rank with the same bodies are meshed together as a disjoint
     union, up to about :data:`CELLS_PER_MESH` cells, so one assembly gives their block of the
     block-diagonal K (see :class:`~dolfinx_feti.fem.Subdomain`); the grouping changes no bit
-    of K or f. Only the rank's share (:mod:`dolfinx_feti.share`) is read. ``assemblers``, the
+    of K or f. Only the rank's share (:mod:`dolfinx_feti.setup.share`) is read. ``assemblers``, the
     :attr:`SubdomainData.assemblers` of an earlier call on the same share, skips the meshing
     (new forms on the same subdomains); ``keep=False`` frees each mesh after its assembly
     (less memory during the factorization, a new meshing for :func:`assemble_loads`).

@@ -2,7 +2,7 @@
 
 The counterpart of :mod:`.corners` (the specification: the same corners, numbered the same,
 and the same span of floating motions) for the shares of a mesh read with ``distribute=True``
-(:func:`~dolfinx_feti.share_distributed.share_from_parts`). Each rank holds whole subdomains,
+(:func:`~dolfinx_feti.setup.share_distributed.share_from_parts`). Each rank holds whole subdomains,
 their dof points and every point's list of subdomains (the node directory). From there:
 
 1. Outer boundary: a facet of the rank's cells (with a vertex on an interface) that no other
@@ -63,7 +63,7 @@ def fetidp_share(share, bs: int, body_names, comm: MPI.Comm, *, edges: bool,
     """FETI-DP's data of this rank's dofs, as :func:`.dual._fetidp_parts` hands it (collective).
 
     Args:
-        share: This rank's :class:`~dolfinx_feti.share.RankShare` with its node directory.
+        share: This rank's :class:`~dolfinx_feti.setup.share.RankShare` with its node directory.
         bs: Components per point.
         body_names: The names of the bodies.
         comm: The ranks.

@@ -71,7 +71,7 @@ class Subdomain:
         Args:
             indices: Subdomain numbers.
             mesh: The mesh data the subdomains are in (the whole mesh, or a rank's share of
-                it: :mod:`dolfinx_feti.share`).
+                it: :mod:`dolfinx_feti.setup.share`).
             cells: Per subdomain, the indices of its cells in ``mesh``.
             nodes: Per subdomain, the sorted dof points of those cells (of ``points``).
             facets: Per subdomain, boundary group name → the group's facets (vertices)

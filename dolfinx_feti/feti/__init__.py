@@ -1,7 +1,8 @@
 """The FETI layer as algebra: primal systems, their transforms, dualization, preconditioners.
 
 Nothing here builds meshes or assembles: the FEM side (:mod:`dolfinx_feti.fem`) hands over the
-subdomain matrices, loads, kernels and dof maps, and :mod:`dolfinx_feti.dual` chains the steps.
+subdomain matrices, loads, kernels and dof maps, and :mod:`dolfinx_feti.setup.stages` chains
+the steps.
 """
 
 from .corners import CornerSystem, EliminateCorners

@@ -8,7 +8,7 @@ eliminate corners), dualizes, homogenizes and projects; :class:`DualQP` is the r
 with ``A = P F P``, ``b = P (d − F λ̂)``, ``lb = −λ̂`` on the inequality rows, and the chain
 that maps its solution back (:meth:`DualQP.map_back`) and applies itself to a new load case
 (:meth:`DualQP.for_load`). Algebra only: the set-up that produces the first system from a
-mesh is :mod:`dolfinx_feti.dual`.
+mesh is :mod:`dolfinx_feti.setup.stages`.
 """
 
 from __future__ import annotations

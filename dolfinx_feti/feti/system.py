@@ -178,7 +178,7 @@ class BlockSystem(RowOperands):
 
         Args:
             data: The :class:`~dolfinx_feti.fem.assembly.SubdomainData` of this rank.
-            rows: This rank's rows (:class:`~dolfinx_feti.share.RankRows`: gluing,
+            rows: This rank's rows (:class:`~dolfinx_feti.setup.share.RankRows`: gluing,
                 Dirichlet, contact, friction) with the global primal column of each entry.
         """
         own = rows.own

@@ -3,7 +3,7 @@
 Each body is its own OCC entity, not fragmented against the others, so each is meshed on its
 own by one ``generate`` call: the meshes of two touching bodies do not match on their common
 surface. This is what :class:`~dolfinx_feti.Mortar` contact and :class:`~dolfinx_feti.Tie`
-gluing are for. Like :mod:`dolfinx_feti.meshes`, each function adds a model to the current gmsh
+gluing are for. Like :mod:`dolfinx_feti.io.meshes`, each function adds a model to the current gmsh
 session, names its physical groups, meshes it with first-order simplices, leaves it current
 and returns the groups as ``{name: (dim, tag)}``.
 """
@@ -169,7 +169,7 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
                   height: float = 20.0, refine: float = 2.5) -> dict:
     """2D Hertz, half model: a quarter disk on a block, each meshed on its own.
 
-    The geometry of :func:`dolfinx_feti.meshes.hertz2d` (disk of radius R centred at (0, R)
+    The geometry of :func:`dolfinx_feti.io.meshes.hertz2d` (disk of radius R centred at (0, R)
     touching the block's top y = 0 at the origin; symmetry about x = 0), but with no matching
     nodes: each body is an OCC surface meshed with its own size near the contact
     (h_contact_disk, h_contact_block within ``refine`` of the origin, growing to h_far).

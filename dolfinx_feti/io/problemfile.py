@@ -109,7 +109,7 @@ _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 def generators() -> dict[str, Any]:
     """The mesh generators that a problem file may name (``mesh = {generator = "<name>"}``).
 
-    They are the public functions of :mod:`dolfinx_feti.meshes` that build a model.
+    They are the public functions of :mod:`dolfinx_feti.io.meshes` that build a model.
     """
     from . import meshes
 
@@ -679,7 +679,7 @@ class _Reader:
         return str(mesh_path)
 
     def _generated_mesh(self, t: dict) -> str:
-        """A mesh built by a generator of :mod:`dolfinx_feti.meshes` (on rank 0, collectively)."""
+        """A mesh built by a generator of :mod:`dolfinx_feti.io.meshes` (rank 0, collectively)."""
         c, comm = self.c, self.comm
         gens = generators()
         if "generator" not in t:

@@ -14,7 +14,8 @@ restricted to the rank's cells, without any rank holding an array of the size of
   key is an offset (the keys of the ranks before) plus its rank in the local range.
 - :func:`point_coordinates`: the coordinates of the local points (vertices, entity midpoints).
 - :func:`point_subdomains`: for each local point, every subdomain that holds it (on any rank),
-  and the number of points of every subdomain, through a :class:`~dolfinx_feti.exchange.Blocks`
+  and the number of points of every subdomain, through a
+  :class:`~dolfinx_feti.parallel.exchange.Blocks`
   directory of the points: the (subdomain, point) pairs go to the point's home rank, which
   sends each rank that sent a pair the point's whole sorted list.
 - :func:`owners` and :func:`migrate`: the serial assignment of subdomains to ranks, and the

@@ -100,7 +100,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
 
     Args:
         generator: A function that builds and meshes a model in the current gmsh session,
-            e.g. one of :mod:`dolfinx_feti.meshes`; called as ``generator(*args, **kwargs)``.
+            e.g. one of :mod:`dolfinx_feti.io.meshes`; called as ``generator(*args, **kwargs)``.
         *args: Positional arguments of the generator.
         comm: The ranks that receive the mesh.
         gdim: Geometric dimension (default: that of the cells).

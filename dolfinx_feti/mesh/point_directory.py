@@ -33,7 +33,7 @@ class PointDirectory:
         degree: 1 (the vertices) or the share's degree.
         num_vertices: Number of vertices of the whole mesh.
         comm: The ranks.
-        share: This rank's share (:class:`~dolfinx_feti.share.RankShare`), whose entities
+        share: This rank's share (:class:`~dolfinx_feti.setup.share.RankShare`), whose entities
             are registered (needed for degree 2).
     """
 

@@ -64,7 +64,7 @@ def row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
     With ``bound`` (all entries < bound) and bound**width < 2**63 the key is an int64 (fast to
     sort); otherwise the row's bytes. Either way the keys sort as the sorted rows do
     lexicographically, so a monotone renumbering of the entries keeps their order (a rank's
-    local entities are numbered in the global order: :func:`~dolfinx_feti.share.share_out`).
+    local entities are numbered in the global order: :func:`~dolfinx_feti.setup.share.share_out`).
     """
     a = np.ascontiguousarray(np.sort(a, axis=1), dtype=np.int64)
     width = a.shape[1]

@@ -75,7 +75,7 @@ class Solution:
     """What :func:`dolfinx_feti.solve` returns.
 
     Attributes:
-        report: The :class:`~dolfinx_feti.report.Report`.
+        report: The :class:`~dolfinx_feti.results.report.Report`.
         contact: :class:`ContactData` for all contact nodes.
         lam: The multipliers λ (a distributed PETSc Vec, rows in the order of ``rows``).
         u_vec: The primal solution, subdomain by subdomain (a distributed PETSc Vec).
@@ -302,7 +302,7 @@ class Solution:
 
         Fields: the displacement (``u`` for a scalar problem), ``contact_pressure`` (zero off
         contact), ``subdomain`` (DG0) and, for :class:`~dolfinx_feti.Elasticity`,
-        ``von_mises`` (DG0; see :mod:`dolfinx_feti.postprocess`). XDMF holds fields of the
+        ``von_mises`` (DG0; see :mod:`dolfinx_feti.results.postprocess`). XDMF holds fields of the
         mesh's geometry degree: for a degree-2 problem on a straight-sided mesh the
         displacement and the pressure are written by their values at the vertices
         (``solution.u`` keeps the whole field).

@@ -1,8 +1,8 @@
 """The ranks' shares of a distributed mesh, built without any rank holding the whole problem.
 
-The counterpart of :func:`~dolfinx_feti.share.share_out` for a mesh read with
+The counterpart of :func:`~dolfinx_feti.setup.share.share_out` for a mesh read with
 ``distribute=True`` (:mod:`.mesh.distributed`): every rank starts from its block of cells and
-ends with the same :class:`~dolfinx_feti.share.RankShare` that rank 0 would have handed it,
+ends with the same :class:`~dolfinx_feti.setup.share.RankShare` that rank 0 would have handed it,
 field for field:
 
 1. the decomposition of the distributed mesh (:mod:`.mesh.distributed_decompose`: the serial
