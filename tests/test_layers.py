@@ -43,3 +43,16 @@ def test_no_import_cycle_and_no_private_import_across_modules():
     f = _figures()
     assert f["import_cycles"] == []
     assert f["private_imports"] == []
+
+
+@pytest.mark.serial
+def test_no_merge_conflict_markers():
+    """A merge left no ``<<<<<<<`` / ``>>>>>>>`` lines in the code or the docs."""
+    files = [p for pattern in ("dolfinx_feti/**/*.py", "tests/**/*.py", "bench/**/*.py",
+                               "demos/*.py", "scripts/*", "docs/*.md", "README.md",
+                               "pyproject.toml", "problems/*.toml")
+             for p in ROOT.glob(pattern) if p.is_file()]
+    bad = [f"{p.relative_to(ROOT)}:{i + 1}" for p in files
+           for i, line in enumerate(p.read_text(errors="replace").splitlines())
+           if line.startswith(("<<<<<<< ", ">>>>>>> "))]
+    assert not bad, bad
