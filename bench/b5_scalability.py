@@ -27,7 +27,7 @@ and with the Dirichlet preconditioner) gives the cost of one linear FETI solve t
 
 Run: ``python bench/b5_scalability.py`` (5–9 minutes on 2 cores, with the load: everything up to
 2 130 048 primal dofs, i.e. H/h = 128 with H = 1/8; ``--max-primal 9e6`` adds H = 1/16 at
-H/h = 128, 8.5 M dofs, see docs/benchmarks.md for its memory and time);
+H/h = 128, 8.5 M dofs, see docs/benchmarks.md § 7 for its memory and time);
 ``python bench/b5_scalability.py --problem elasticity`` (about 7 minutes, up to 1.1 M dofs);
 ``python bench/b5_scalability.py --problem hertz`` (about 2 minutes).
 """
@@ -60,7 +60,7 @@ SEED = {(8, 2): (648, 87, 20), (8, 4): (2592, 447, 23), (8, 8): (10365, 1983, 27
         (128, 8): (2130048, 29823, 47)}
 
 #: The variant compared with the default: the fewest F-multiplications in
-#: bench/solver_variants.py (see docs/benchmarks.md).
+#: bench/solver_variants.py (see docs/benchmarks_history.md § 2).
 BEST = "rho=10+optimal+dirichlet"
 
 #: The linear floor of a problem: the same mesh and decomposition without contact (projected CG).
@@ -85,7 +85,7 @@ def main() -> None:
                         help="hertz: refinement levels k (h/2^k everywhere, Parts(4·4^k))")
     parser.add_argument("--parts-method", choices=["rcb", "ptscotch"], default="ptscotch",
                         help="hertz: the partitioner (rcb leaves 1-cell slivers on the graded "
-                             "mesh, see docs/benchmarks.md)")
+                             "mesh, see docs/benchmarks_history.md § 3)")
     parser.add_argument("--max-primal", type=float, default=None,
                         help="skip larger cases (default 2.2e6 for b1, 1.2e6 for elasticity, "
                              "1e6 for hertz)")

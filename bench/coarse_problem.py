@@ -17,7 +17,8 @@ extrapolation from the largest measured dense run of the same kernel, marked "~"
     python bench/coarse_problem.py                        # the table (a few minutes)
     python bench/coarse_problem.py --crossover            # dense vs sparse over m (DENSE_MAX)
     mpirun -n 2 python bench/coarse_problem.py --sizes 2  # the same with the rows on 2 ranks
-    python bench/coarse_problem.py --kernels 3 --ns 10 20 --methods sparse   # docs § 7.6
+    # the inputs of docs/benchmarks_history.md § 11.6 (1 000 ranks on paper):
+    python bench/coarse_problem.py --kernels 3 --ns 10 20 --methods sparse
 """
 
 from __future__ import annotations

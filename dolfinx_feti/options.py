@@ -75,7 +75,7 @@ FETI = OptionSet(
                   "together)"),
     max_outer=Option(1000, _COUNT, "the budget of SMALBE outer iterations (an outer iteration "
                      "with no inner work costs no F-multiplication; 2D elasticity with 512 "
-                     "subdomains needs 166, docs/benchmarks.md)"),
+                     "subdomains needs 166, docs/benchmarks_history.md § 3)"),
     factor=Option(default_factor(), _Factor(), "the sparse Cholesky package of the subdomain "
                   "matrices; by default the best this PETSc has (CHOLMOD, else PETSc's own: "
                   "docs/solvers.md), and one it lacks is refused by name"),

@@ -55,8 +55,8 @@ FETI_TUNED = {"sphere": {"preconditioner": "lumped", "preconditioner_scaling": "
               "hertz": {"preconditioner": "none"}}
 FETI_TUNED_PARTS = {"sphere": {"S1": 4, "S2": 4, "S3": 4, "S4": 4}, "hertz": {"H1": 32}}
 #: "by_method" (issue 15): every method of ``df.solve`` in one worker, beside SNES-VI (sphere,
-#: Hertz) and the floor, each on Parts(k, balance="volume") (docs/benchmarks.md § 10: compact
-#: subdomains on the graded meshes). "FETI-DP tuned": the options of docs/benchmarks.md § 9.
+#: Hertz) and the floor, each on Parts(k, balance="volume") (docs/benchmarks.md § 5: compact
+#: subdomains on the graded meshes). "FETI-DP tuned": the options of docs/benchmarks.md § 14–15.
 #: PEERS_METHODS (comma-separated labels) runs a subset.
 BY_METHOD = {"TFETI": {"method": "tfeti"}, "FETI-1": {"method": "feti1"},
              "FETI-DP": {"method": "fetidp"},

@@ -35,7 +35,7 @@ batched solve of a few random columns, and t_E = c_e Σ_s m_s² + c_b (subdomain
 by their nonzeros) with the constants :data:`NS_PER_ENTRY`, :data:`US_PER_BLOCK`,
 :data:`US_FIXED`, :data:`NS_PER_SPARSE_ENTRY` measured by ``bench/explicit_dual.py``. Each
 time is the slowest rank's (every multiplication waits for it), so the choice is the same on
-every rank. Measured (docs/benchmarks.md § 12), the model predicted t_E within 0.5–2.3× and
+every rank. Measured (docs/benchmarks_history.md § 12), the model predicted t_E within 0.5–2.3× and
 T within 0.7–2.0×, so the choice is only as good as the break-even is far from N.
 
 The same blocks serve the Dirichlet preconditioner (:mod:`.precond_explicit`):
@@ -56,7 +56,7 @@ from .kplus import LocalInverse
 #: Right-hand sides per batched solve of the set-up (memory: n_local × BATCH doubles).
 BATCH = 64
 #: The expected number of F-multiplications of a solve, N of the cost model: about the median
-#: count of the solves of docs/benchmarks.md § 12 (35–218, median 43; 3D 35–53, 2D 118–218).
+#: count of the solves of docs/benchmarks_history.md § 12 (35–218, median 43; 3D 35–53, 2D 118–218).
 EXPECTED_MULTS = 50
 #: Most memory the explicit blocks may take per rank for ``"auto"`` to pick them [bytes].
 MEMORY_MAX = 2 * 1024**3

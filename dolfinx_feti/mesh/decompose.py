@@ -47,7 +47,7 @@ class Parts:
             ``"volume"`` (the parts' volumes). On a mesh graded toward a contact, equal cell
             counts give many small subdomains (and pieces that fall apart) where the contact
             is; equal volumes give compact subdomains with the fine cells inside them, and far
-            fewer F-multiplications (docs/benchmarks.md § 10).
+            fewer F-multiplications (docs/benchmarks.md § 5).
     """
 
     n: int | Mapping[str, int]

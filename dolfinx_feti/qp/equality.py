@@ -34,7 +34,7 @@ _CHOLESKY_RCOND = 1e-8
 _EXPLICIT_INVERSE_MAX = 1024
 #: Up to this many rows ``orthonormalize`` takes the dense route (method "auto"); above it the
 #: sparse one. Set-up plus 500 projections cross over between m = 200 and 750 depending on the
-#: kernel (bench/coarse_problem.py --crossover; docs/benchmarks.md, "Coarse problem").
+#: kernel (bench/coarse_problem.py --crossover; docs/benchmarks.md § 10).
 DENSE_MAX = 400
 ORTHONORMALIZE_METHODS = ("auto", "dense", "sparse")
 
