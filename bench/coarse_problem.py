@@ -1,7 +1,8 @@
 """The coarse problem alone: set-up and one projection, dense against sparse.
 
 The FETI natural coarse space G = Rᵀ Bᵀ of a Cartesian lattice of subdomains
-(``tests/coarse_lattice.py``: the library's gluing and Dirichlet rows and rigid modes, one face
+(``tests/support/coarse_lattice.py``: the library's gluing and Dirichlet rows and rigid modes, one
+face
 clamped, 2 cells per subdomain and direction) at about 10², 10³ and 10⁴ subdomains, with the 2D
 (k = 3) and 3D (k = 6) elasticity kernels; scalar kernels (k = 1) with ``--kernels 2s,3s``.
 
@@ -34,7 +35,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "support"))
 from coarse_lattice import lattice_gt  # noqa: E402
 
 from dolfinx_feti.qp import Projector, RowBlockConstraint, orthonormalize  # noqa: E402

@@ -42,7 +42,7 @@ from dolfinx_feti.constraints.gluing import gluing_rows
 from dolfinx_feti.mesh.decompose import decompose
 from dolfinx_feti.setup.share import row_ranges, row_slice
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "support"))
 from distributed_inputs import RankInputs  # noqa: E402
 
 COMM = MPI.COMM_WORLD

@@ -1,4 +1,4 @@
-"""The patch tests of tests/test_elements.py as a table: errors per element type and degree.
+"""The patch tests of tests/fem/test_elements.py as a table: errors per element type and degree.
 
 A uniaxial stress state (pressure p on the top, rollers or contact with a rigid plane at the
 bottom, symmetry planes) has an exact linear displacement. For each cell type and degree this

@@ -15,7 +15,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests/qp"))
-sys.path.insert(0, str(ROOT / "tests"))
+for _d in ("support", "problems", "drivers"):
+    sys.path.insert(0, str(ROOT / "tests" / _d))
 import numpy as np  # noqa: E402
 from qp_helpers import make_mat, make_vec, obstacle, random_spd  # noqa: E402
 from test_qp_mpgp import disc_problem, local_discs  # noqa: E402

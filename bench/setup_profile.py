@@ -26,7 +26,7 @@ the FETI solve and at the end (after the direct solve, which runs on rank 0).
     mpirun -n 2 python bench/setup_profile.py --method fetidp --distribute  # FETI-DP's set-up
     PYTHONPATH=/path/to/other/export mpirun -n 2 python bench/setup_profile.py   # A/B
 
-An export older than the test suite's current reference assembly (``tests/reference.py``
+An export older than the test suite's current reference assembly (``tests/support/reference.py``
 needs this tree's ``compat``) runs with ``--no-direct``.
 """
 

@@ -1,6 +1,7 @@
 """The stress suite of issue 7 at full size: every case, what happens, and how to reproduce it.
 
-Runs the cases of ``tests/stress_cases.py`` (which the tests run at reduced sizes) and writes
+Runs the cases of ``tests/support/stress_cases.py`` (which the tests run at reduced sizes) and
+writes
 the table to ``output/bench/stress.md``; with ``--docs`` also into ``docs/robustness.md``
 (between the markers ``<!-- stress-table -->`` and ``<!-- /stress-table -->``, one section
 per group: a run with ``-k`` replaces only its groups' sections).
@@ -28,7 +29,7 @@ import ufl
 from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "support"))
 import stress_cases as sc  # noqa: E402
 
 import dolfinx_feti as df  # noqa: E402
@@ -357,7 +358,7 @@ def hostile() -> None:
         error_of(lambda: df.solve(sc.block_on_plane(block, obstacles=[
             df.RigidObstacle("block_bottom", df.Sphere((0.5, 0.5), 1.0))]))))
     membranes = df.read_gmsh(ROOT / "meshes/membranes_8.msh")
-    row(g, "hostile", "node-to-node surfaces facing the same way (tests/test_errors.py)",
+    row(g, "hostile", "node-to-node surfaces facing the same way (tests/robustness/test_errors.py)",
         error_of(lambda: df.solve(df.ContactProblem(
             membranes, sc.ConstElasticity(1.0, 0.3), dirichlet=[df.Dirichlet("contact_left")],
             contact=[df.NodeToNode("contact_right", "dirichlet")]))))

@@ -1,7 +1,7 @@
 """Shared pieces of the peer benchmarks (docs/peers.md): meshes, undecomposed assembly, timers.
 
 The undecomposed ("monolithic") problems are assembled by DOLFINx on ``MPI.COMM_SELF`` with the
-helpers of ``tests/reference.py`` (which read only the mesh arrays of :class:`MeshData`), so
+helpers of ``tests/support/reference.py`` (which read only the mesh arrays of :class:`MeshData`), so
 the peers see exactly the same discrete problem as FETI: same mesh, same P1 stiffness, same
 lumped tractions, same node normals and gaps for the linearized contact condition.
 """
@@ -22,7 +22,7 @@ for _p in (ROOT / "bench", ROOT / "tests"):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
-import reference as ref  # noqa: E402  (tests/reference.py)
+import reference as ref  # noqa: E402  (tests/support/reference.py)
 
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402  (bench/problems.py)

@@ -6,7 +6,7 @@ A factorial sweep of ``preconditioner`` × ``preconditioner_scaling`` × ``mprgp
 ``bench/peers/common.py`` at one rtol. The F-multiplication counts are deterministic; times
 are the minimum of ``--repeat`` solves on a shared machine (the load average is in the
 header). Error = max(‖u − u*‖∞/‖u*‖∞, ‖λ − λ*‖∞/‖λ*‖∞) against the reference of ``run.py``
-(sphere: SNES-VI at rtol 1e-14; Hertz: the PDAS solve of tests/reference.py; computed and
+(sphere: SNES-VI at rtol 1e-14; Hertz: the PDAS solve of tests/support/reference.py; computed and
 cached in output/peers/raw the first time).
 
     OMP_NUM_THREADS=1 .venv/bin/python bench/peers/feti_tuning.py --level S1

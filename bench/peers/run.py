@@ -100,8 +100,8 @@ def reference(problem: str, level: str, mono, rot=None) -> dict:
         s = Pm.solve()
         u, lam = s.u.ravel(), s.lam
     else:
-        # tests/reference.py certifies its PDAS solve to 1e-12; at 77k+ dofs the stationarity
-        # of the SuperLU solve ends at ~1.2-1.7e-12: accept 1e-10 (printed below).
+        # tests/support/reference.py certifies its PDAS solve to 1e-12; at 77k+ dofs the
+        # stationarity of the SuperLU solve ends at ~1.2-1.7e-12: accept 1e-10 (printed below).
         C.ref.CERT_TOL = 1e-10
         Pm = C.ref.MonolithicProblem(mono.mesh, 2, C.ref.elasticity_forms(C.HERTZ_E, C.HERTZ_NU),
                                      tractions={"load": (0.0, -C.HERTZ_P / 2 / C.HERTZ_R)},

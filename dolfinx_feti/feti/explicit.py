@@ -110,7 +110,7 @@ class LocalBlocks:
             inside = J[None, :] < blk_size[:, None]
             flat[(base[:, None] + J[None, :])[inside]] = W[inside]
         # One view per block, as formed: symmetrizing F_s changes nothing but the round-off,
-        # yet that alone moved CG's count by 3 of 39 on FETI-1 (tests/test_explicit_dual.py).
+        # yet that alone moved CG's count by 3 of 39 on FETI-1 (tests/feti/test_explicit_dual.py).
         self.blocks = []
         for s, m in enumerate(p.sizes):
             if m:

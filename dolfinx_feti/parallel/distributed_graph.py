@@ -17,7 +17,7 @@ components there (scipy, no communication: what one rank sees whole costs no rou
 
 Every star with an edge out joins another tree in step 2 or 3, and shortcutting halves the
 height of the other trees, which is what the analysis of these authors turns into O(log n)
-rounds for n vertices; ``tests/test_distributed_graph.py`` checks ≤ 2 log2 n + 4 rounds on
+rounds for n vertices; ``tests/parallel/test_distributed_graph.py`` checks ≤ 2 log2 n + 4 rounds on
 paths numbered against the hooking order (where propagating labels would take n rounds) and on
 trees (on paths it takes about log2 n + 1 rounds). The search stops after the first round in which
 no parent changed on any rank (an Allreduce of a flag): then every tree is a star and no edge

@@ -19,7 +19,7 @@ from dolfinx_feti.qp.sparse_cholesky import (
     sparse_cholesky,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
 from coarse_lattice import lattice_gt  # noqa: E402
 
 TOL = 1e-12

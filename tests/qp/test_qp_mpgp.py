@@ -20,7 +20,7 @@ from qp_helpers import (
 
 from dolfinx_feti.qp import Discs, mpgp, mprgp, smalbe
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
 import cone_qp  # noqa: E402
 
 N = 60  # even, and even per rank for 1, 2 or 3 ranks: disc pairs (2k, 2k+1) stay local

@@ -46,7 +46,7 @@ from dolfinx_feti.qp.expansion import (
     ProjectedCGExpansion,
 )
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
 import cone_qp  # noqa: E402
 from petsc_db import petsc_options  # noqa: E402
 

@@ -1,5 +1,6 @@
 """B1, Dostál's two membranes: TFETI + SMALBE/MPRGP against BENCHMARKS.md and an independent
-monolithic primal–dual active set solve of the same discrete problem (tests/reference.py)."""
+monolithic primal–dual active set solve of the same discrete problem
+(tests/support/reference.py)."""
 
 from __future__ import annotations
 

@@ -284,7 +284,7 @@ def test_hertz_p2_on_curved_mesh():
     import sys
     from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "bench"))
     import hertz_degree as hd
 
     curved = hd.run(0.2, 2, True, COMM)

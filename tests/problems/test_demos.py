@@ -18,7 +18,8 @@ from stack import mpi_launcher
 
 #: Extra arguments that keep a demo short here (none needed today: each runs in seconds).
 QUICK: dict[str, list[str]] = {}
-#: Runs made by tests/test_mortar_demos.py, which also checks their figures: not repeated here.
+#: Runs made by tests/problems/test_mortar_demos.py, which also checks their figures: not repeated
+# here.
 CHECKED_ELSEWHERE = {("demo_sphere_block3d.py", 1), ("demo_sphere_block3d.py", 2),
                      ("demo_disk_block2d.py", 1), ("demo_inclusions.py", 1)}
 
@@ -28,7 +29,7 @@ CHECKED_ELSEWHERE = {("demo_sphere_block3d.py", 1), ("demo_sphere_block3d.py", 2
 @pytest.mark.parametrize("ranks", [1, 2], ids=["serial", "mpirun-n2"])
 def test_demo_runs(demo, ranks, root, tmp_path):
     if (demo, ranks) in CHECKED_ELSEWHERE:
-        pytest.skip("run, and its figures checked, by tests/test_mortar_demos.py")
+        pytest.skip("run, and its figures checked, by tests/problems/test_mortar_demos.py")
     launcher = mpi_launcher(ranks) if ranks > 1 else []
     report = tmp_path / "report.json"
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")

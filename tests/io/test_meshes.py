@@ -12,7 +12,7 @@ import pytest
 from dolfinx_feti import compat
 from dolfinx_feti.io import meshes
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 MESH_DIR = ROOT / "meshes"
 
 

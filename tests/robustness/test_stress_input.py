@@ -1,6 +1,6 @@
 """Hostile input and faults (issue 7): a clear error naming the fault, before any solve, on
 every rank, and nothing written; a rank that fails while assembling or factoring stops the
-whole job (no hang). Extends tests/test_errors.py (which this file does not repeat).
+whole job (no hang). Extends tests/robustness/test_errors.py (which this file does not repeat).
 
 Meshes with faults are built as gmsh discrete models from arrays (``stress_cases.from_arrays``)
 and read with ``read_gmsh``, the path a user's file takes.
@@ -26,7 +26,7 @@ import dolfinx_feti as df
 from dolfinx_feti.cli import main
 
 COMM = MPI.COMM_WORLD
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 
 
 scratch_cwd = scratch_cwd_fixture("feti-stress-input-")

@@ -22,7 +22,7 @@ from scratch import scratch_cwd_fixture
 
 import dolfinx_feti as df
 
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 
 # ------------------------------------------------------------------------------------------
 # Helpers

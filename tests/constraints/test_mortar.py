@@ -2,7 +2,7 @@
 
 Independent checks: exact linear solutions (contact and tie patch tests), node-to-node rows on
 matching meshes, a brute-force integration of the mortar matrices, a monolithic active-set
-solve with the same rows (tests/reference.py), and Hertz's solutions in 2D and 3D.
+solve with the same rows (tests/support/reference.py), and Hertz's solutions in 2D and 3D.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ from dolfinx_feti.qp import (
 from dolfinx_feti.qp.mprgp import OPTIONS as MPRGP_OPTIONS
 from dolfinx_feti.qp.smalbe import OPTIONS as SMALBE_OPTIONS
 
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 COMM = MPI.COMM_WORLD
 
 

@@ -20,7 +20,7 @@ import dolfinx_feti as df
 from dolfinx_feti import factor as factor_module
 from dolfinx_feti.factor import available_factors, default_factor
 
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 
 
 @pytest.fixture

@@ -1,9 +1,9 @@
 """Friction on mortar rows (non-matching meshes) against an independent monolithic solve.
 
-The reference (tests/friction_reference.py) assembles the undecomposed problem, builds the
+The reference (tests/support/friction_reference.py) assembles the undecomposed problem, builds the
 normal and tangential rows itself from the mortar weights (with its own tangent basis) and
 solves the dual cone QP by a semismooth Newton method; only the weights w_jk come from the
-library's mortar integrals, which tests/test_mortar.py checks on their own.
+library's mortar integrals, which tests/constraints/test_mortar.py checks on their own.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The mortar demos run as a user runs them, and their figures hold.
 
 Each demo runs once in a subprocess (serially; the sphere also under ``mpirun -n 2``; these
-runs stand for those of tests/test_demos.py, which skips them) and
+runs stand for those of tests/problems/test_demos.py, which skips them) and
 writes its report with the comparison it prints; the assertions are on those figures, with
 bounds from what the demos measure at their default sizes (the demo texts give the numbers):
 
@@ -31,7 +31,7 @@ from stack import mpi_launcher
 import dolfinx_feti as df
 from dolfinx_feti.io import meshes_occ
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 # An MPI process cannot start another MPI program: the demos run in the serial pass only.
 subprocess_test = pytest.mark.skipif(MPI.COMM_WORLD.size > 1,

@@ -14,7 +14,7 @@ from mpi4py import MPI
 
 import dolfinx_feti as df
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PROBLEMS = ROOT / "problems"
 MESHES = ROOT / "meshes"
 COMM = MPI.COMM_WORLD

@@ -16,7 +16,7 @@ import dolfinx_feti as df
 from dolfinx_feti.constraints import Kind, Rows, build_rows
 from dolfinx_feti.mesh.decompose import decompose
 
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 S2 = 1.0 / np.sqrt(2.0)
 
 

@@ -1,6 +1,6 @@
 """No hang under MPI: a failure on one rank ends every collective phase on every rank, with the
 failing rank's message (issue 13). Runs serially and under mpirun -n 2; a watchdog ends a
-hanging test (tests/scratch.py).
+hanging test (tests/support/scratch.py).
 
 - Every site of :data:`dolfinx_feti.errors.SITES` fails on one rank (``inject_fault``) in a
   command run that passes through all of them; the command ends on every rank with the same

@@ -8,7 +8,8 @@ writes the table of ``docs/robustness.md``.
 Geometries are gmsh models built here (run on rank 0 by :func:`dolfinx_feti.build_mesh`). The
 material data enter the forms as ``dolfinx.fem.Constant`` (:class:`ConstElasticity`), so a new
 value of E or ν costs no new form compilation. :func:`monolithic` is an independent reference
-(undecomposed, assembled by ``tests/reference.py``, solved by a primal–dual active set method)
+(undecomposed, assembled by ``tests/support/reference.py``, solved by a primal–dual active set
+method)
 for problems with rigid obstacles and prescribed values.
 """
 
@@ -260,7 +261,7 @@ def monolithic(mesh: df.MeshData, E: float | dict, nu: float | dict, *,
                tractions: dict[str, Sequence[float]] | None = None) -> np.ndarray:
     """Nodal displacement (N, 2) of the undecomposed problem (serial, every rank alike).
 
-    K and f are assembled by ``tests/reference.py`` (bodies glued through shared nodes),
+    K and f are assembled by ``tests/support/reference.py`` (bodies glued through shared nodes),
     Dirichlet values eliminated, obstacle rows −n·u <= φ/|∇φ| at the nodes of each group, and
     the QP solved by a primal–dual active set method (exact to round-off).
     """

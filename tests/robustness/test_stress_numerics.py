@@ -1,7 +1,8 @@
 """Numerical stress cases (issue 7): each converges to the answer of an independent monolithic
 solve (or of another decomposition), or fails with a clear reason and its residuals.
 
-Reduced sizes; ``bench/stress.py`` runs the same cases (``tests/stress_cases.py``) at full size
+Reduced sizes; ``bench/stress.py`` runs the same cases (``tests/support/stress_cases.py``) at full
+size
 and writes the table of docs/robustness.md.
 """
 

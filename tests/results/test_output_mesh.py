@@ -11,7 +11,7 @@ import dolfinx_feti as df
 from dolfinx_feti import compat
 from dolfinx_feti.results.output import parent_mesh
 
-MESHES = Path(__file__).resolve().parents[1] / "meshes"
+MESHES = Path(__file__).resolve().parents[2] / "meshes"
 
 
 def _check(msh, mesh: df.MeshData) -> None:
