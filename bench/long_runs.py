@@ -6,8 +6,12 @@ time per solve are printed every ``--every`` solves. Flat memory means the solve
 PETSc objects of each solve and update (vectors of the load case, the QP solver's work
 vectors, the Solution's).
 
+``--path N`` runs a load path of N steps instead (``df.solve_path``, a press then a shear
+with Coulomb friction carried from step to step), keeping every step's Solution as the
+driver returns them, and prints the memory after it.
+
 Run: ``python bench/long_runs.py --solves 1000`` (2D Hertz on the demo mesh, about a minute),
-``mpirun -n 2 python bench/long_runs.py --solves 200``.
+``python bench/long_runs.py --path 200``, ``mpirun -n 2 python bench/long_runs.py --solves 200``.
 """
 
 from __future__ import annotations
@@ -42,14 +46,48 @@ def problem(mesh, load: float) -> df.ContactProblem:
         decomposition=df.Parts(2))
 
 
+def path(mesh, steps: int, rtol: float, comm: MPI.Comm) -> None:
+    """A press-then-shear path with Coulomb friction; memory before and after it."""
+    def problem_at(t: float) -> df.ContactProblem:
+        p = min(t, 1.0)
+        q = 0.3 * max(t - 1.0, 0.0) * np.sin(4 * np.pi * t)  # back and forth under Coulomb
+        return df.ContactProblem(
+            mesh, df.Elasticity(200.0, 0.3, tractions={"load": (q, -10.0 / 2 / 8.0 * p)}),
+            dirichlet=[df.Dirichlet("bottom")],
+            contact=[df.Mortar(slave="disk_contact", master="block_contact",
+                               friction=df.Coulomb(0.5))],
+            decomposition=df.Parts(2))
+
+    times = np.linspace(0.2, 2.0, steps)
+    gc.collect()
+    r0 = comm.allreduce(rss_mib(), op=MPI.MAX)
+    t0 = time.perf_counter()
+    sols = df.solve_path(problem_at, times[: steps // 2], comm=comm, rtol=rtol,
+                         progress=False)
+    gc.collect()
+    r1 = comm.allreduce(rss_mib(), op=MPI.MAX)
+    sols += df.solve_path(problem_at, times[steps // 2:], comm=comm, rtol=rtol,
+                          progress=False)
+    gc.collect()
+    r2 = comm.allreduce(rss_mib(), op=MPI.MAX)
+    dt = comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)
+    if comm.rank == 0:
+        print(f"{steps} steps in {dt:.1f} s; RSS before {r0:.1f} MiB, after {steps // 2} "
+              f"{r1:.1f} MiB, after {steps} {r2:.1f} MiB (every Solution kept: "
+              f"{1024 * (r2 - r1) / max(steps - steps // 2, 1):.1f} KiB per step)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--solves", type=int, default=1000)
     ap.add_argument("--every", type=int, default=100)
     ap.add_argument("--rtol", type=float, default=1e-6)
+    ap.add_argument("--path", type=int, default=0, help="a load path of this many steps")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     mesh = df.read_gmsh(ROOT / "meshes/disk_on_block.msh")
+    if args.path:
+        return path(mesh, args.path, args.rtol, comm)
     solver = df.FetiSolver(problem(mesh, 1.0), comm=comm, rtol=args.rtol)
     solver.solve()
     rng = np.random.default_rng(0)

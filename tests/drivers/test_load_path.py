@@ -81,8 +81,10 @@ def test_cases_amortized(hertz_mesh):
         assert case["index"] == k and case["cases"] == 3
         assert 0 < case["amortized_seconds"] and case["setup_seconds"] <= sol.report.timings[
             "total"]
-    first = sols[0].report.extra["case"]
-    assert sols[1].report.extra["case"]["setup_seconds"] < first["first_setup_seconds"]
+    # the later cases repeat no phase of the set-up (a structural check: times are for bench/)
+    for sol in sols[1:]:
+        assert not {"decomposition", "factorization", "coarse problem"} & set(
+            sol.report.timings), sol.report.timings
     cold = df.solve_cases([hertz(hertz_mesh, load=p) for p in loads], rtol=RTOL, warm=False)
     for a, b in zip(sols, cold, strict=True):
         assert_same(a, b)
