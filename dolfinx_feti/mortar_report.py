@@ -10,6 +10,9 @@ deformed surface, and the report warns, naming the groups, when
   the search distance are too small), or
 - a row on the rim of a candidate surface is active (the contact zone may extend beyond the
   surfaces that were named).
+
+For self-contact (one group as slave and master) the check runs on the zones the search
+paired (:mod:`.constraints.self_contact`), each side against the other.
 """
 
 from __future__ import annotations
@@ -60,8 +63,13 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
         if u.shape[1] != mesh.gdim:
             continue  # a scalar problem has no deformed geometry to check
         xd = mesh.x + u
-        S = facets_in_cell_order(mesh.cells, mesh.facets(info.slave), mesh.cell_type)
-        M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
+        if info.coupling.zones is not None:
+            # Self-contact: the zones that face each other, not the whole surface (whose
+            # nodes lie behind its own facets across every thin wall).
+            S, M = info.coupling.zones
+        else:
+            S = facets_in_cell_order(mesh.cells, mesh.facets(info.slave), mesh.cell_type)
+            M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
         h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
         tol = PENETRATION_RTOL * h
         worst = 0.0

@@ -159,6 +159,14 @@ class Mortar:
     penetration, or about an active row on the rim of a candidate surface). Take as slave the
     surface with the finer mesh, or the smaller one.
 
+    **Self-contact**: ``Mortar(slave=g, master=g)`` with one boundary group ``g`` (a body
+    touching itself: a C-clip closing, a folding strip). The search then leaves out each
+    facet's own neighbourhood (the facets sharing a vertex with it) and the facets that do not
+    face it from the outside (the two sides of a thin wall), and keeps each pair of zones
+    that face each other once: the zone first in the group's facet order is the slave
+    (:mod:`dolfinx_feti.constraints.self_contact`). The rows, friction and the report are
+    those of two surfaces; the report's checks run on the paired zones.
+
     Args:
         slave: Boundary group of the slave side.
         master: Boundary group of the master side.
@@ -448,10 +456,13 @@ def _degree(degree, forms, default: int) -> int:
 
 
 def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
-    """The two groups of a mortar condition exist and differ; the search distance is sane."""
+    """The groups of a mortar condition exist, the search distance is sane.
+
+    One group with itself is self-contact (:class:`Mortar` only; a tie is refused).
+    """
     mesh.facets(c.slave)
     mesh.facets(c.master)
-    if c.slave == c.master:
+    if c.slave == c.master and isinstance(c, Tie):
         raise InputError(f"{what} {c.slave!r} with itself")
     if mesh.tdim != mesh.gdim:
         raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")

@@ -857,7 +857,7 @@ class _Reader:
                     continue
             if kind in ("node_to_node", "mortar"):
                 t = c.table(t, key, CONTACT_KEYS[kind], required=("slave", "master"))
-                s, m = self._pair(t, key, "contact")
+                s, m = self._pair(t, key, "contact", self_contact=kind == "mortar")
                 kw = {}
                 if "gap" in t:
                     kw["gap"] = c.number(t["gap"], _key(key, "gap"), "a number >= 0 (the "
@@ -896,14 +896,20 @@ class _Reader:
                     out.append(RigidObstacle(g, obstacle, **kw))
         return out
 
-    def _pair(self, t: dict, key: str, what: str) -> tuple[str | None, str | None]:
-        """The slave and master groups of a contact pair or a tie, checked."""
+    def _pair(self, t: dict, key: str, what: str, self_contact: bool = False
+              ) -> tuple[str | None, str | None]:
+        """The slave and master groups of a contact pair or a tie, checked.
+
+        ``self_contact``: one group as slave and master is allowed (mortar contact).
+        """
         c, mesh = self.c, self.mesh
         s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
         m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
         if "slave" in t and t.get("slave") == t.get("master"):
+            if self_contact:
+                return s, m
             c.fault(key, f"a {what} of the group {t['slave']!r} with itself: slave and master "
-                    "must be two different surfaces")
+                    "must be two different surfaces (self-contact is type = 'mortar')")
             return None, m
         if what == "contact" and s is not None and m is not None and mesh is not None:
             sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)

@@ -12,9 +12,10 @@ from petsc4py import PETSc
 
 from .constraints.contact import surface
 from .constraints.friction import FRICTIONLESS, SLIP, STICK
+from .constraints.mortar_rows import self_contact_areas
 from .constraints.rows import Kind
 from .feti.system import BlockSystem
-from .problem import ContactProblem, RigidObstacle
+from .problem import ContactProblem, Mortar, RigidObstacle
 from .report import Report
 from .share import RankShare
 
@@ -29,7 +30,8 @@ class ContactData:
         partner: Master node of a node-to-node pair, -1 for an obstacle.
         normal: Contact normal (master's / obstacle's outward normal).
         force: Nodal contact force (the physical multiplier, >= 0).
-        pressure: Force divided by the node's lumped area on its surface.
+        pressure: Force divided by the node's lumped area on its surface (for self-contact:
+            on the zones of its surface that the search paired).
         gap: Gap after deformation (>= 0 up to the tolerance; < 0 is penetration).
 
     With friction on some contact condition (None otherwise; zeros, NaN and ``FRICTIONLESS``
@@ -153,7 +155,10 @@ class Solution:
                 problem, at = self.surface.problem, self.surface.local(node)
             area = np.ones(node.size)
             for i, c in enumerate(problem.contact):
-                nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
+                if isinstance(c, Mortar) and c.slave == c.master:  # self-contact: its zones
+                    nodes, a = self_contact_areas(problem.mesh, c)
+                else:
+                    nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
                 m = spec == i
                 area[m] = a[np.searchsorted(nodes, at[m])]
             xs = problem.dof_points.x[at]

@@ -43,6 +43,7 @@ from scipy.spatial import cKDTree
 from ..mesh.topology import facet_normals, facets_in_cell_order, nodal_normals_and_areas
 from . import mortar_quad
 from .clipping import clip_polygons
+from .self_contact import one_sided_pairs
 
 #: A slave node gets a row when Σ_k M_jk >= COVERAGE_MIN · D_j.
 COVERAGE_MIN = 0.5
@@ -72,6 +73,8 @@ class MortarCoupling:
         coverage: Σ_k M_jk / D_j per slave node (1 where its support is fully covered).
         search_distance: The search distance used.
         pairs: Number of (slave facet, master facet) pairs with a non-empty overlap.
+        zones: For self-contact (one surface as slave and master), the facets (of the
+            surface) that are a slave of some pair, and those that are a master; else None.
     """
 
     slave_nodes: np.ndarray
@@ -81,6 +84,7 @@ class MortarCoupling:
     coverage: np.ndarray
     search_distance: float
     pairs: int
+    zones: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def coupled(self) -> np.ndarray:
@@ -342,8 +346,8 @@ def _triangle_integrals(x, slave, ns, master, i, j):
 
 
 def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
-                    search_distance: float | None = None, cell_type: str | None = None
-                    ) -> MortarCoupling:
+                    search_distance: float | None = None, cell_type: str | None = None,
+                    self_contact: bool = False) -> MortarCoupling:
     """Search and integrate the mortar coupling of two surfaces of a mesh.
 
     Args:
@@ -354,6 +358,8 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
         search_distance: How far apart (along the slave normal, either side) two facets may be
             and still be coupled; :func:`default_search_distance` when None.
         cell_type: The cells' type (simplices when None).
+        self_contact: ``slave`` and ``master`` are one surface: its pairs with itself are
+            kept once each, without a facet's own neighbourhood (:mod:`.self_contact`).
 
     Returns:
         The coupling (see :class:`MortarCoupling`).
@@ -362,10 +368,19 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     master = facets_in_cell_order(cells, master, cell_type)
     ns, _ = facet_normals(x, cells, slave, cell_type)
     nm, _ = facet_normals(x, cells, master, cell_type)
-    nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if search_distance is None:
         search_distance = default_search_distance(x, slave, master)
     i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
+    zones = None
+    if self_contact:
+        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
+        # The slave side is its zones only: their nodes' normals and areas from their own
+        # facets (a node at the zone's edge would otherwise average in the facets round a
+        # corner of the body, which face elsewhere).
+        used = np.unique(i)
+        slave, ns, i = slave[used], ns[used], np.searchsorted(used, i)
+        zones = (slave, np.unique(master[j], axis=0))
+    nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if x.shape[1] == 2:
         r, c, v, npairs = _segment_integrals(x, slave, master, i, j)
     elif slave.shape[1] == 4:
@@ -381,7 +396,8 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     M.eliminate_zeros()
     coverage = np.asarray(M.sum(axis=1)).ravel() / D
     return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          search_distance=float(search_distance), pairs=int(npairs))
+                          search_distance=float(search_distance), pairs=int(npairs),
+                          zones=zones)
 
 
 def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.ndarray,

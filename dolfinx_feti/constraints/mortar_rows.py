@@ -64,7 +64,7 @@ def _coupling(mesh: MeshData, slave: str, master: str, search_distance) -> Morta
     surface(mesh, slave)  # a surface that is no boundary of a body is refused by name here
     surface(mesh, master)
     return mortar_coupling(mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master),
-                           search_distance, mesh.cell_type)
+                           search_distance, mesh.cell_type, self_contact=slave == master)
 
 
 def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
@@ -117,7 +117,7 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
     """Non-penetration rows of a :class:`~dolfinx_feti.Mortar` condition, one per coupled node."""
     name = f"mortar contact {spec.slave!r} (slave) / {spec.master!r} (master)"
     common = _bodies(mesh, spec.slave) & _bodies(mesh, spec.master)
-    if common:
+    if common and spec.slave != spec.master:  # one group with itself: self-contact
         raise InputError(f"{name}: both surfaces belong to body "
                          f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
     coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
@@ -181,3 +181,14 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
                       rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True)
     return rows, info
 
+
+
+def self_contact_areas(mesh: MeshData, spec: Mortar) -> tuple[np.ndarray, np.ndarray]:
+    """The slave nodes of a self-contact condition and their areas D_j = ∫ N_j on its zones.
+
+    The area of a node is taken over the facets of the zones the search paired, not over the
+    whole group, which goes round the corners of the body (a contact pressure is the nodal
+    force divided by it, as for two surfaces).
+    """
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
+    return coupling.slave_nodes, coupling.D
