@@ -62,7 +62,7 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
         summary["active_rows"] = int(active.size)
         if u.shape[1] != mesh.gdim:
             continue  # a scalar problem has no deformed geometry to check
-        xd = mesh.x + u
+        xd = mesh.x + u[: mesh.x.shape[0]]  # the vertices (the first dof points for degree 2)
         if info.coupling.zones is not None:
             # Self-contact: the zones that face each other, not the whole surface (whose
             # nodes lie behind its own facets across every thin wall).

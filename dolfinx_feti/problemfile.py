@@ -1028,17 +1028,19 @@ class _Reader:
         from .constraints.contact import node_to_node_rows, obstacle_rows
         from .constraints.mortar_rows import mortar_contact_rows
 
-        mesh = problem.mesh
-        node_ptr = np.arange(mesh.num_nodes + 1, dtype=np.int64)
-        node_subs = np.zeros(mesh.num_nodes, dtype=np.int32)
+        mesh, points = problem.mesh, problem.dof_points
+        node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
+        node_subs = np.zeros(points.num_points, dtype=np.int32)
         for i, spec in enumerate(problem.contact):
             try:
                 if isinstance(spec, NodeToNode):
-                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
+                                      points)
                 elif isinstance(spec, Mortar):
-                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
+                                        points)
                 else:
-                    obstacle_rows(mesh, spec, i, node_ptr, node_subs)
+                    obstacle_rows(mesh, spec, i, node_ptr, node_subs, points)
             except InputError as e:
                 self.c.fault(_key("contact", i), str(e))
             except Exception:  # noqa: BLE001 - internals changed: the solve checks it again

@@ -156,7 +156,7 @@ class Solution:
             area = np.ones(node.size)
             for i, c in enumerate(problem.contact):
                 if isinstance(c, Mortar) and c.slave == c.master:  # self-contact: its zones
-                    nodes, a = self_contact_areas(problem.mesh, c)
+                    nodes, a = self_contact_areas(problem.mesh, c, problem.dof_points)
                 else:
                     nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
                 m = spec == i

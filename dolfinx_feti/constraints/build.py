@@ -33,12 +33,12 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
     blocks = []
     found = [] if mortar is None else mortar
     for i, t in enumerate(problem.ties):
-        block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs)
+        block, info = tie_rows(mesh, t, i, node_ptr, node_subs, fixed, bs, points)
         blocks.append(block)
         found.append(info)
     for i, c in enumerate(problem.contact):
         if isinstance(c, Mortar):
-            block, info = mortar_contact_rows(mesh, c, i, node_ptr, node_subs, bs)
+            block, info = mortar_contact_rows(mesh, c, i, node_ptr, node_subs, bs, points)
             blocks.append(block)
             found.append(info)
         elif isinstance(c, NodeToNode):
