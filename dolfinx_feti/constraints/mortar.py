@@ -253,8 +253,15 @@ def candidate_pairs(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np
     return i[keep][order], j[keep][order]
 
 
-def _segment_integrals(x, slave, master, i, j):
-    """2D: (slave node, master node, M entry) of each pair's overlap."""
+def segment_overlaps(x: np.ndarray, slave: np.ndarray, master: np.ndarray, i: np.ndarray,
+                     j: np.ndarray) -> tuple[np.ndarray, ...]:
+    """2D: the overlap of each (slave, master) pair of straight segments, if not empty.
+
+    Returns:
+        ``(i, j, lo, hi, xi0, span, L)`` of the overlapping pairs: the overlap is
+        [lo, hi] in the slave parameter s ∈ [0, 1]; the master parameter is
+        η = (s − xi0) / span; L the slave segment's length.
+    """
     a, b = x[slave[i, 0]], x[slave[i, 1]]
     L = np.linalg.norm(b - a, axis=1)
     t = (b - a) / L[:, None]
@@ -263,13 +270,17 @@ def _segment_integrals(x, slave, master, i, j):
     hi = np.clip(xi.max(axis=1), 0.0, 1.0)
     span = xi[:, 1] - xi[:, 0]
     ok = (hi - lo > 1e-12) & (np.abs(span) > 1e-14 * np.abs(xi).max(axis=1))
-    lo, hi, xi, span, L = lo[ok], hi[ok], xi[ok], span[ok], L[ok]
-    i, j = i[ok], j[ok]
+    return i[ok], j[ok], lo[ok], hi[ok], xi[ok, 0], span[ok], L[ok]
+
+
+def _segment_integrals(x, slave, master, i, j):
+    """2D: (slave node, master node, M entry) of each pair's overlap."""
+    i, j, lo, hi, xi0, span, L = segment_overlaps(x, slave, master, i, j)
     s_node = slave[i]
     vals = np.zeros((i.size, 2, 2))
     for q, w in zip(_GAUSS_X, _GAUSS_W, strict=True):
         s = lo + q * (hi - lo)  # slave parameter
-        eta = (s - xi[:, 0]) / span  # master parameter: N^m = (1 − η, η)
+        eta = (s - xi0) / span  # master parameter: N^m = (1 − η, η)
         psi = np.stack([2.0 - 3.0 * s, 3.0 * s - 1.0], axis=1)
         Nm = np.stack([1.0 - eta, eta], axis=1)
         vals += (w * (hi - lo) * L)[:, None, None] * psi[:, :, None] * Nm[:, None, :]

@@ -24,7 +24,7 @@ import scipy.sparse as sp
 
 from ..mesh.dofpoints import DofPoints
 from ..mesh.topology import facet_normals, surface_points
-from .mortar import MortarCoupling, candidate_pairs, default_search_distance
+from .mortar import MortarCoupling, candidate_pairs, default_search_distance, segment_overlaps
 from .self_contact import one_sided_pairs
 
 #: ∫ N_j / L of the points (a, b, e) of a segment.
@@ -60,20 +60,11 @@ def segment_points(points: DofPoints, facets: np.ndarray) -> np.ndarray:
 
 def _pair_integrals(x, slave, master, sp_, mp_, i, j):
     """(slave point, master point, M entry) of each pair's overlap, and the pairs kept."""
-    a, b = x[slave[i, 0]], x[slave[i, 1]]
-    L = np.linalg.norm(b - a, axis=1)
-    t = (b - a) / L[:, None]
-    xi = np.einsum("ikl,il->ik", x[master[j]] - a[:, None], t) / L[:, None]  # (P, 2)
-    lo = np.clip(xi.min(axis=1), 0.0, 1.0)
-    hi = np.clip(xi.max(axis=1), 0.0, 1.0)
-    span = xi[:, 1] - xi[:, 0]
-    ok = (hi - lo > 1e-12) & (np.abs(span) > 1e-14 * np.abs(xi).max(axis=1))
-    lo, hi, xi, span, L = lo[ok], hi[ok], xi[ok], span[ok], L[ok]
-    i, j = i[ok], j[ok]
+    i, j, lo, hi, xi0, span, L = segment_overlaps(x, slave, master, i, j)
     vals = np.zeros((i.size, 3, 3))
     for q, w in zip(_GX, _GW, strict=True):
         s = lo + q * (hi - lo)
-        eta = (s - xi[:, 0]) / span
+        eta = (s - xi0) / span
         psi = shape(s) @ _A.T
         vals += (w * (hi - lo) * L)[:, None, None] * psi[:, :, None] * shape(eta)[:, None, :]
     rows = np.repeat(sp_[i], 3, axis=1).ravel()
