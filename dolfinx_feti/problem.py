@@ -428,11 +428,6 @@ class ContactProblem:
                 "basis of quadratic surface facets needs a basis transformation to keep "
                 "positive weights (Popp, Wohlmuth, Gee and Wall 2012); use NodeToNode "
                 "(matching meshes) or RigidObstacle there, or degree 1")
-        if mortar and self.degree != 1 and self.mesh.geometry_degree != 1:
-            raise InputError(
-                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) of degree "
-                "2 integrate straight facets: a curved (second-order) mesh is not supported "
-                "for them yet; use a first-order mesh, or NodeToNode (matching meshes)")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "

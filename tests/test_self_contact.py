@@ -139,3 +139,24 @@ def test_tie_with_itself_is_refused():
     with pytest.raises(df.InputError, match="with itself"):
         df.ContactProblem(mesh, df.Elasticity(E, NU), dirichlet=[df.Dirichlet("back")],
                           ties=[df.Tie("skin", "skin")])
+
+
+def test_self_contact_p2_equals_two_bodies():
+    """Degree 2 (rows at vertices and edge points), non-matching ends."""
+    load = {"load_upper": (0.0, -LOAD), "load_lower": (0.0, LOAD)}
+
+    def p2(mesh, contact):
+        return df.ContactProblem(mesh, df.Elasticity(E, NU, tractions=load, degree=2),
+                                 dirichlet=[df.Dirichlet("back")], contact=[contact],
+                                 decomposition=df.Parts(4))
+
+    one, two = c_strip(h=0.06, h_lower=0.045), c_strip(h=0.06, h_lower=0.045, two_bodies=True)
+    s = df.solve(p2(one, df.Mortar("skin", "skin")), rtol=1e-10)
+    slave = _slave_end(s)
+    other = "end_lower" if slave == "end_upper" else "end_upper"
+    t = df.solve(p2(two, df.Mortar(slave, other)), rtol=1e-10)
+    assert s.report.converged and not s.report.warnings, s.report.warnings
+    u = t.nodal_values()
+    assert np.abs(s.nodal_values() - u).max() < 1e-7 * np.abs(u).max()
+    assert np.allclose(s.contact.pressure, t.contact.pressure, rtol=1e-6, atol=1e-8)
+    assert (s.contact.force > 0).sum() >= 3

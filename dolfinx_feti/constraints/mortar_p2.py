@@ -24,20 +24,14 @@ import scipy.sparse as sp
 
 from ..mesh.dofpoints import DofPoints
 from ..mesh.topology import facet_normals, surface_points
+from . import mortar_p2_curved
 from .mortar import MortarCoupling, candidate_pairs, default_search_distance, segment_overlaps
+from .segment3 import WEIGHTS, shape
 from .self_contact import one_sided_pairs
 
-#: ∫ N_j / L of the points (a, b, e) of a segment.
-WEIGHTS = np.array([1.0 / 6.0, 1.0 / 6.0, 2.0 / 3.0])
 # Gauss–Legendre on [0, 1], 3 points: exact for degree 5.
 _GX = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
 _GW = np.array([5.0, 8.0, 5.0]) / 18.0
-
-
-def shape(s: np.ndarray) -> np.ndarray:
-    """The quadratic shape functions (a, b, e) at parameters s, shape s.shape + (3,)."""
-    return np.stack([(1.0 - s) * (1.0 - 2.0 * s), s * (2.0 * s - 1.0), 4.0 * s * (1.0 - s)],
-                    axis=-1)
 
 
 def dual_coefficients() -> np.ndarray:
@@ -56,6 +50,13 @@ def segment_points(points: DofPoints, facets: np.ndarray) -> np.ndarray:
     if np.any(e < 0):
         raise ValueError("facets that belong to no cell")
     return np.c_[facets, e]
+
+
+def _curved(points: DofPoints, seg: np.ndarray) -> bool:
+    """Whether any segment's edge point is off its chord's midpoint (a curved mesh)."""
+    X = points.x[seg]
+    off = np.linalg.norm(X[:, 2] - 0.5 * (X[:, 0] + X[:, 1]), axis=1)
+    return bool(np.any(off > 1e-12 * np.linalg.norm(X[:, 1] - X[:, 0], axis=1)))
 
 
 def _pair_integrals(x, slave, master, sp_, mp_, i, j):
@@ -105,7 +106,17 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
     sp_ = segment_points(points, slave)
     mp_ = segment_points(points, master)
     nodes, normals, D = surface_points(x, cells, slave, sp_, WEIGHTS, cell_type)
-    r, c, v, npairs = _pair_integrals(x, slave, master, sp_, mp_, i, j)
+    if _curved(points, sp_) or _curved(points, mp_):
+        A, De = mortar_p2_curved.dual_coefficients(points.x[sp_])
+        D = np.zeros(nodes.size)  # ∫ N_j along the curves, not the chords
+        np.add.at(D, np.searchsorted(nodes, sp_), De)
+        vals, ok = mortar_p2_curved.pair_integrals(points.x[sp_[i]], points.x[mp_[j]], A[i])
+        i, j, vals = i[ok], j[ok], vals[ok]
+        r = np.repeat(sp_[i], 3, axis=1).ravel()
+        c = np.tile(mp_[j], (1, 3)).ravel()
+        v, npairs = vals.ravel(), i.size
+    else:
+        r, c, v, npairs = _pair_integrals(x, slave, master, sp_, mp_, i, j)
     M = sp.csr_matrix((v, (np.searchsorted(nodes, r), c)),
                       shape=(nodes.size, points.num_points))
     M.sum_duplicates()
