@@ -21,16 +21,11 @@ import argparse
 import json
 
 import gmsh
-import numpy as np
+from hertz_degree import NU, P0, A, E, P, R, hertz_errors, print_row
 from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti.meshes_occ import disk_on_block
-
-R, P, E, NU = 8.0, 10.0, 200.0, 0.3
-E_STAR = E / (2.0 * (1.0 - NU**2))
-A = 2.0 * np.sqrt(R * P / (np.pi * E_STAR))
-P0 = np.sqrt(P * E_STAR / (np.pi * R))
 
 
 def curved_disk_on_block(*args, **kwargs):
@@ -48,19 +43,7 @@ def run(h: float, degree: int, curved: bool, comm: MPI.Comm) -> dict:
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
         contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4))
     sol = df.solve(problem, comm=comm, rtol=1e-10)
-    c = sol.contact
-    x, p = c.x[:, 0], c.pressure
-    hertz = P0 * np.sqrt(np.maximum(1 - x**2 / A**2, 0.0))
-    inner = x < 0.9 * A
-    active = p > 1e-8 * p.max()
-    return {"degree": degree, "curved": curved, "h": h, "dofs": sol.report.sizes["primal"],
-            "contact_points": int(x.size), "converged": sol.report.converged,
-            "warnings": sol.report.warnings,
-            "peak_error": float((p.max() - P0) / P0),
-            "half_width_error": float(x[active].max() - A),
-            "rms_error": float(np.sqrt(np.mean((p[inner] - hertz[inner]) ** 2)) / P0),
-            "max_error_inner": float(np.abs(p[inner] - hertz[inner]).max() / P0),
-            "total_force": float(sol.total_contact_force[1])}
+    return hertz_errors(sol, degree=degree, curved=curved, h=h)
 
 
 def main() -> None:
@@ -77,13 +60,7 @@ def main() -> None:
     for degree, hd, curved in runs + [(1, h, False) for h in args.p1_h]:
         rows.append(run(hd, degree, curved, comm))
         if comm.rank == 0:
-            r = rows[-1]
-            kind = "curved  " if curved else "straight"
-            print(f"P{degree} {kind} h={hd:<6} dofs={r['dofs']:>7} "
-                  f"peak {100 * r['peak_error']:+6.2f} %"
-                  f"  a_h-a {r['half_width_error']:+.4f}  rms {100 * r['rms_error']:.2f} %"
-                  f"  max(x<0.9a) {100 * r['max_error_inner']:.2f} %"
-                  f"  force {r['total_force']:.6f}  warnings {len(r['warnings'])}", flush=True)
+            print_row(rows[-1])
     if comm.rank == 0 and args.json:
         with open(args.json, "w") as f:
             json.dump({"hertz": {"a": A, "p0": P0}, "rows": rows}, f, indent=1)
