@@ -175,6 +175,34 @@ class Solution:
                            normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap,
                            **extra)
 
+    def smoothed_pressure(self) -> np.ndarray:
+        """A smoothed contact pressure at the contact nodes (aligned with ``contact``).
+
+        The force over the area of each node's patch (the points sharing a facet with it):
+        Σ f_k / Σ ∫ N_k (:mod:`dolfinx_feti.contact_fields`); ``contact.pressure`` is the
+        node's own force over its own lumped area. Collective; the same array on every rank.
+        """
+        from .contact_fields import smoothed_pressure
+        from .mesh.topology import facets_in_cell_order
+        c = self.contact
+        out = None
+        if self.comm.rank == 0:
+            problem, at = self.problem, c.node
+            if self.surface is not None:  # a distributed mesh: rank 0 has the surfaces
+                problem, at = self.surface.problem, self.surface.local(c.node)
+            out = np.zeros(c.node.size)
+            points, mesh = problem.dof_points, problem.mesh
+            for i, cond in enumerate(problem.contact):
+                m = c.spec == i
+                if not m.any():
+                    continue
+                facets = facets_in_cell_order(mesh.cells, mesh.facets(cond.group),
+                                              mesh.cell_type)  # tensor order for quads
+                out[m] = smoothed_pressure(points.x, points.facet_points(mesh, facets),
+                                           mesh.cell_type, problem.degree,
+                                           points.num_points, at[m], c.force[m])
+        return self.comm.bcast(out, root=0)
+
     @property
     def total_contact_force(self) -> np.ndarray:
         """Sum of the nodal contact force vectors Σ λ n (a scalar sum for scalar problems).
