@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .constraints.quadratic_triangles import ALPHA
+from .constraints.quadratic_triangles import EDGES as _TRI_EDGES
 from .constraints.segment3 import shape as shape3
 from .mesh.topology import FACET_TYPE
 
@@ -59,10 +61,15 @@ def _shape(facet: str, degree: int, q: np.ndarray) -> np.ndarray:
         return np.c_[1.0 - t, t] if degree == 1 else _l2(t)
     r, s = q[:, 0], q[:, 1]
     if facet == "triangle":
+        L = np.c_[1.0 - r - s, r, s]
         if degree == 1:
-            return np.c_[1.0 - r - s, r, s]
-        raise ValueError("the pressure of degree-2 triangular facets is not defined here "
-                         "(their vertex functions integrate to zero)")
+            return L
+        # the transformed basis of the contact rows (constraints/quadratic_triangles.py)
+        Ne = np.stack([4.0 * L[:, i] * L[:, j] for i, j in _TRI_EDGES], axis=1)
+        Nv = L * (2.0 * L - 1.0)
+        Nv = Nv + ALPHA * np.stack([Ne[:, [k for k, e in enumerate(_TRI_EDGES) if v in e]]
+                                    .sum(axis=1) for v in range(3)], axis=1)
+        return np.c_[Nv, (1.0 - 2.0 * ALPHA) * Ne]
     if degree == 1:
         return np.c_[(1 - r) * (1 - s), r * (1 - s), (1 - r) * s, r * s]
     a, b = _l2(r), _l2(s)  # (q, 3): 0, 1, mid

@@ -431,9 +431,14 @@ class ContactProblem:
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
-                "cells is not supported: the vertex dofs of its quadratic triangular facets "
-                "have zero lumped area, so nodal contact rows give no consistent contact "
-                "pressure there; use degree 1 (or hexahedra, whose degree-2 facets work)")
+                "cells is not supported: its facets' dof points have no positive lumped area")
+        if contact_groups and self.degree == 2 and self.mesh.cell_type == "tetrahedron" \
+                and self.mesh.geometry_degree != 1:
+            raise InputError(
+                "contact on curved (second-order) tetrahedra is not supported yet: the "
+                "transformed basis of the contact rows on 6-node triangles (Popp, Wohlmuth, Gee "
+                "and Wall 2012) is built for straight-sided ones; use a first-order mesh with "
+                "degree 2, or degree 1")
 
     @property
     def dof_points(self):

@@ -12,6 +12,7 @@ from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows
 from .gluing import gluing_rows
 from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
+from .quadratic_triangles import needs_transform, transform_rows
 from .rows import Rows
 
 
@@ -45,6 +46,10 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
             blocks.append(node_to_node_rows(mesh, c, i, node_ptr, node_subs, bs, points))
         elif isinstance(c, RigidObstacle):
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
+        if needs_transform(mesh, points) and not isinstance(c, Mortar):  # 6-node triangles
+            groups = (c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master)
+            blocks[-1] = transform_rows(blocks[-1], mesh, points, groups,
+                                        node_subs[node_ptr[:-1]])
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
             blocks[-1] = with_tangential_rows(blocks[-1])
     return blocks
