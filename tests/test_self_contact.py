@@ -160,3 +160,17 @@ def test_self_contact_p2_equals_two_bodies():
     assert np.abs(s.nodal_values() - u).max() < 1e-7 * np.abs(u).max()
     assert np.allclose(s.contact.pressure, t.contact.pressure, rtol=1e-6, atol=1e-8)
     assert (s.contact.force > 0).sum() >= 3
+
+
+def test_report_warns_when_the_search_misses_the_contact():
+    """A search distance below the slit: no rows; the load closes the slit by 0.025 > 0.02."""
+    mesh = c_strip(h=H)
+    load = {"load_upper": (0.0, -0.0067), "load_lower": (0.0, 0.0067)}
+    problem = df.ContactProblem(mesh, df.Elasticity(E, NU, tractions=load),
+                                dirichlet=[df.Dirichlet("back")],
+                                contact=[df.Mortar("skin", "skin", search_distance=0.01)],
+                                decomposition=df.Parts(4))
+    sol = df.solve(problem, rtol=1e-10)
+    assert sol.report.extra["mortar"][0]["rows"] == 0
+    assert any("'skin'" in w and "penetrate" in w for w in sol.report.warnings), \
+        sol.report.warnings
