@@ -46,3 +46,27 @@ def test_node_to_node_patch_test_p2_tetrahedra(blocks, friction):
     assert np.allclose(c.pressure, P, rtol=1e-8)
     assert np.allclose(sol.smoothed_pressure(), P, rtol=1e-8)  # with the transformed basis
     assert sol.total_contact_force[2] == pytest.approx(P * 1.0, rel=1e-8)
+
+
+def _on_plane(mesh, plane):
+    return df.ContactProblem(
+        mesh, df.Elasticity(E, NU, tractions={"top": (0.0, 0.0, -P)}, degree=2),
+        dirichlet=[df.Dirichlet("sides_lower", components=[0, 1]),
+                   df.Dirichlet("sides_upper", components=[0, 1]),
+                   df.Dirichlet("contact_lower", components=[2]),
+                   df.Dirichlet("contact_upper", components=[2])],
+        contact=[df.RigidObstacle("bottom", plane)], decomposition=df.Parts(2))
+
+
+def test_update_of_an_obstacle_on_p2_tetrahedra(blocks):
+    """A plane moved along its normal: the new gaps, as a cold solve; a tilted one: refused."""
+    solver = df.FetiSolver(_on_plane(blocks, df.Plane((0, 0, 0.0), (0, 0, 1))), rtol=1e-12)
+    solver.solve()
+    moved = _on_plane(blocks, df.Plane((0, 0, 0.01), (0, 0, 1)))
+    solver.update(moved)
+    warm = solver.solve()
+    cold = df.solve(moved, rtol=1e-12)
+    u = cold.nodal_values()
+    assert np.abs(warm.nodal_values() - u).max() < 1e-8 * np.abs(u).max()
+    with pytest.raises(df.InputError, match="several nodes"):
+        solver.update(_on_plane(blocks, df.Plane((0, 0, 0.0), (0.1, 0, 1))))

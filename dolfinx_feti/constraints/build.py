@@ -48,8 +48,7 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
             blocks.append(obstacle_rows(mesh, c, i, node_ptr, node_subs, points))
         if needs_transform(mesh, points) and not isinstance(c, Mortar):  # 6-node triangles
             groups = (c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master)
-            blocks[-1] = transform_rows(blocks[-1], mesh, points, groups,
-                                        node_subs[node_ptr[:-1]])
+            blocks[-1] = transform_rows(blocks[-1], mesh, points, groups)
         if getattr(c, "friction", None) is not None:  # tangential rows next to the normal ones
             blocks[-1] = with_tangential_rows(blocks[-1])
     return blocks

@@ -85,8 +85,9 @@ class LoadRows:
                               minlength=own.size)[self._obstacle] > own.normal.shape[1]
         if moved and comm.allreduce(bool(np.any(several)), op=MPI.LOR):
             raise InputError("update: an obstacle moved so that its normals changed, on "
-                                 "rows of several nodes (degree-2 tetrahedra); create a new "
-                                 "FetiSolver")
+                             "rows of several nodes (degree-2 tetrahedra); create a new "
+                             "FetiSolver")
+        if moved:
             own_normal = own.normal.copy()
             own_normal[self._obstacle] = normal
             coef = own.e_coef.copy()

@@ -48,8 +48,7 @@ def edge_vertices(mesh: MeshData, points: DofPoints, groups) -> tuple[np.ndarray
     return e, ab[first]
 
 
-def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups,
-                   first: np.ndarray) -> Rows:
+def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups) -> Rows:
     """The rows written for the transformed coefficients ũ (see the module's text).
 
     Args:
@@ -57,7 +56,6 @@ def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups,
         mesh: The mesh.
         points: Its dof points (degree 2).
         groups: The boundary groups the rows' nodes lie on (slave and master).
-        first: The smallest subdomain holding each dof point (for the new entries).
     """
     e, ab = edge_vertices(mesh, points, groups)
     if e.size == 0:
@@ -69,7 +67,9 @@ def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups,
     coef[k] = c
     extra_node = ab[pos[k]].ravel()  # the two vertices of each edge entry
     extra = {"e_row": np.repeat(rows.e_row[k], 2), "e_node": extra_node,
-             "e_sub": first[extra_node].astype(rows.e_sub.dtype),
+             # the edge point's subdomain: its cell holds the edge's vertices too, so the
+             # row stays with the subdomains (and the rank) of its own point
+             "e_sub": np.repeat(rows.e_sub[k], 2),
              "e_comp": np.repeat(rows.e_comp[k], 2), "e_coef": np.repeat(-ALPHA * c, 2)}
     out = {"e_row": rows.e_row, "e_node": rows.e_node, "e_sub": rows.e_sub,
            "e_comp": rows.e_comp, "e_coef": coef}
