@@ -150,7 +150,8 @@ class Mortar:
     functions over the overlap of each slave facet with the master facets projected onto it
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
-    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included).
+    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
+    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -165,7 +166,8 @@ class Mortar:
     face it from the outside (the two sides of a thin wall), and keeps each pair of zones
     that face each other once: the zone first in the group's facet order is the slave
     (:mod:`dolfinx_feti.constraints.self_contact`). The rows, friction and the report are
-    those of two surfaces; the report's checks run on the paired zones.
+    those of two surfaces; the report's penetration check runs on the zones paired before
+    and after the deformation.
 
     Args:
         slave: Boundary group of the slave side.
