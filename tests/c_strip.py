@@ -50,14 +50,16 @@ def _half(h: float, gap: float, h_back: float) -> tuple[np.ndarray, np.ndarray]:
     return x[used], tri.reshape(-1, 3)
 
 
-def _merge(xu, tu, xl, tl) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The two halves as one mesh; nodes of the back (y = 0) shared. Also the cell halves."""
+def _merge(xu, tu, xl, tl, cut: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The two halves as one mesh; nodes of the back (y = 0) shared unless ``cut``. Also the
+    half of each cell."""
     back_u = np.flatnonzero(np.abs(xu[:, 1]) < 1e-12)
     back_l = np.flatnonzero(np.abs(xl[:, 1]) < 1e-12)
     ou, ol = np.argsort(xu[back_u, 0]), np.argsort(xl[back_l, 0])
     assert np.allclose(xu[back_u[ou]], xl[back_l[ol]], atol=1e-12), "the back must match"
     new = np.full(len(xl), -1)
-    new[back_l[ol]] = back_u[ou]
+    if not cut:
+        new[back_l[ol]] = back_u[ou]
     rest = np.flatnonzero(new < 0)
     new[rest] = len(xu) + np.arange(rest.size)
     x = np.vstack([xu, xl[rest]])
@@ -72,8 +74,8 @@ def _boundary(cells: np.ndarray) -> np.ndarray:
     return uniq[count == 1]
 
 
-def c_strip_arrays(h: float = 0.04, gap: float = 0.02, h_lower: float | None = None
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def c_strip_arrays(h: float = 0.04, gap: float = 0.02, h_lower: float | None = None,
+                   cut: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Nodes, triangles (counter-clockwise) and the half (0 upper, 1 lower) of each cell."""
     xu, tu = _half(h, gap, h)
     if h_lower is None:
@@ -81,7 +83,7 @@ def c_strip_arrays(h: float = 0.04, gap: float = 0.02, h_lower: float | None = N
     else:
         xl, tl = _half(h_lower, gap, h)
         xl, tl = xl * np.array([1.0, -1.0]), tl[:, ::-1]
-    x, cells, half = _merge(xu, tu, xl, tl)
+    x, cells, half = _merge(xu, tu, xl, tl, cut)
     e1, e2 = x[cells[:, 1]] - x[cells[:, 0]], x[cells[:, 2]] - x[cells[:, 0]]
     cw = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] < 0
     cells[cw] = cells[cw][:, ::-1]
@@ -89,11 +91,17 @@ def c_strip_arrays(h: float = 0.04, gap: float = 0.02, h_lower: float | None = N
 
 
 def c_strip(h: float = 0.04, gap: float = 0.02, h_lower: float | None = None,
-            two_bodies: bool = False, comm: MPI.Comm = MPI.COMM_WORLD) -> df.MeshData:
-    """The C-shaped strip as :class:`~dolfinx_feti.MeshData` (built on rank 0, broadcast)."""
+            two_bodies: bool = False, cut: bool = False,
+            comm: MPI.Comm = MPI.COMM_WORLD) -> df.MeshData:
+    """The C-shaped strip as :class:`~dolfinx_feti.MeshData` (built on rank 0, broadcast).
+
+    ``cut``: the back cut through at y = 0 (each half its own nodes there), with the groups
+    ``cut_upper`` and ``cut_lower`` on the two faces of the cut, which ``skin`` leaves out;
+    the halves are then the bodies ``upper`` and ``lower``.
+    """
     data = None
     if comm.rank == 0:
-        x, cells, half = c_strip_arrays(h, gap, h_lower)
+        x, cells, half = c_strip_arrays(h, gap, h_lower, cut)
         skin = _boundary(cells)
         m = x[skin].mean(axis=1)
         r = np.linalg.norm(m, axis=1)
@@ -107,8 +115,16 @@ def c_strip(h: float = 0.04, gap: float = 0.02, h_lower: float | None = None,
                   "load_upper": skin[load & (m[:, 1] > 0)],
                   "load_lower": skin[load & (m[:, 1] < 0)],
                   "back": skin[outer & (ang > 168.0)]}
-        bodies = ("upper", "lower") if two_bodies else ("clip",)
-        body = half if two_bodies else np.zeros(len(cells), dtype=np.int64)
+        if cut:
+            on_cut = np.abs(x[skin, 1]).max(axis=1) < 1e-12
+            upper_nodes = np.unique(cells[half == 0])
+            in_upper = np.isin(skin, upper_nodes).all(axis=1)
+            groups["cut_upper"] = skin[on_cut & in_upper]
+            groups["cut_lower"] = skin[on_cut & ~in_upper]
+            groups["skin"] = skin[~on_cut]  # the faces of the cut are clamped, not in contact
+        two = two_bodies or cut  # a body is one piece: the cut halves are two
+        bodies = ("upper", "lower") if two else ("clip",)
+        body = half if two else np.zeros(len(cells), dtype=np.int64)
         tags = {name: k + 1 for k, name in enumerate([*bodies, *groups])}
         data = df.MeshData(x=x, cells=cells, cell_type="triangle", cell_body=body,
                            body_names=bodies, facet_groups=groups,

@@ -174,3 +174,34 @@ def test_report_warns_when_the_search_misses_the_contact():
     assert sol.report.extra["mortar"][0]["rows"] == 0
     assert any("'skin'" in w and "penetrate" in w for w in sol.report.warnings), \
         sol.report.warnings
+
+
+def test_force_balance_with_the_back_clamped():
+    """The strip cut through its back and clamped on both faces of the cut, the load on the
+    upper arm only: the lower half is loaded by the contact alone, so the reaction of its
+    clamp (the Dirichlet multipliers) equals the contact force, and the two clamps carry the
+    load."""
+    from dolfinx_feti.constraints.rows import Kind
+
+    mesh = c_strip(h=H, cut=True)
+    P = 0.02
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E, NU, tractions={"load_upper": (0.0, -P)}),
+        dirichlet=[df.Dirichlet("cut_upper"), df.Dirichlet("cut_lower")],
+        contact=[df.Mortar("skin", "skin")], decomposition=df.Parts(4))
+    sol = df.solve(problem, rtol=1e-12)
+    assert sol.report.converged and not sol.report.warnings, sol.report.warnings
+    own = sol.rows.own
+    comp = np.zeros(own.size, dtype=np.int64)
+    comp[own.e_row] = own.e_comp
+    mine = own.kind == Kind.DIRICHLET
+    node, comp, force = (np.concatenate(sol.comm.allgather(a[mine])) for a in
+                         (own.node, comp, sol.lam.array_r * own.scale))
+    reaction = {g: force[np.isin(node, np.unique(mesh.facets(g))) & (comp == 1)].sum()
+                for g in ("cut_upper", "cut_lower")}
+    f = mesh.facets("load_upper")
+    load = P * np.linalg.norm(mesh.x[f[:, 0]] - mesh.x[f[:, 1]], axis=1).sum()
+    R = sol.total_contact_force
+    assert R[1] > 0.05 * load  # the ends touch (at the outer corner: the upper end rotates)
+    assert abs(R[1] + reaction["cut_lower"]) < 1e-8 * load
+    assert abs(reaction["cut_upper"] + reaction["cut_lower"] + load) < 1e-8 * load
