@@ -16,7 +16,8 @@ The solver's contact result is a nodal force f_j per contact row. Two pressures 
 Not offered: the L2 projection of the forces onto the surface's Lagrange space (M_s p = f
 with the consistent mass matrix), which reproduces any pressure of that space exactly but
 amplifies the node-to-node noise of the forces: on the sphere of ``tests/test_contact_fields.py``
-its error against Hertz was 15 % RMS, against 6.7 % for f_j / D_j and 2.1 % for p̄.
+its error against Hertz was 15 % RMS, against 6.7 % for f_j / D_j and 2.1 % for p̄
+(``bench/contact_pressure_fields.py``).
 """
 
 from __future__ import annotations
