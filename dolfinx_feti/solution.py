@@ -306,16 +306,19 @@ class Solution:
                                              self.problem.mesh.num_nodes, self.comm, self.share)
         return self._directory
 
-    def pressure_function(self, degree: int | None = None):
+    def pressure_function(self, degree: int | None = None, smoothed: bool = False):
         """The contact pressure as a scalar Lagrange Function on the whole mesh.
 
         Of the problem's degree unless ``degree`` is given (1: the values at the vertices);
-        zero off the contact surfaces.
+        zero off the contact surfaces. ``smoothed``: the values of :meth:`smoothed_pressure`
+        instead of ``contact.pressure`` (collective either way).
         """
         from .output import distributed_function
         c = self.contact  # gathered on every rank (contact surfaces are small): no exchange
-        return distributed_function(self.problem.mesh, c.node, c.pressure[:, None], self.comm,
-                                    "contact_pressure", self._points(), degree,
+        values = self.smoothed_pressure() if smoothed else c.pressure
+        name = "contact_pressure_smoothed" if smoothed else "contact_pressure"
+        return distributed_function(self.problem.mesh, c.node, values[:, None], self.comm,
+                                    name, self._points(), degree,
                                     local=True, msh=self.u.function_space.mesh)
 
     def write_xdmf(self, path: str | Path) -> None:

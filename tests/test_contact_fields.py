@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 from test_mortar import (
     E_STAR,
     SPHERE_F,
@@ -57,6 +58,10 @@ def test_uniform_pressure_is_reproduced():
     exact = uniaxial(mesh, 3, p, E, nu)
     assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
     assert np.allclose(sol.smoothed_pressure(), p, rtol=1e-8)
+    fn = sol.pressure_function(smoothed=True)  # the same values as a Function on the mesh
+    values = fn.x.array[: fn.function_space.dofmap.index_map.size_local]
+    assert fn.name == "contact_pressure_smoothed"
+    assert np.isclose(sol.comm.allreduce(values.max(), op=MPI.MAX), p, rtol=1e-8)
     mesh2 = occ_mesh(stacked_blocks, 2, 0.1, 0.17)  # degree 2: vertices and edge points
     sol2 = df.solve(p2_problem(mesh2, E, contact=[df.Mortar("upper_bottom", "lower_top")]),
                     rtol=1e-12)
