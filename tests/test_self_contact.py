@@ -205,3 +205,25 @@ def test_force_balance_with_the_back_clamped():
     assert R[1] > 0.05 * load  # the ends touch (at the outer corner: the upper end rotates)
     assert abs(R[1] + reaction["cut_lower"]) < 1e-8 * load
     assert abs(reaction["cut_upper"] + reaction["cut_lower"] + load) < 1e-8 * load
+
+
+def test_self_contact_with_coulomb_friction_equals_two_bodies():
+    """Unequal loads on the arms make the ends slide against each other: Coulomb friction on
+    the self-contact rows, against the same on the two-body rows (non-matching ends)."""
+    load = {"load_upper": (0.0, -LOAD), "load_lower": (0.0, 0.5 * LOAD)}
+
+    def problem_with(mesh, contact):
+        return df.ContactProblem(mesh, df.Elasticity(E, NU, tractions=load),
+                                 dirichlet=[df.Dirichlet("back")], contact=[contact],
+                                 decomposition=df.Parts(4))
+
+    one, two = c_strip(h=H, h_lower=0.021), c_strip(h=H, h_lower=0.021, two_bodies=True)
+    fr = df.Coulomb(0.3)
+    s = df.solve(problem_with(one, df.Mortar("skin", "skin", friction=fr)), rtol=1e-10)
+    slave = _slave_end(s)
+    other = "end_lower" if slave == "end_upper" else "end_upper"
+    t = df.solve(problem_with(two, df.Mortar(slave, other, friction=fr)), rtol=1e-10)
+    assert s.report.converged and not s.report.warnings, s.report.warnings
+    u = t.nodal_values()
+    assert np.abs(s.nodal_values() - u).max() < 1e-7 * np.abs(u).max()
+    assert np.abs(s.contact.tangential_force).max() > 0.1 * s.contact.force.max() * 0.3
