@@ -53,18 +53,34 @@ def run(h: float, degree: int, curved: bool, comm: MPI.Comm) -> dict:
                                match_tol=1e-2 if curved else 1e-4)],
         decomposition=df.Parts(2))
     sol = df.solve(problem, comm=comm, rtol=1e-10)
+    return hertz_errors(sol, degree=degree, curved=curved, h=h)
+
+
+def hertz_errors(sol, **meta) -> dict:
+    """The pressure at the slave dof points against Hertz's (see the module's text)."""
     c = sol.contact
     x, p = c.x[:, 0], c.pressure
     hertz = P0 * np.sqrt(np.maximum(1 - x**2 / A**2, 0.0))
     inner = x < 0.9 * A
     active = p > 1e-8 * p.max()
-    return {"degree": degree, "curved": curved, "h": h, "dofs": sol.report.sizes["primal"],
+    return {**meta, "dofs": sol.report.sizes["primal"],
             "contact_points": int(x.size), "converged": sol.report.converged,
+            "warnings": list(sol.report.warnings),
             "peak_error": float((p.max() - P0) / P0),
             "half_width": float(x[active].max()), "half_width_error": float(x[active].max() - A),
             "rms_error": float(np.sqrt(np.mean((p[inner] - hertz[inner]) ** 2)) / P0),
             "max_error_inner": float(np.abs(p[inner] - hertz[inner]).max() / P0),
             "total_force": float(sol.total_contact_force[1])}
+
+
+def print_row(r: dict) -> None:
+    """One line of the table."""
+    kind = "curved  " if r["curved"] else "straight"
+    print(f"P{r['degree']} {kind} h={r['h']:<6} dofs={r['dofs']:>7} "
+          f"peak {100 * r['peak_error']:+6.2f} %"
+          f"  a_h-a {r['half_width_error']:+.4f}  rms {100 * r['rms_error']:.2f} %"
+          f"  max(x<0.9a) {100 * r['max_error_inner']:.2f} %"
+          f"  force {r['total_force']:.6f}  warnings {len(r['warnings'])}", flush=True)
 
 
 def main() -> None:
@@ -78,12 +94,7 @@ def main() -> None:
         for degree, hd, curved in ((1, h, False), (2, 2 * h, False), (2, 2 * h, True)):
             rows.append(run(hd, degree, curved, comm))
             if comm.rank == 0:
-                r = rows[-1]
-                kind = "curved  " if curved else "straight"
-                print(f"P{degree} {kind} h={hd:<6} dofs={r['dofs']:>7} "
-                      f"peak {100 * r['peak_error']:+6.2f} %"
-                      f"  a_h-a {r['half_width_error']:+.4f}  rms {100 * r['rms_error']:.2f} %"
-                      f"  max(x<0.9a) {100 * r['max_error_inner']:.2f} %", flush=True)
+                print_row(rows[-1])
     if comm.rank == 0 and args.json:
         with open(args.json, "w") as f:
             json.dump({"hertz": {"a": A, "p0": P0}, "rows": rows}, f, indent=1)

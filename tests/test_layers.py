@@ -56,3 +56,30 @@ def test_no_merge_conflict_markers():
            for i, line in enumerate(p.read_text(errors="replace").splitlines())
            if line.startswith(("<<<<<<< ", ">>>>>>> "))]
     assert not bad, bad
+
+
+@pytest.mark.serial
+def test_every_import_of_the_package_resolves():
+    """Relative and absolute imports of the package's own modules name modules that exist —
+    also the ones inside functions, which only fail when the function runs."""
+    import ast
+
+    package = ROOT / "dolfinx_feti"
+    modules = {".".join(p.relative_to(ROOT).with_suffix("").parts[:-1]
+                        if p.name == "__init__.py" else p.relative_to(ROOT).with_suffix("").parts)
+               for p in package.rglob("*.py")}
+    bad = []
+    for path in package.rglob("*.py"):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        here = parts[:-1]  # the package the module is in (itself for an __init__)
+        for node in ast.walk(ast.parse(path.read_text())):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            if node.level:
+                base = here[:len(here) - node.level + 1]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.startswith("dolfinx_feti") and target not in modules:
+                bad.append(f"{path.relative_to(ROOT)}:{node.lineno} {target}")
+    assert not bad, bad

@@ -15,6 +15,7 @@ from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows
 from .gluing import gluing_rows
 from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
+from .quadratic_triangles import needs_transform, transform_rows
 from .rows import Rows
 
 
@@ -43,16 +44,24 @@ def rows_of(kind: type):
     return register
 
 
+def surface_groups(spec) -> tuple[str, ...]:
+    """The boundary groups a condition reads: its slave and master, or its one group."""
+    pair = tuple(g for g in (getattr(spec, "slave", None), getattr(spec, "master", None)) if g)
+    return pair or (spec.group,)
+
+
 @rows_of(Mortar)
 def _mortar(c: SurfaceCondition):
     p = c.problem
-    return mortar_contact_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.value_size)
+    return mortar_contact_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.value_size,
+                               p.dof_points)
 
 
 @rows_of(Tie)
 def _tie(c: SurfaceCondition):
     p = c.problem
-    return tie_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, c.fixed, p.value_size)
+    return tie_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, c.fixed, p.value_size,
+                    p.dof_points)
 
 
 @rows_of(NodeToNode)
@@ -92,6 +101,9 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
                 SurfaceCondition(problem, spec, i, node_ptr, node_subs, fixed))
             if info is not None:
                 found.append(info)
+            elif needs_transform(problem.mesh, problem.dof_points):  # 6-node triangles
+                block = transform_rows(block, problem.mesh, problem.dof_points,
+                                       surface_groups(spec))
             if getattr(spec, "friction", None) is not None:  # tangential rows beside normal
                 block = with_tangential_rows(block)
             blocks.append(block)

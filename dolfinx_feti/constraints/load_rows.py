@@ -93,6 +93,12 @@ class LoadRows:
             np.abs(normal - own.normal[self._obstacle]) > NORMAL_TOL)), op=MPI.LOR)
         coef = own.e_coef
         own_normal = own.normal
+        several = np.bincount(own.e_row[np.isin(own.e_row, self._obstacle)],
+                              minlength=own.size)[self._obstacle] > own.normal.shape[1]
+        if moved and comm.allreduce(bool(np.any(several)), op=MPI.LOR):
+            raise InputError("update: an obstacle moved so that its normals changed, on "
+                             "rows of several nodes (degree-2 tetrahedra); create a new "
+                             "FetiSolver")
         if moved:
             own_normal = own.normal.copy()
             own_normal[self._obstacle] = normal

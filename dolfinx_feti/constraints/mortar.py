@@ -43,6 +43,7 @@ from scipy.spatial import cKDTree
 from ..mesh.topology import facet_normals, facets_in_cell_order, nodal_normals_and_areas
 from . import mortar_quad
 from .clipping import clip_polygons
+from .self_contact import one_sided_pairs
 
 #: A slave node gets a row when Σ_k M_jk >= COVERAGE_MIN · D_j.
 COVERAGE_MIN = 0.5
@@ -72,6 +73,8 @@ class MortarCoupling:
         coverage: Σ_k M_jk / D_j per slave node (1 where its support is fully covered).
         search_distance: The search distance used.
         pairs: Number of (slave facet, master facet) pairs with a non-empty overlap.
+        zones: For self-contact (one surface as slave and master), the facets (of the
+            surface) that are a slave of some pair, and those that are a master; else None.
     """
 
     slave_nodes: np.ndarray
@@ -81,6 +84,7 @@ class MortarCoupling:
     coverage: np.ndarray
     search_distance: float
     pairs: int
+    zones: tuple[np.ndarray, np.ndarray] | None = None
 
     @property
     def coupled(self) -> np.ndarray:
@@ -249,8 +253,15 @@ def candidate_pairs(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np
     return i[keep][order], j[keep][order]
 
 
-def _segment_integrals(x, slave, master, i, j):
-    """2D: (slave node, master node, M entry) of each pair's overlap."""
+def segment_overlaps(x: np.ndarray, slave: np.ndarray, master: np.ndarray, i: np.ndarray,
+                     j: np.ndarray) -> tuple[np.ndarray, ...]:
+    """2D: the overlap of each (slave, master) pair of straight segments, if not empty.
+
+    Returns:
+        ``(i, j, lo, hi, xi0, span, L)`` of the overlapping pairs: the overlap is
+        [lo, hi] in the slave parameter s ∈ [0, 1]; the master parameter is
+        η = (s − xi0) / span; L the slave segment's length.
+    """
     a, b = x[slave[i, 0]], x[slave[i, 1]]
     L = np.linalg.norm(b - a, axis=1)
     t = (b - a) / L[:, None]
@@ -259,13 +270,17 @@ def _segment_integrals(x, slave, master, i, j):
     hi = np.clip(xi.max(axis=1), 0.0, 1.0)
     span = xi[:, 1] - xi[:, 0]
     ok = (hi - lo > 1e-12) & (np.abs(span) > 1e-14 * np.abs(xi).max(axis=1))
-    lo, hi, xi, span, L = lo[ok], hi[ok], xi[ok], span[ok], L[ok]
-    i, j = i[ok], j[ok]
+    return i[ok], j[ok], lo[ok], hi[ok], xi[ok, 0], span[ok], L[ok]
+
+
+def _segment_integrals(x, slave, master, i, j):
+    """2D: (slave node, master node, M entry) of each pair's overlap."""
+    i, j, lo, hi, xi0, span, L = segment_overlaps(x, slave, master, i, j)
     s_node = slave[i]
     vals = np.zeros((i.size, 2, 2))
     for q, w in zip(_GAUSS_X, _GAUSS_W, strict=True):
         s = lo + q * (hi - lo)  # slave parameter
-        eta = (s - xi[:, 0]) / span  # master parameter: N^m = (1 − η, η)
+        eta = (s - xi0) / span  # master parameter: N^m = (1 − η, η)
         psi = np.stack([2.0 - 3.0 * s, 3.0 * s - 1.0], axis=1)
         Nm = np.stack([1.0 - eta, eta], axis=1)
         vals += (w * (hi - lo) * L)[:, None, None] * psi[:, :, None] * Nm[:, None, :]
@@ -342,8 +357,8 @@ def _triangle_integrals(x, slave, ns, master, i, j):
 
 
 def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
-                    search_distance: float | None = None, cell_type: str | None = None
-                    ) -> MortarCoupling:
+                    search_distance: float | None = None, cell_type: str | None = None,
+                    self_contact: bool = False) -> MortarCoupling:
     """Search and integrate the mortar coupling of two surfaces of a mesh.
 
     Args:
@@ -354,6 +369,8 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
         search_distance: How far apart (along the slave normal, either side) two facets may be
             and still be coupled; :func:`default_search_distance` when None.
         cell_type: The cells' type (simplices when None).
+        self_contact: ``slave`` and ``master`` are one surface: its pairs with itself are
+            kept once each, without a facet's own neighbourhood (:mod:`.self_contact`).
 
     Returns:
         The coupling (see :class:`MortarCoupling`).
@@ -362,10 +379,19 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     master = facets_in_cell_order(cells, master, cell_type)
     ns, _ = facet_normals(x, cells, slave, cell_type)
     nm, _ = facet_normals(x, cells, master, cell_type)
-    nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if search_distance is None:
         search_distance = default_search_distance(x, slave, master)
     i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
+    zones = None
+    if self_contact:
+        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
+        # The slave side is its zones only: their nodes' normals and areas from their own
+        # facets (a node at the zone's edge would otherwise average in the facets round a
+        # corner of the body, which face elsewhere).
+        used = np.unique(i)
+        slave, ns, i = slave[used], ns[used], np.searchsorted(used, i)
+        zones = (slave, np.unique(master[j], axis=0))
+    nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if x.shape[1] == 2:
         r, c, v, npairs = _segment_integrals(x, slave, master, i, j)
     elif slave.shape[1] == 4:
@@ -381,7 +407,8 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     M.eliminate_zeros()
     coverage = np.asarray(M.sum(axis=1)).ravel() / D
     return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          search_distance=float(search_distance), pairs=int(npairs))
+                          search_distance=float(search_distance), pairs=int(npairs),
+                          zones=zones)
 
 
 def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.ndarray,

@@ -22,9 +22,11 @@ import numpy as np
 from ..errors import InputError
 from ..mesh.checks import boundary_facets
 from ..mesh.data import MeshData
+from ..mesh.dofpoints import DofPoints
 from ..problem.contact_problem import Mortar, Tie
 from .contact import surface
 from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
+from .mortar_p2 import quadratic_coupling
 from .rows import Kind, Rows
 
 
@@ -60,11 +62,21 @@ class MortarInfo:
                 "search_distance": self.coupling.search_distance}
 
 
-def _coupling(mesh: MeshData, slave: str, master: str, search_distance) -> MortarCoupling:
+def _coupling(mesh: MeshData, slave: str, master: str, search_distance,
+              points: DofPoints | None = None) -> MortarCoupling:
+    """The coupling at the vertices (degree 1), or at the dof points of 3-node segments."""
     surface(mesh, slave)  # a surface that is no boundary of a body is refused by name here
     surface(mesh, master)
-    return mortar_coupling(mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master),
-                           search_distance, mesh.cell_type)
+    args = (mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master))
+    if points is not None and points.degree == 2:
+        return quadratic_coupling(*args, points, search_distance, mesh.cell_type,
+                                  self_contact=slave == master)
+    return mortar_coupling(*args, search_distance, mesh.cell_type, self_contact=slave == master)
+
+
+def _point_x(mesh: MeshData, points: DofPoints | None) -> np.ndarray:
+    """The coordinates of the points the rows are at (the vertices for degree 1)."""
+    return mesh.x if points is None or points.degree == 1 else points.x
 
 
 def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
@@ -113,19 +125,24 @@ def _coupled_rows(coupling: MortarCoupling, first: np.ndarray, bs: int, dirs: np
 
 
 def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.ndarray,
-                        node_subs: np.ndarray, bs: int) -> tuple[Rows, MortarInfo]:
-    """Non-penetration rows of a :class:`~dolfinx_feti.Mortar` condition, one per coupled node."""
+                        node_subs: np.ndarray, bs: int, points: DofPoints | None = None
+                        ) -> tuple[Rows, MortarInfo]:
+    """Non-penetration rows of a :class:`~dolfinx_feti.Mortar` condition, one per coupled node.
+
+    ``points``: the space's dof points (rows at the dof points of 3-node segments for
+    degree 2); the vertices when None.
+    """
     name = f"mortar contact {spec.slave!r} (slave) / {spec.master!r} (master)"
     common = _bodies(mesh, spec.slave) & _bodies(mesh, spec.master)
-    if common:
+    if common and spec.slave != spec.master:  # one group with itself: self-contact
         raise InputError(f"{name}: both surfaces belong to body "
                          f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
-    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
     keep = coupling.coupled
     n = -coupling.normals[keep]  # toward the slave: the master's outward direction
     first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
     if bs > 1:
-        gap = coupling.weighted_gap(mesh.x)
+        gap = coupling.weighted_gap(_point_x(mesh, points))
         dirs = -n  # the row is s·n·(Σ w u_m − u_s): slave direction −n
     else:
         gap = np.zeros(int(keep.sum()))
@@ -143,13 +160,15 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
 
 
 def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_subs: np.ndarray,
-             fixed: np.ndarray, bs: int) -> tuple[Rows, MortarInfo]:
+             fixed: np.ndarray, bs: int, points: DofPoints | None = None
+             ) -> tuple[Rows, MortarInfo]:
     """Equality rows u_j,c = Σ_k w_jk u_k,c of a :class:`~dolfinx_feti.Tie`, per component.
 
     Components with a Dirichlet condition at the slave node are skipped (its Dirichlet row
-    already holds them), as in the gluing of matching subdomains.
+    already holds them), as in the gluing of matching subdomains. ``points`` as for
+    :func:`mortar_contact_rows`.
     """
-    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance)
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
     if not np.any(coupling.coupled):
         raise InputError(f"tie {spec.slave!r} (slave) / {spec.master!r} (master): no slave node "
                          f"has a master facet within the search distance "
@@ -181,3 +200,15 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
                       rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True)
     return rows, info
 
+
+
+def self_contact_areas(mesh: MeshData, spec: Mortar, points: DofPoints | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """The slave nodes of a self-contact condition and their areas D_j = ∫ N_j on its zones.
+
+    The area of a node is taken over the facets of the zones the search paired, not over the
+    whole group, which goes round the corners of the body (a contact pressure is the nodal
+    force divided by it, as for two surfaces).
+    """
+    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
+    return coupling.slave_nodes, coupling.D

@@ -883,7 +883,7 @@ class _Reader:
                     continue
             if kind in ("node_to_node", "mortar"):
                 t = c.table(t, key, CONTACT_KEYS[kind], required=("slave", "master"))
-                s, m = self._pair(t, key, "contact")
+                s, m = self._pair(t, key, "contact", self_contact=kind == "mortar")
                 kw = {}
                 if "gap" in t:
                     kw["gap"] = c.number(t["gap"], _key(key, "gap"), "a number >= 0 (the "
@@ -922,14 +922,20 @@ class _Reader:
                     out.append(RigidObstacle(g, obstacle, **kw))
         return out
 
-    def _pair(self, t: dict, key: str, what: str) -> tuple[str | None, str | None]:
-        """The slave and master groups of a contact pair or a tie, checked."""
+    def _pair(self, t: dict, key: str, what: str, self_contact: bool = False
+              ) -> tuple[str | None, str | None]:
+        """The slave and master groups of a contact pair or a tie, checked.
+
+        ``self_contact``: one group as slave and master is allowed (mortar contact).
+        """
         c, mesh = self.c, self.mesh
         s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
         m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
         if "slave" in t and t.get("slave") == t.get("master"):
+            if self_contact:
+                return s, m
             c.fault(key, f"a {what} of the group {t['slave']!r} with itself: slave and master "
-                    "must be two different surfaces")
+                    "must be two different surfaces (self-contact is type = 'mortar')")
             return None, m
         if what == "contact" and s is not None and m is not None and mesh is not None:
             sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
@@ -1048,17 +1054,19 @@ class _Reader:
         from ..constraints.contact import node_to_node_rows, obstacle_rows
         from ..constraints.mortar_rows import mortar_contact_rows
 
-        mesh = problem.mesh
-        node_ptr = np.arange(mesh.num_nodes + 1, dtype=np.int64)
-        node_subs = np.zeros(mesh.num_nodes, dtype=np.int32)
+        mesh, points = problem.mesh, problem.dof_points
+        node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
+        node_subs = np.zeros(points.num_points, dtype=np.int32)
         for i, spec in enumerate(problem.contact):
             try:
                 if isinstance(spec, NodeToNode):
-                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
+                                      points)
                 elif isinstance(spec, Mortar):
-                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size)
+                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
+                                        points)
                 else:
-                    obstacle_rows(mesh, spec, i, node_ptr, node_subs)
+                    obstacle_rows(mesh, spec, i, node_ptr, node_subs, points)
             except InputError as e:
                 self.c.fault(_key("contact", i), str(e))
             except Exception:  # noqa: BLE001 - internals changed: the solve checks it again

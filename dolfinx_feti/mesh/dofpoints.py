@@ -44,8 +44,10 @@ _DEGREE2_ENTITIES = {
 _FACET_LAYOUT = {
     "interval": {1: ((), [1 / 2, 1 / 2]),
                  2: (((1, ((0, 1),)),), [1 / 6, 1 / 6, 2 / 3])},
+    # degree 2: the integrals of the transformed basis of the contact rows (the plain vertex
+    # functions integrate to zero; constraints/quadratic_triangles.py)
     "triangle": {1: ((), [1 / 3] * 3),
-                 2: (((1, REFERENCE["triangle"].edges),), [0.0] * 3 + [1 / 3] * 3)},
+                 2: (((1, REFERENCE["triangle"].edges),), [2 / 15] * 3 + [1 / 5] * 3)},
     "quadrilateral": {1: ((), [1 / 4] * 4),
                       2: (((1, REFERENCE["quadrilateral"].edges), (2, ((0, 1, 2, 3),))),
                           [1 / 36] * 4 + [1 / 9] * 4 + [4 / 9])},

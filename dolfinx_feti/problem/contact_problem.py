@@ -150,7 +150,8 @@ class Mortar:
     functions over the overlap of each slave facet with the master facets projected onto it
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
-    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included).
+    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
+    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -158,6 +159,15 @@ class Mortar:
     of both surfaces is checked against the other surface (the report warns about a
     penetration, or about an active row on the rim of a candidate surface). Take as slave the
     surface with the finer mesh, or the smaller one.
+
+    **Self-contact**: ``Mortar(slave=g, master=g)`` with one boundary group ``g`` (a body
+    touching itself: a C-clip closing, a folding strip). The search then leaves out each
+    facet's own neighbourhood (the facets sharing a vertex with it) and the facets that do not
+    face it from the outside (the two sides of a thin wall), and keeps each pair of zones
+    that face each other once: the zone first in the group's facet order is the slave
+    (:mod:`dolfinx_feti.constraints.self_contact`). The rows, friction and the report are
+    those of two surfaces; the report's penetration check runs on the zones paired before
+    and after the deformation.
 
     Args:
         slave: Boundary group of the slave side.
@@ -412,20 +422,25 @@ class ContactProblem:
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and self.degree != 1:
+        if mortar and self.degree != 1 and self.mesh.gdim != 2:
             raise InputError(
                 f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                f"implemented for degree 1 (any cell type), not for degree {self.degree} on "
-                f"{self.mesh.cell_type} cells: the dual multiplier basis of quadratic facets "
-                "needs a basis transformation to keep positive weights (Popp, Wohlmuth, Gee "
-                "and Wall 2012); use NodeToNode (matching meshes) or RigidObstacle there, "
-                "or degree 1")
+                f"implemented for degree 1 (any cell type) and for degree 2 in 2D, not for "
+                f"degree {self.degree} on {self.mesh.cell_type} cells: the dual multiplier "
+                "basis of quadratic surface facets needs a basis transformation to keep "
+                "positive weights (Popp, Wohlmuth, Gee and Wall 2012); use NodeToNode "
+                "(matching meshes) or RigidObstacle there, or degree 1")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
-                "cells is not supported: the vertex dofs of its quadratic triangular facets "
-                "have zero lumped area, so nodal contact rows give no consistent contact "
-                "pressure there; use degree 1 (or hexahedra, whose degree-2 facets work)")
+                "cells is not supported: its facets' dof points have no positive lumped area")
+        if contact_groups and self.degree == 2 and self.mesh.cell_type == "tetrahedron" \
+                and self.mesh.geometry_degree != 1:
+            raise InputError(
+                "contact on curved (second-order) tetrahedra is not supported yet: the "
+                "transformed basis of the contact rows on 6-node triangles (Popp, Wohlmuth, Gee "
+                "and Wall 2012) is built for straight-sided ones; use a first-order mesh with "
+                "degree 2, or degree 1")
 
     @property
     def dof_points(self):
@@ -448,10 +463,13 @@ def _degree(degree, forms, default: int) -> int:
 
 
 def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
-    """The two groups of a mortar condition exist and differ; the search distance is sane."""
+    """The groups of a mortar condition exist, the search distance is sane.
+
+    One group with itself is self-contact (:class:`Mortar` only; a tie is refused).
+    """
     mesh.facets(c.slave)
     mesh.facets(c.master)
-    if c.slave == c.master:
+    if c.slave == c.master and isinstance(c, Tie):
         raise InputError(f"{what} {c.slave!r} with itself")
     if mesh.tdim != mesh.gdim:
         raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")

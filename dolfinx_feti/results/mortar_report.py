@@ -10,13 +10,17 @@ deformed surface, and the report warns, naming the groups, when
   the search distance are too small), or
 - a row on the rim of a candidate surface is active (the contact zone may extend beyond the
   surfaces that were named).
+
+For self-contact (one group as slave and master) the check runs on the zones the search
+pairs (:mod:`.constraints.self_contact`) on the initial and on the deformed surface, each side
+against the other.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..constraints.mortar import mean_facet_size, penetration
+from ..constraints.mortar import mean_facet_size, mortar_coupling, penetration
 from ..constraints.mortar_rows import MortarInfo
 from ..mesh.topology import facets_in_cell_order, nodal_normals_and_areas
 
@@ -59,9 +63,19 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
         summary["active_rows"] = int(active.size)
         if u.shape[1] != mesh.gdim:
             continue  # a scalar problem has no deformed geometry to check
-        xd = mesh.x + u
-        S = facets_in_cell_order(mesh.cells, mesh.facets(info.slave), mesh.cell_type)
-        M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
+        xd = mesh.x + u[: mesh.x.shape[0]]  # the vertices (the first dof points for degree 2)
+        if info.coupling.zones is not None:
+            # Self-contact: the zones that face each other, before and after the
+            # deformation, not the whole surface (whose nodes lie behind its own facets
+            # across every thin wall).
+            after = mortar_coupling(xd, mesh.cells, mesh.facets(info.slave),
+                                    mesh.facets(info.slave), info.coupling.search_distance,
+                                    mesh.cell_type, self_contact=True).zones
+            S, M = (np.unique(np.concatenate([a, b]), axis=0)
+                    for a, b in zip(info.coupling.zones, after, strict=True))
+        else:
+            S = facets_in_cell_order(mesh.cells, mesh.facets(info.slave), mesh.cell_type)
+            M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
         h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
         tol = PENETRATION_RTOL * h
         worst = 0.0

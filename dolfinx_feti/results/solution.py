@@ -12,9 +12,10 @@ from petsc4py import PETSc
 
 from ..constraints.contact import surface
 from ..constraints.friction import FRICTIONLESS, SLIP, STICK
+from ..constraints.mortar_rows import self_contact_areas
 from ..constraints.rows import Kind
 from ..feti.system import BlockSystem
-from ..problem.contact_problem import ContactProblem, RigidObstacle
+from ..problem.contact_problem import ContactProblem, Mortar, RigidObstacle
 from ..setup.share import RankShare
 from .report import Report
 
@@ -29,7 +30,8 @@ class ContactData:
         partner: Master node of a node-to-node pair, -1 for an obstacle.
         normal: Contact normal (master's / obstacle's outward normal).
         force: Nodal contact force (the physical multiplier, >= 0).
-        pressure: Force divided by the node's lumped area on its surface.
+        pressure: Force divided by the node's lumped area on its surface (for self-contact:
+            on the zones of its surface that the search paired).
         gap: Gap after deformation (>= 0 up to the tolerance; < 0 is penetration).
 
     With friction on some contact condition (None otherwise; zeros, NaN and ``FRICTIONLESS``
@@ -153,7 +155,10 @@ class Solution:
                 problem, at = self.surface.problem, self.surface.local(node)
             area = np.ones(node.size)
             for i, c in enumerate(problem.contact):
-                nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
+                if isinstance(c, Mortar) and c.slave == c.master:  # self-contact: its zones
+                    nodes, a = self_contact_areas(problem.mesh, c, problem.dof_points)
+                else:
+                    nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)
                 m = spec == i
                 area[m] = a[np.searchsorted(nodes, at[m])]
             xs = problem.dof_points.x[at]
@@ -169,6 +174,34 @@ class Solution:
                            partner=rows.partner[sel],
                            normal=rows.normal[sel], force=lam, pressure=lam / area, gap=gap,
                            **extra)
+
+    def smoothed_pressure(self) -> np.ndarray:
+        """A smoothed contact pressure at the contact nodes (aligned with ``contact``).
+
+        The force over the area of each node's patch (the points sharing a facet with it):
+        Σ f_k / Σ ∫ N_k (:mod:`dolfinx_feti.results.contact_fields`); ``contact.pressure`` is the
+        node's own force over its own lumped area. Collective; the same array on every rank.
+        """
+        from ..mesh.topology import facets_in_cell_order
+        from .contact_fields import smoothed_pressure
+        c = self.contact
+        out = None
+        if self.comm.rank == 0:
+            problem, at = self.problem, c.node
+            if self.surface is not None:  # a distributed mesh: rank 0 has the surfaces
+                problem, at = self.surface.problem, self.surface.local(c.node)
+            out = np.zeros(c.node.size)
+            points, mesh = problem.dof_points, problem.mesh
+            for i, cond in enumerate(problem.contact):
+                m = c.spec == i
+                if not m.any():
+                    continue
+                facets = facets_in_cell_order(mesh.cells, mesh.facets(cond.group),
+                                              mesh.cell_type)  # tensor order for quads
+                out[m] = smoothed_pressure(points.x, points.facet_points(mesh, facets),
+                                           mesh.cell_type, problem.degree,
+                                           points.num_points, at[m], c.force[m])
+        return self.comm.bcast(out, root=0)
 
     @property
     def total_contact_force(self) -> np.ndarray:
@@ -273,12 +306,16 @@ class Solution:
                                              self.problem.mesh.num_nodes, self.comm, self.share)
         return self._directory
 
-    def pressure_function(self, degree: int | None = None):
+    def pressure_function(self, degree: int | None = None, smoothed: bool = False):
         """The contact pressure as a scalar Lagrange Function on the whole mesh.
 
         Of the problem's degree unless ``degree`` is given (1: the values at the vertices);
-        zero off the contact surfaces.
+        zero off the contact surfaces. ``smoothed``: the values of :meth:`smoothed_pressure`
+        instead of ``contact.pressure`` (collective either way).
         """
+        if smoothed:
+            return self.contact_function(self.smoothed_pressure(), "contact_pressure_smoothed",
+                                         degree)
         return self.contact_function(self.contact.pressure, "contact_pressure", degree)
 
     def contact_function(self, values: np.ndarray, name: str, degree: int | None = None):

@@ -368,15 +368,24 @@ def test_narrow_candidate_surface_is_warned_about(hertz_meshes):
 
 # -- 3D Hertz -----------------------------------------------------------------------------------
 
-def test_sphere_on_block_3d():
-    mesh = occ_mesh(sphere_on_block, 0.15, 0.25)
-    F, R3 = 20.0, 8.0
-    t = F / 4 / (np.pi * R3**2 / 4)
+SPHERE_F, SPHERE_R = 20.0, 8.0
+
+
+def sphere_problem(mesh) -> tuple[df.ContactProblem, float]:
+    """The quarter model of a sphere on a block under the force SPHERE_F, and its traction."""
+    t = SPHERE_F / 4 / (np.pi * SPHERE_R**2 / 4)
     problem = df.ContactProblem(
         mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
                    df.Dirichlet("sym_y", components=[1])],
         contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(8))
+    return problem, t
+
+
+def test_sphere_on_block_3d():
+    mesh = occ_mesh(sphere_on_block, 0.15, 0.25)
+    F, R3 = SPHERE_F, SPHERE_R
+    problem, t = sphere_problem(mesh)
     sol = df.solve(problem, rtol=1e-9)
     assert sol.report.converged
     p = mesh.x[mesh.facets("load")]

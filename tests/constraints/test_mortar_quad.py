@@ -153,7 +153,8 @@ def test_mortar_equals_node_to_node_on_matching_hexahedra():
 
 
 def test_degree_2_mortar_is_refused_with_the_reason():
-    mesh = occ_mesh(stacked_blocks, 2, *SIZES[2], recombine=True)
+    # 3D: degree 2 in 2D (3-node segments) is built (tests/test_mortar_p2.py).
+    mesh = occ_mesh(stacked_blocks, 3, *SIZES[3], recombine=True)
     with pytest.raises(InputError, match="degree 1.*not for degree 2.*basis transformation"):
         df.ContactProblem(mesh, df.Elasticity(100.0, 0.3, degree=2),
                           dirichlet=[df.Dirichlet("bottom")],

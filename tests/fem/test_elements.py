@@ -89,8 +89,7 @@ def test_patch(mesh_of, cell, degree):
     assert rel_error(problem, sol) <= EXACT
 
 
-@pytest.mark.parametrize("cell,degree", [(c, k) for c in CELLS for k in (1, 2)
-                                         if (c, k) != ("tetrahedron", 2)])
+@pytest.mark.parametrize("cell,degree", [(c, k) for c in CELLS for k in (1, 2)])
 def test_patch_on_rigid_plane(mesh_of, cell, degree):
     """Frictionless contact on a rigid plane: the same exact state, pressure p everywhere."""
     mesh = mesh_of(cell)
@@ -106,9 +105,20 @@ def test_patch_on_rigid_plane(mesh_of, cell, degree):
         assert np.any(c.node >= mesh.num_nodes)
 
 
-def test_p2_tetrahedra_contact_refused(mesh_of):
-    with pytest.raises(df.InputError, match="degree 2 on tetrahedron.*not supported"):
-        uniaxial(mesh_of("tetrahedron"), 2, contact=True)
+def test_p2_tetrahedra_contact_rows_in_the_transformed_basis(mesh_of):
+    """6-node triangles: vertex and edge rows, the edge rows coupling the edge's vertices
+    (ũ_e = (u_e − α(u_a + u_b)) / (1 − 2α)), forces in the ratio of ∫Ñ (2/15 : 1/5 per
+    facet) under a uniform pressure."""
+    mesh = mesh_of("tetrahedron")
+    problem = uniaxial(mesh, 2, contact=True)
+    sol = df.solve(problem, rtol=RTOL)
+    c = sol.contact
+    assert np.any(c.node < mesh.num_nodes) and np.any(c.node >= mesh.num_nodes)
+    assert np.all(c.force > 0)  # every row carries force: no zero-area vertex
+    from dolfinx_feti.constraints.contact import surface
+    group = next(b.group for b in problem.contact)
+    nodes, _, area = surface(mesh, group, problem.dof_points)
+    assert np.allclose(c.force, PRESSURE * area[np.searchsorted(nodes, c.node)], rtol=1e-8)
 
 
 def test_poisson_degree2_linear_exact(mesh_of):

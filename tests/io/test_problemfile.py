@@ -379,3 +379,15 @@ def test_docs_reference_lists_every_key():
     assert not missing, f"docs/index.md's problem file reference does not list {missing}"
     for f in PROBLEMS.glob("*.toml"):
         assert f"problems/{f.name}" in docs
+
+
+def test_self_contact_in_a_problem_file(folder):
+    """type = "mortar" with slave = master is self-contact; a tie with itself is refused."""
+    text = edit(('type = "node_to_node"\nslave = "disk_contact"\nmaster = "block_contact"',
+                 'type = "mortar"\nslave = "disk_contact"\nmaster = "disk_contact"'))
+    pf = pfile.load(write_text(folder / "self" / "self.toml", text))
+    assert pf.problem.contact == [df.Mortar("disk_contact", "disk_contact")]
+    tie = text + '\n[[tie]]\nslave = "block_contact"\nmaster = "block_contact"\n'
+    with pytest.raises(pfile.ProblemFileError) as info:
+        pfile.load(write_text(folder / "self" / "tie.toml", tie))
+    assert any("with itself" in f.message for f in info.value.faults)
