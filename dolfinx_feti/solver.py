@@ -393,6 +393,7 @@ class FetiSolver:
         if qp.method != "tfeti":
             report.sizes["dual_method"] = int(feti.dual_size[1])
         report.sizes.update(qp.info)
+        report.extra["dual_operator"] = getattr(feti, "operator", "implicit")
         if not report.converged:
             report.warnings.append(f"the QP solver did not converge ({report.reason}) within "
                                    f"{opts.max_it} iterations / {opts.max_outer} outer "

@@ -91,6 +91,7 @@ def _solve_both(problem_of, method: str) -> dict:
     sols = {op: df.solve(problem_of(), rtol=1e-9, method=method, dual_operator=op)
             for op in ("implicit", "explicit")}
     assert all(s.report.converged for s in sols.values())
+    assert all(s.report.extra["dual_operator"] == op for op, s in sols.items())
     assert ref.rel_max_diff(sols["explicit"].nodal_values(),
                             sols["implicit"].nodal_values()) <= 1e-7
     return sols
