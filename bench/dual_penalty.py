@@ -97,11 +97,14 @@ def main() -> None:
             for rho in RHOS:
                 rel = rho if mode == "relative" else rho / norm_F
                 t0 = time.perf_counter()
-                sol = df.solve(problem, rtol=args.rtol, qp="penalty", penalty_rho=rel,
-                               max_it=50000)
+                # a solver kept alive: the Solution's dual operators go with it
+                solver = df.FetiSolver(problem, rtol=args.rtol, qp="penalty", penalty_rho=rel,
+                                       max_it=50000)
+                sol = solver.solve()
                 m = measures(sol, lam_ref)
                 r = sol.report
                 del sol
+                solver.destroy()
                 per_rho[rho] = m
                 rows.append([n, f"{n * args.H:g}", f"{sizes['primal']}/{sizes['dual']}",
                              f"{sizes['dual'] - (n + 1)}", f"{norm_F:.3g}", mode, f"{rho:g}",
