@@ -7,21 +7,26 @@ Hertz's pressure at the slave nodes: RMS and largest error over the nodes within
 the sphere on a block of tetrahedra (``meshes_occ.sphere_on_block``, h 0.15 / 0.25) and the
 2D disk on a block (``meshes_occ.disk_on_block``, h and 1.7 h).
 
-Run: ``PYTHONPATH=tests python bench/contact_pressure_fields.py [--h2d 0.2 0.1 0.05]``
+Run: ``python bench/contact_pressure_fields.py [--h2d 0.2 0.1 0.05]``
 (serially or under mpirun; the sphere's problem is that of tests/test_mortar.py).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
-from hertz_degree import NU, P0, A, E, P, R
 from mpi4py import MPI
-from test_mortar import SPHERE_F, SPHERE_R, sphere_problem
 
-import dolfinx_feti as df
-from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block
+_TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(_TESTS / "support"), str(_TESTS / "constraints")]
+from hertz_degree import NU, P0, A, E, P, R  # noqa: E402
+from test_mortar import SPHERE_F, SPHERE_R, sphere_problem  # noqa: E402
+
+import dolfinx_feti as df  # noqa: E402
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block  # noqa: E402
 
 F3, R3 = SPHERE_F, SPHERE_R  # the sphere: the force (of the whole sphere), its radius
 E_STAR = E / (2.0 * (1.0 - NU**2))

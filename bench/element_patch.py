@@ -6,16 +6,22 @@ prints the relative max-norm error of the nodal solution, the contact pressure e
 plane), the number of dofs and of subdomains.
 
 Run from the repository root (the meshes and cases come from ``tests/``):
-``PYTHONPATH=tests python bench/element_patch.py``, or under ``mpirun -n 2``.
+``python bench/element_patch.py``, or under ``mpirun -n 2``.
 """
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
-import test_elements as te
 from mpi4py import MPI
 
-import dolfinx_feti as df
+_TESTS = Path(__file__).resolve().parents[1] / "tests"
+sys.path[:0] = [str(_TESTS / "support"), str(_TESTS / "fem")]
+import test_elements as te  # noqa: E402
+
+import dolfinx_feti as df  # noqa: E402
 
 
 def main() -> None:

@@ -43,7 +43,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parent.parent
-for _p in (ROOT / "bench", ROOT / "tests"):
+for _p in (ROOT / "bench", ROOT / "tests" / "support"):
     sys.path.insert(0, str(_p))
 import reference as ref  # noqa: E402
 from memory_scaling import vm_hwm_mib  # noqa: E402

@@ -18,7 +18,7 @@ import numpy as np
 import scipy.sparse as sp
 
 ROOT = Path(__file__).resolve().parents[2]
-for _p in (ROOT / "bench", ROOT / "tests"):
+for _p in (ROOT / "bench", ROOT / "tests" / "support"):
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
