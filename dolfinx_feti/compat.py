@@ -184,6 +184,32 @@ def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
         np.asarray(tags.values, dtype=np.int64)
 
 
+def tags_topology(tags):
+    """The (C++) topology the MeshTags were made on; None if this DOLFINx does not tell.
+
+    0.5.2's MeshTags keep their mesh (``tags.mesh``), 0.11's their topology.
+    """
+    top = getattr(tags, "topology", None)
+    if top is None:
+        top = getattr(getattr(tags, "mesh", None), "topology", None)
+    return getattr(top, "_cpp_object", top)
+
+
+def mesh_topology(msh: dolfinx.mesh.Mesh):
+    """The (C++) topology of a mesh, comparable with :func:`tags_topology` by ``==``."""
+    return getattr(msh.topology, "_cpp_object", msh.topology)
+
+
+def entity_vertices(topology, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(offsets, vertices)`` of the local entities of ``dim`` (owned and ghost; collective).
+
+    The number of local entities is ``offsets.size - 1``.
+    """
+    topology.create_connectivity(dim, 0)
+    c = topology.connectivity(dim, 0)
+    return np.asarray(c.offsets, dtype=np.int64), np.asarray(c.array, dtype=np.int64)
+
+
 def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
     """Cell MeshTags from local cell indices."""
     order = np.argsort(cells)

@@ -29,7 +29,7 @@ from .feti.precond import make_preconditioner
 from .friction import FrictionSolve
 from .log import Progress
 from .mortar_report import mortar_warnings
-from .options import PENALTY, SolverOptions
+from .options import PENALTY, SolverOptions, check_same_on_ranks
 from .problem import ContactProblem
 from .qp import (
     ConvergedReason,
@@ -80,6 +80,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         opts = SolverOptions.create(argv=options, **kwargs)
     else:
         opts = options.replace(**kwargs)
+    check_same_on_ranks(opts, comm)
     progress = Progress(comm, opts.verbose)
     timer = Timer(progress.phase)
     report = Report()
