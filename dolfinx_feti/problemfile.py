@@ -641,8 +641,18 @@ class _Reader:
             return ""
         mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
         self.mesh_path = mesh_path
-        exists = self.comm.bcast(mesh_path.is_file() if self.comm.rank == 0 else None, root=0)
-        if not exists:
+        if not self.data["mesh"].strip():
+            c.fault("mesh", "empty: expected the path of a gmsh .msh file (relative to the "
+                    "problem file's folder) or a table {generator = '<name>', ...}")
+            return ""
+        kind = self.comm.bcast(("file" if mesh_path.is_file() else "folder" if
+                                mesh_path.is_dir() else None) if self.comm.rank == 0 else None,
+                               root=0)
+        if kind == "folder":
+            c.fault("mesh", f"{str(mesh_path)!r} is a folder, not a gmsh .msh file (paths are "
+                    "relative to the problem file's folder)")
+            return str(mesh_path)
+        if kind is None:
             c.fault("mesh", f"mesh file not found: {str(mesh_path)!r} (paths are relative to "
                     "the problem file's folder); expected a gmsh .msh file")
             return str(mesh_path)

@@ -22,6 +22,7 @@ from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.gmsh_input import MeshData
 from ..mesh.topology import _row_keys
 from .dofmap import cell_dof_points
+from .form_checks import check_form_kinds, check_magnitudes, check_symmetric
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
 
@@ -245,7 +246,14 @@ class Subdomain:
         ``forms`` may return ``L = None`` (or an empty form) for an unloaded subdomain.
         """
         V = compat.function_space(self.mesh, value_size, self.degree)
-        a, L = forms(V, self)
+        result = forms(V, self)
+        where = f"subdomain(s) {self._ids} (bodies {list(self.bodies)})"
+        if not (isinstance(result, tuple | list) and len(result) == 2):
+            raise InputError(f"{where}: forms(V, sub) returned {type(result).__name__}"
+                             + (f" of length {len(result)}" if hasattr(result, "__len__") else "")
+                             + ", not a pair (a, L)")
+        a, L = result
+        check_form_kinds(a, None if _is_zero(L) else L, where)
         self._check_space(((a, "bilinear"), (L, "linear")), V)
         for form, what in ((a, "bilinear"), (L, "linear")):
             _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
@@ -274,4 +282,6 @@ class Subdomain:
             raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
                              "assembled stiffness matrix or load has non-finite entries (NaN/Inf "
                              "in the data)")
+        check_magnitudes(K, f, where)
+        check_symmetric(K, where)  # before K K⁺ K = K, which would blame the null space
         return K, f

@@ -411,6 +411,7 @@ def _names(cell_values: np.ndarray, facet_values: np.ndarray, tdim: int,
     """tag → name for the cell tags and the facet tags, with the checks of ``names``."""
     body = {int(v): str(int(v)) for v in cell_values}
     facet = {int(v): str(int(v)) for v in facet_values}
+    named: dict[tuple[int, int], str] = {}  # (dim, tag) → the name given to it
     for name, tag in dict(names or {}).items():
         if isinstance(tag, tuple):
             if len(tag) != 2 or tag[0] not in (tdim, tdim - 1):
@@ -428,6 +429,13 @@ def _names(cell_values: np.ndarray, facet_values: np.ndarray, tdim: int,
         if not targets:
             raise InputError(f"from_dolfinx: names[{name!r}] = {tag}: no such tag; the cell "
                              f"tags are {sorted(body)}, the facet tags {sorted(facet)}")
+        key = (tdim if targets[0] is body else tdim - 1, value)
+        if key in named:  # one group has one name: a second would silently replace the first
+            raise InputError(f"from_dolfinx: names {named[key]!r} and {name!r} both name the "
+                             f"{'cell' if key[0] == tdim else 'facet'} tag {value}; give each "
+                             "tag one name (a group used in two roles is named once and used "
+                             "twice)")
+        named[key] = str(name)
         targets[0][value] = str(name)
     every = list(body.values()) + list(facet.values())
     twice = sorted({n for n in every if every.count(n) > 1})
