@@ -16,6 +16,7 @@ from __future__ import annotations
 # before dolfinx and petsc4py. (Harmless on 0.5.2.)
 from mpi4py import MPI  # isort: skip
 
+import inspect
 import re
 from pathlib import Path
 
@@ -380,6 +381,19 @@ def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolf
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:
         return f.read_mesh(name=name)
+
+
+def gmsh_initialize(gmsh) -> None:
+    """``gmsh.initialize()``, keeping Python's Ctrl-C (a KeyboardInterrupt).
+
+    gmsh ≥ 4.9 sets SIGINT to its default action while it is initialized
+    (``interruptible=True``, restored only by ``finalize``): a Ctrl-C would then kill the
+    process without a word, and the command could not end with its one line.
+    """
+    if "interruptible" in inspect.signature(gmsh.initialize).parameters:
+        gmsh.initialize(interruptible=False)
+    else:
+        gmsh.initialize()
 
 
 def gmsh_model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):

@@ -48,6 +48,7 @@ from mpi4py import MPI
 from .errors import InputError, SolveError, collective
 from .fem import Elasticity, Poisson
 from .mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from .mesh.gmsh_input import gmsh_initialize
 from .options import DECLARED, SolverOptions, kind, option_value, parse_text
 from .problem import (
     ContactProblem,
@@ -697,7 +698,7 @@ class _Reader:
         try:
             with collective(comm, "mesh"):
                 if comm.rank == 0:
-                    gmsh.initialize()
+                    gmsh_initialize(gmsh)
                     gmsh.option.setNumber("General.Terminal", 0)
                     gens[name](**kwargs)
             self.mesh = read_gmsh(None, comm)

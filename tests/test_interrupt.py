@@ -10,6 +10,7 @@ processes, so they run only in a serial pytest.
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 import sys
@@ -51,21 +52,25 @@ def interrupt(command: list[str], ranks: int, folder: Path) -> tuple[int, str]:
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     proc = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, preexec_fn=_default_sigint)
-    seen, t0 = set(), time.monotonic()
+
+    def fail(why: str):
+        os.killpg(proc.pid, signal.SIGKILL)  # the launcher and every rank: no orphans
+        out, err = proc.communicate()
+        pytest.fail(f"{why}:\n{out}\n{err}")
+
+    seen, deadline = set(), time.monotonic() + 180
     while len(seen) < ranks:
-        line = proc.stdout.readline()
-        if not line or time.monotonic() - t0 > 120:
-            proc.kill()
-            out, err = proc.communicate()
-            pytest.fail(f"the command did not reach the solver: {line}{out}\n{err}")
+        ready, _, _ = select.select([proc.stdout], [], [], max(deadline - time.monotonic(), 0))
+        line = proc.stdout.readline() if ready else ""
+        if not line:
+            fail("the command did not reach the solver")
         if "in the QP solver" in line:
             seen.add(line.split(":")[0])
     proc.send_signal(signal.SIGINT)
     try:
         _, err = proc.communicate(timeout=60)
     except subprocess.TimeoutExpired:
-        proc.kill()
-        pytest.fail("the command did not end within 60 s of Ctrl-C")
+        fail("the command did not end within 60 s of Ctrl-C")
     return proc.returncode, err
 
 

@@ -252,7 +252,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
 
     with collective(comm, "mesh"):
         if comm.rank == 0:
-            gmsh.initialize()
+            gmsh_initialize(gmsh)
             gmsh.option.setNumber("General.Terminal", 0)
             try:
                 generator(*args, **kwargs)
@@ -282,7 +282,7 @@ def _extract(source, gdim: int | None) -> MeshData:
     # gmsh 4.8 cannot tell whether it is initialized; initializing twice is harmless and keeps
     # the caller's models. The file is merged into a fresh model of its own (gmsh.open on a bad
     # file leaves gmsh locked and the broken model current), removed afterwards.
-    gmsh.initialize()
+    gmsh_initialize(gmsh)
     gmsh.option.setNumber("General.Terminal", 0)
     previous = gmsh.model.getCurrent()
     name = f"dolfinx_feti_read_{path.stem}"
@@ -304,6 +304,13 @@ def _extract(source, gdim: int | None) -> MeshData:
         gmsh.model.remove()
         if previous in gmsh.model.list():
             gmsh.model.setCurrent(previous)
+
+
+def gmsh_initialize(gmsh) -> None:
+    """:func:`dolfinx_feti.compat.gmsh_initialize` (imported here only when gmsh is used)."""
+    from ..compat import gmsh_initialize as initialize
+
+    initialize(gmsh)
 
 
 def check_msh_file(path: Path) -> tuple[int, int] | None:
