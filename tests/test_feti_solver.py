@@ -267,7 +267,7 @@ def test_solves_leave_no_petsc_garbage(hertz_mesh, capfd):
         solver.update(hertz(hertz_mesh, load=load))
         queued.append(_garbage(capfd))
     # what Python's cyclic collector frees late may wait a cycle; nothing accumulates
-    assert max(queued) <= 10, queued
+    assert queued[-1] <= queued[0] + 2 and max(queued) <= 10 * MPI.COMM_WORLD.size, queued
     solver.destroy()
     kept = df.solve(hertz(hertz_mesh), rtol=1e-6)  # its set-up freed, its result kept
-    assert _garbage(capfd) <= 10 and kept.report.converged
+    assert _garbage(capfd) <= 10 * MPI.COMM_WORLD.size and kept.report.converged
