@@ -16,11 +16,14 @@ rows out of reach. :class:`KKTStop` makes them the stopping test: during the ite
 bound — the projected gradient of the dual QP is, row by row, the violation ``B u − c`` of the
 primal solution its iterate implies (scaled by the row's ``scale``), so
 ``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
-``primal_feasibility`` and ``complementarity``, and ``‖G̃x‖ <= θ_e rtol Λ`` (``Λ`` a force
-scale) bounds ``equilibrium``; when the bound holds, the primal solution is recovered (one F
-and one K⁺ application, counted) and the residuals above are evaluated exactly. If one exceeds
-rtol, the scales and the factors θ are set from what was measured and the QP solver continues
-from where it stopped.
+``primal_feasibility`` and ``complementarity`` up to the term ``P F P G̃ᵀG̃x`` of an iterate
+off ker G̃ (SMALBE's), and ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))``
+(``Λ`` a force scale) bounds that term and ``equilibrium``; when the bound holds, the primal
+solution is recovered (one F and one K⁺ application, counted) and the residuals above are
+evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
+measured and the QP solver continues from where it stopped (warm: the iterate and SMALBE's
+multiplier kept); if a check does not improve on the one before by :data:`STALL`, the round-off
+floor of the dual QP is reached and the solve stops there, with a warning.
 """
 
 from __future__ import annotations
@@ -42,6 +45,10 @@ KEYS = ("dual_feasibility", "primal_feasibility", "equality", "complementarity",
 MAX_CHECKS = 8
 #: A failed check aims the next bound at this fraction of what would just pass.
 SAFETY = 0.5
+#: A check whose largest residual is above this fraction of the previous check's, after the
+#: bound was tightened, has met the round-off floor of the dual QP (e.g. eps ‖b‖ of far gaps):
+#: the solve stops there, with a warning.
+STALL = 0.5
 
 
 def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
@@ -112,6 +119,8 @@ class KKTStop:
 
     Attributes:
         checks: Exact checks made (recoveries of u), the last one included.
+        stalled: Whether the last check failed to improve on the one before by the factor
+            :data:`STALL`: the round-off floor, where more iterations do not help.
         U: The displacement scale of the bound (``‖u‖∞`` of the last check; before the first,
             ``max_i |b_i| / scale_i``, the violation of λ = λ̂).
         Lam: The force scale of the equality bound (``‖λ‖`` of the QP's rows at the last
@@ -126,9 +135,15 @@ class KKTStop:
         self.U = self.comm.allreduce(float(np.max(np.abs(b) * self.weight, initial=0.0)),
                                      op=MPI.MAX)
         self.Lam = qp.b.norm() / max(qp.norm_A, 1e-300)
+        # ‖G̃x‖ ≠ 0 moves B u − c by up to ‖PFP‖ ‖G̃x‖ (SMALBE's iterates leave ker G̃): in
+        # lengths, times the largest weight
+        w_max = self.comm.allreduce(float(self.weight.max(initial=0.0)), op=MPI.MAX)
+        self.eq_unit = max(qp.norm_A * w_max, 1e-300)
         self.tol_g = rtol * self.U
-        self.tol_e = rtol * self.Lam
+        self.tol_e = min(rtol * self.Lam, self.tol_g / self.eq_unit)
         self.checks = 0
+        self.stalled = False
+        self.worst = math.inf
         self.test: MaxGradientTest | None = None
         self.history: list[dict] = []
 
@@ -158,6 +173,10 @@ class KKTStop:
                              "equilibrium": equil})
         if primal <= rtol and equil <= rtol:
             return True
+        worst = max(primal, equil)
+        self.stalled, self.worst = worst > STALL * self.worst, worst
+        if self.stalled:
+            return False
         U = u.norm(PETSc.NormType.INFINITY)
         Lam = lam_qp.norm()
         tightened = False
@@ -178,8 +197,9 @@ class KKTStop:
         if not tightened:  # the measured scales say the bound held: tighten it anyway
             self.tol_g *= 0.1
             self.tol_e *= 0.1
+        self.tol_e = min(self.tol_e, self.tol_g / self.eq_unit)
         self.U, self.Lam = U, Lam
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "KKTStop", "kkt_residuals", "row_data"]
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data"]
