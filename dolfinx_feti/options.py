@@ -78,7 +78,8 @@ FETI = OptionSet(
                      "checked exactly at the end, continued if one is above rtol) or 'dual' "
                      "(||g^P|| <= rtol ||b|| on the dual QP alone; b depends on the method and "
                      "on gaps far out of reach). Friction and qp='penalty' use 'dual'"),
-    eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
+    eq_rtol=Option(None, Maybe(_TOL), "with stop_test 'dual': stop only when also "
+                   "||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
                    "None: rtol"),
     max_it=Option(5000, _COUNT, "the budget of inner iterations (all outer iterations "
                   "together)"),
