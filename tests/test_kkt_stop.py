@@ -94,19 +94,20 @@ def test_the_dual_test_is_not_an_accuracy():
 
 
 def test_rank_independent():
-    """The stopping test decides alike on every rank and for any number of ranks: the same
-    checks and the same residuals (to round-off) on COMM_WORLD and on one rank."""
+    """The stopping test decides alike on every rank (its bound and residuals are reduced over
+    the ranks), and a solve on all ranks meets it as a solve on one rank does: every residual
+    <= rtol, the two within the goal of each other. The number of checks may differ by one:
+    where the bound is a near tie, round-off (which the number of ranks changes) decides."""
     problem = hertz()
     world = df.solve(problem, comm=MPI.COMM_WORLD, method="fetidp", rtol=RTOL)
     alone = df.solve(problem, comm=MPI.COMM_SELF, method="fetidp", rtol=RTOL)
-    stops = MPI.COMM_WORLD.allgather((world.report.stopping["checks"],
-                                      [h["primal"] for h in world.report.stopping["history"]]))
+    stops = MPI.COMM_WORLD.allgather(world.report.stopping)
     assert all(s == stops[0] for s in stops)
-    assert world.report.stopping["checks"] == alone.report.stopping["checks"]
-    for a, b in zip(world.report.stopping["history"], alone.report.stopping["history"],
-                    strict=True):
-        assert a["primal"] == pytest.approx(b["primal"], rel=1e-3)
+    for sol in (world, alone):
+        assert sol.report.stopping["met"] and all(sol.report.kkt[k] <= RTOL for k in KEYS)
+    assert abs(world.report.stopping["checks"] - alone.report.stopping["checks"]) <= 1
     assert rel(world.nodal_values(), alone.nodal_values()) <= GOAL
+    assert rel(world.contact.force, alone.contact.force) <= GOAL
 
 
 def test_max_gradient_test_replaces_the_relative_one():
