@@ -112,12 +112,23 @@ def main() -> None:
                               f"{row[8]:.1e}  solve {solve_t:6.2f} s  (wall {wall:.1f} s)"
                               f"{'' if rep.converged else '  NOT CONVERGED'}", flush=True)
     if comm.rank == 0:
-        print(f"\n{comm.size} rank(s). | problem | method | rtol | test | error u | error λ | "
-              "F-mult. | checks | max KKT | solve [s] |")
-        for r in rows:
-            print(f"| {r[0]} | {r[1]} | {r[2]:.0e} | {r[3]} | {r[4]:.1e} | {r[5]:.1e} | {r[6]} "
-                  f"| {r[7]} | {r[8]:.1e} | {r[9]:.2f} |")
+        print(f"\n{comm.size} rank(s)\n" + table(rows))
 
+
+def table(rows: list[tuple]) -> str:
+    """Markdown: per problem, method and rtol, the dual test (before) beside the KKT test."""
+    by = {(r[0], r[1], r[2], r[3]): r for r in rows}
+    out = ["| problem | method | rtol | before: error u / λ | F | after: error u / λ | F | "
+           "checks | max KKT | solve [s] before / after |", "|---|---|---|---|---|---|---|---|"
+           "---|---|"]
+    for (name, method, rtol, test), r in by.items():
+        if test != "kkt" or (name, method, rtol, "dual") not in by:
+            continue
+        d = by[(name, method, rtol, "dual")]
+        out.append(f"| {name} | {method} | {rtol:.0e} | {d[4]:.1e} / {d[5]:.1e} | {d[6]} | "
+                   f"{r[4]:.1e} / {r[5]:.1e} | {r[6]} | {r[7]} | {r[8]:.1e} | {d[9]:.2f} / "
+                   f"{r[9]:.2f} |")
+    return "\n".join(out)
 
 if __name__ == "__main__":
     main()
