@@ -68,8 +68,18 @@ FETI = OptionSet(
                   "coarse space when every body is held), 'auto' (the rule of "
                   "setup.stages.choose_method, docs/solvers.md) or 'tbeti' (Total BETI: "
                   "boundary element subdomains, 2D, no volume loads; docs/beti.md)"),
-    rtol=Option(1e-6, _TOL, "stop when ||g^P|| <= rtol ||b|| (b the projected dual linear term)"),
-    eq_rtol=Option(None, Maybe(_TOL), "stop only when also ||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
+    rtol=Option(1e-6, _TOL, "the accuracy: with stop_test 'kkt' every KKT residual of the "
+                "solution is at most rtol (gluing, Dirichlet and non-penetration violations "
+                "against max|u|, complementarity against max|λ| max|u|, equilibrium against "
+                "the load: docs/solvers.md, 'What rtol guarantees'); with 'dual' "
+                "||g^P|| <= rtol ||b||"),
+    stop_test=Option("kkt", Choice("kkt", "dual"), "'kkt' (stop on the KKT residuals of the "
+                     "original problem in physical units: bounded during the iterations, "
+                     "checked exactly at the end, continued if one is above rtol) or 'dual' "
+                     "(||g^P|| <= rtol ||b|| on the dual QP alone; b depends on the method and "
+                     "on gaps far out of reach). Friction and qp='penalty' use 'dual'"),
+    eq_rtol=Option(None, Maybe(_TOL), "with stop_test 'dual': stop only when also "
+                   "||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
                    "None: rtol"),
     max_it=Option(5000, _COUNT, "the budget of inner iterations (all outer iterations "
                   "together)"),

@@ -29,6 +29,7 @@ from .result import ConvergedReason, QPResult
 from .shell import python_shell
 from .smalbe import SMALBE, Absolute, smalbe
 from .solver import QPSolver
+from .stopping import MaxGradientTest
 
 __all__ = [
     "CG",
@@ -40,6 +41,7 @@ __all__ = [
     "ConvergedReason",
     "Discs",
     "EqualityConstraint",
+    "MaxGradientTest",
     "NormEstimate",
     "OrthonormalConstraint",
     "Preconditioner",

@@ -62,8 +62,15 @@ class CG(QPSolver):
         self._set_options(options_prefix)
         self.rtol, self.atol, self.max_it, self.monitor = rtol, atol, max_it, monitor
 
-    def solve(self, qp: QP, x: PETSc.Vec) -> QPResult:
+    def solve(self, qp: QP, x: PETSc.Vec, *, test=None) -> QPResult:
         """Minimize ``qp`` from ``x`` (overwritten with the solution; collective).
+
+        Args:
+            qp: The QP (no inequality constraint).
+            x: The start.
+            test: A test of the projected residual that replaces ``||r|| <= max(rtol ||P b||,
+                atol)`` (:class:`.stopping.MaxGradientTest`); its success is reported as
+                ``'rtol'``.
 
         Returns:
             The result; ``reason`` is ``'rtol'``/``'atol'``, ``'max_it'`` or ``'breakdown'``
@@ -77,14 +84,14 @@ class CG(QPSolver):
         if qp.constraints is not None:
             raise ValueError("cg: the QP has inequality constraints; solve it by MPRGP, MPGP "
                              "or SMALBE")
-        return _CGSolve(self, qp, x).run()
+        return _CGSolve(self, qp, x, test).run()
 
 
 class _CGSolve:
     """The state of one CG solve."""
 
-    def __init__(self, solver: CG, qp: QP, x: PETSc.Vec) -> None:
-        self.solver, self.A, self.x = solver, qp.A, x
+    def __init__(self, solver: CG, qp: QP, x: PETSc.Vec, test=None) -> None:
+        self.solver, self.A, self.x, self.test = solver, qp.A, x, test
         pre = qp.preconditioner
         self.prec = None if pre is None else Preconditioner(pre)
         self.projector = None if qp.eq is None else Projector(qp.eq)
@@ -130,7 +137,11 @@ class _CGSolve:
             if not math.isfinite(rnorm):
                 reason = "breakdown"
                 break
-            if rnorm <= self.tol:
+            if self.test is not None:  # the caller's test replaces the relative one
+                if self.test(self.r.array_r, self.x):
+                    reason = "rtol"
+                    break
+            elif rnorm <= self.tol:
                 reason = "rtol" if s.rtol * self.b_norm >= s.atol else "atol"
                 break
             if it >= s.max_it:

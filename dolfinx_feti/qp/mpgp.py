@@ -213,7 +213,7 @@ class MPGP(QPSolver):
               stop: Callable[[float, PETSc.Vec, PETSc.Vec], bool | None] | None = None,
               b_norm: float | None = None, g: PETSc.Vec | None = None, g_valid: bool = False,
               rtol: float | None = None, atol: float | None = None,
-              max_it: int | None = None) -> QPResult:
+              max_it: int | None = None, test=None) -> QPResult:
         """Minimize ``qp`` from ``x`` (collective); the solver is unchanged and can solve again.
 
         Args:
@@ -229,6 +229,9 @@ class MPGP(QPSolver):
             rtol: This solve's ``rtol`` instead of the solver's (SMALBE's inner solves: 0).
             atol: Likewise ``atol``.
             max_it: Likewise ``max_it`` (SMALBE: what is left of its budget).
+            test: A test of the projected gradient that replaces ``||g^P|| <= max(rtol
+                b_norm, atol)`` (:class:`.stopping.MaxGradientTest`, or any collective
+                ``test(gP_local, x) -> bool``); its success is reported as ``'rtol'``.
 
         Returns:
             The result; ``counts`` has ``'rejected'`` for ``'projcg'`` and ``'bb'`` (and after
@@ -249,7 +252,7 @@ class MPGP(QPSolver):
         run = MPGPSolve(self, qp, x, stop=stop, b_norm=b_norm, g=g, g_valid=g_valid,
                         rtol=self.rtol if rtol is None else rtol,
                         atol=self.atol if atol is None else atol,
-                        max_it=self.max_it if max_it is None else max_it)
+                        max_it=self.max_it if max_it is None else max_it, test=test)
         return run.run()
 
 

@@ -49,7 +49,7 @@ class MPGPSolve:
 
     def __init__(self, solver: MPGP, qp: QP, x: PETSc.Vec, *, stop, b_norm: float | None,
                  g: PETSc.Vec | None, g_valid: bool, rtol: float, atol: float,
-                 max_it: int) -> None:
+                 max_it: int, test=None) -> None:
         name = solver.name
         self.solver, self.x, self.b = solver, x, qp.b
         self.rtol, self.atol, self.max_it = rtol, atol, max_it
@@ -72,7 +72,7 @@ class MPGPSolve:
         self.alpha_bar, self.scale_A = step_length(name, self.mult, x, self.counts,
                                                    solver.alpha_bar, qp.norm_A)
         self.b_norm = qp.b.norm() if b_norm is None else b_norm
-        self.stop = stop
+        self.stop, self.test = stop, test
         self.g = feasible_start(name, S.project, self.mult, x, qp.b, g, g_valid, self.comm)
         self.phi, self.beta, self.p, self.Ap = (x.duplicate() for _ in range(4))
         self.Hp = x.duplicate() if self.tangent else self.Ap  # (A + curvature) p on circles
@@ -131,7 +131,10 @@ class MPGPSolve:
             monitor(self.it, gP, self.kind)
         if not math.isfinite(gP):
             return "breakdown"
-        if gP <= max(rtol * self.b_norm, atol):
+        if self.test is not None:  # the caller's test replaces the relative one
+            if self.test(self.phi.array_r + self.beta.array_r, self.x):
+                return "rtol"
+        elif gP <= max(rtol * self.b_norm, atol):
             return "rtol" if rtol * self.b_norm >= atol else "atol"
         if self.stop is not None and self.stop(gP, self.x, self.g):
             return "stop"

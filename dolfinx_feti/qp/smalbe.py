@@ -186,7 +186,8 @@ class SMALBE(QPSolver):
             return (default if v is None else v) * scale
         return value("rho", norm_A, 1.1), value("M", norm_A, 1.0), value("eta", b_norm, 0.1)
 
-    def solve(self, qp: QP, x: PETSc.Vec, *, multiplier: np.ndarray | None = None) -> QPResult:
+    def solve(self, qp: QP, x: PETSc.Vec, *, multiplier: np.ndarray | None = None,
+              test=None) -> QPResult:
         """Minimize ``qp`` (which must have ``eq``) from ``x`` (collective).
 
         Args:
@@ -195,6 +196,9 @@ class SMALBE(QPSolver):
                 ``orthonormalize``).
             x: Start (projected onto the set), overwritten with the solution.
             multiplier: Initial ``mu`` (replicated array of length ``D.m``); default zeros.
+            test: A :class:`.stopping.MaxGradientTest` that replaces the final test of step
+                2: the projected gradient of the Lagrangian passes ``test`` and
+                ``||D x|| <= test.eq_tol``.
 
         Returns:
             The result, with ``multiplier``, ``outer_iterations`` and one history record per
@@ -212,15 +216,15 @@ class SMALBE(QPSolver):
         if qp.eq is None:
             raise ValueError("smalbe: the QP has no equality constraint; solve it by the "
                              "inner solver alone")
-        return _SMALBESolve(self, qp, x, multiplier).run()
+        return _SMALBESolve(self, qp, x, multiplier, test).run()
 
 
 class _SMALBESolve:
     """The state of one SMALBE solve: the multiplier, the inner QP, the outer records."""
 
     def __init__(self, solver: SMALBE, qp: QP, x: PETSc.Vec,
-                 multiplier: np.ndarray | None) -> None:
-        self.s, self.x, self.D = solver, x, qp.eq
+                 multiplier: np.ndarray | None, test=None) -> None:
+        self.s, self.x, self.D, self.test = solver, x, qp.eq, test
         self.b_norm = b_norm = qp.b.norm()
         if not math.isfinite(b_norm):
             raise ValueError("smalbe: b has non-finite entries")
@@ -294,11 +298,18 @@ class _SMALBESolve:
 
         def inner_stop(gP: float, xv: PETSc.Vec, gv: PETSc.Vec) -> bool:
             dxv = float(np.linalg.norm(D.mult(xv)))
-            return gP <= min(M_k * dxv, eta) or (gP <= tol_g and dxv <= tol_e)
+            return gP <= min(M_k * dxv, eta) or (self.test is None and gP <= tol_g and
+                                                 dxv <= tol_e)
+
+        final_test = None
+        if self.test is not None:  # the caller's final test, checked first (reason 'rtol')
+            def final_test(gPa: np.ndarray, xv: PETSc.Vec) -> bool:
+                return float(np.linalg.norm(D.mult(xv))) <= self.test.eq_tol and \
+                    self.test(gPa, xv)
 
         res = self.s.inner.solve(self.inner_qp, self.x, stop=inner_stop, rtol=0.0, atol=0.0,
                                  max_it=self.s.max_it - self.total_it, b_norm=self.b_norm,
-                                 g=self.g, g_valid=self.g_valid)
+                                 g=self.g, g_valid=self.g_valid, test=final_test)
         self.g_valid = True
         self.total_it += res.iterations
         self.mults += res.hessian_mults
@@ -323,7 +334,8 @@ class _SMALBESolve:
         self.history.append(record)
         if self.s.monitor is not None:
             self.s.monitor(k, record)
-        final = res.gP_norm <= self.tol_g and dx <= self.tol_e
+        final = res.reason == "rtol" if self.test is not None else \
+            res.gP_norm <= self.tol_g and dx <= self.tol_e
         self._update_multiplier(Dx, res, final)
         self.L_prev = L
         if final:

@@ -25,7 +25,8 @@ class Report:
             -6 breakdown, -9 non-finite iterate, -10 Coulomb fixed point).
         sizes: primal, dual, equality and inequality rows, subdomains, coarse dimension, ranks.
         outer_iterations, iterations: SMALBE outer and (all) inner iterations.
-        hessian_mults: F multiplications inside the QP solver (the figure of merit).
+        hessian_mults: F multiplications inside the QP solver (the figure of merit), and
+            those of the stopping test's checks before the last one (one each).
         hessian_mults_total: All F multiplications, norm estimate and recovery included.
         counts: CG, expansion and proportioning steps.
         gP_rel: ||g^P|| / ||b|| at the end.
@@ -35,6 +36,10 @@ class Report:
         norm_F: The estimate of ||PFP|| used by the solver.
         timings: Seconds per phase (maximum over ranks).
         warnings: Anything the user should know (e.g. a rigid motion left undetermined).
+        stopping: The stopping test: ``test`` (``'kkt'`` or ``'dual'``), ``checks`` (exact
+            checks of the KKT residuals, i.e. recoveries of u), ``check_hessian_mults`` and
+            ``check_kplus_solves`` (what the checks before the last cost: the last recovery
+            is the solution's own), ``history`` (per check the bound and the residuals).
     """
 
     method: str = "TFETI"
@@ -55,6 +60,7 @@ class Report:
     norm_F: float = float("nan")
     timings: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    stopping: dict[str, Any] = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -88,6 +94,8 @@ class Report:
             f"{s.get('ranks', 1)} rank(s)",
             f"  iterations: {self.outer_iterations} outer, {self.iterations} inner, "
             f"{self.hessian_mults} F-multiplications ({self.hessian_mults_total} in all)",
+            f"  stopping test: {self.stopping.get('test', '?')}, "
+            f"{self.stopping.get('checks', 0)} exact KKT check(s)",
             f"  ||g^P||/||b|| = {self.gP_rel:.2e}, ||G lambda - e|| (rel) = {self.G_lambda:.2e}",
             "  KKT: " + ", ".join(f"{k} {v:.2e}" for k, v in self.kkt.items()),
             "  time [s]: " + ", ".join(f"{k} {v:.3f}" for k, v in self.timings.items()),

@@ -14,6 +14,7 @@ from ..constraints.contact import surface
 from ..constraints.friction import FRICTIONLESS, SLIP, STICK
 from ..constraints.mortar_rows import self_contact_areas
 from ..constraints.rows import Kind
+from ..drivers.kkt_stop import kkt_residuals
 from ..feti.system import BlockSystem
 from ..problem.contact_problem import ContactProblem, Mortar, RigidObstacle
 from ..setup.share import RankShare
@@ -113,30 +114,13 @@ class Solution:
 
     # --- residuals -------------------------------------------------------------------------
     def check_kkt(self, ineq: np.ndarray) -> None:
-        """Fill ``report.kkt`` and ``report.max_penetration`` from u and λ (collective)."""
-        comm, own, feti = self.comm, self.rows.own, self.feti
-        scale = own.scale
-        viol = (self._Bu.array_r - feti.c.array_r) / scale  # B u − c, physical units
-        lam_phys = self.lam.array_r * scale
+        """Fill ``report.kkt`` and ``report.max_penetration`` from u and λ (collective).
 
-        def gmax(a, default=0.0):
-            return comm.allreduce(float(a.max()) if a.size else default, op=MPI.MAX)
-
-        lam_max = gmax(np.abs(lam_phys))
-        u_max = max(self.u_vec.norm(PETSc.NormType.INFINITY), 1e-300)
-        pen = gmax(viol[ineq], -np.inf)
-        kkt = {
-            "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
-            "primal_feasibility": max(pen, 0.0) / u_max,
-            "equality": gmax(np.abs(viol[~ineq & (own.kind != Kind.TANGENT)])) / u_max,
-            "complementarity": gmax(np.abs(lam_phys[ineq] * viol[ineq]))
-            / max(lam_max * u_max, 1e-300),
-        }
-        if self.friction is not None:
-            kkt.update(self.friction.kkt(lam_phys, viol, lam_max, u_max))
-        kkt.update(feti.residuals(self.u_vec, self.lam))
-        self.report.kkt = kkt
-        self.report.max_penetration = max(pen, 0.0) if np.isfinite(pen) else 0.0
+        The residuals of :func:`.kkt_stop.kkt_residuals` (the ones the stopping test bounds).
+        """
+        own = self.rows.own
+        self.report.kkt, self.report.max_penetration = kkt_residuals(
+            self.feti, own.scale, own.kind, ineq, self.u_vec, self.lam, self._Bu, self.friction)
 
     # --- contact ---------------------------------------------------------------------------
     def _contact_data(self) -> ContactData:

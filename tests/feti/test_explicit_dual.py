@@ -185,8 +185,10 @@ def test_explicit_dirichlet_preconditioner(hertz_mesh, method, scaling):
 
 
 def test_solve_with_explicit_dirichlet(hertz_mesh):
+    # the counts under the dual test: with the KKT test a near tie at a check (decided by
+    # round-off, which the two operators round differently) adds a round of 3 multiplications
     sols = {op: df.solve(_linear(hertz_mesh), rtol=1e-9, preconditioner="dirichlet",
-                         dual_operator=op) for op in ("implicit", "explicit")}
+                         dual_operator=op, stop_test="dual") for op in ("implicit", "explicit")}
     i, e = sols["implicit"].report, sols["explicit"].report
     assert i.converged and e.converged
     assert abs(i.hessian_mults - e.hessian_mults) <= 2

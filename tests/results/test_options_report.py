@@ -53,7 +53,7 @@ def b1_solution(b1_problem):
 # SolverOptions
 # ------------------------------------------------------------------------------------------
 
-DEFAULTS = {"rtol": 1e-6, "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
+DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "max_outer": 1000,
             "factor": default_factor(), "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",

@@ -355,22 +355,28 @@ def far_reference(mesh, far):
 @pytest.mark.parametrize("far", [1e3, 1e6])
 def test_obstacle_out_of_reach(block8, far):
     """A clamped block (|u| ~ 0.03) above an obstacle 1e3 or 1e6 away: no contact force. The
-    stopping test is relative to ||b||, which holds the gaps: the answer is only as accurate
-    as rtol · gap allows, and the report says so when that is far above rtol."""
-    case = sc.run(f"far {far}", lambda: far_obstacle(block8, far), rtol=1e-10)
+    gap enters ||b|| of the dual QP, so the dual test ||g^P|| <= rtol ||b|| stops with an
+    error of ~ rtol · gap / |u| (7.5e-2 and 75 at rtol 1e-6); the KKT test (the default) does
+    not see the gap: the error is within 10 rtol for both."""
+    case = sc.run(f"far {far}", lambda: far_obstacle(block8, far), rtol=1e-6)
     rep = case.report
-    assert rep.converged and np.all(case.solution.contact.force == 0.0)
-    err = sc.rel_diff(case.solution.nodal_values(), far_reference(block8, far))
-    assert err < 1e-7 * far  # ~ rtol · gap / |u|
-    if max(rep.kkt.values()) > 1e3 * 1e-10:
-        assert any("KKT residual" in w and "far out of reach" in w for w in rep.warnings)
+    assert rep.converged and rep.stopping["met"] and np.all(case.solution.contact.force == 0.0)
+    reference = far_reference(block8, far)
+    assert sc.rel_diff(case.solution.nodal_values(), reference) < 1e-5
+    dual = sc.run(f"far {far}", lambda: far_obstacle(block8, far), rtol=1e-6, stop_test="dual")
+    assert sc.rel_diff(dual.solution.nodal_values(), reference) > 1e-3  # what was fixed
+    assert any("KKT residual" in w and "far out of reach" in w for w in dual.report.warnings)
 
 
-@pytest.mark.xfail(strict=True, reason="the stopping test ||g^P|| <= rtol ||b|| counts the gaps "
-                   "of inactive contact rows in ||b|| (docs/robustness.md)")
 def test_far_obstacle_does_not_spoil_the_accuracy(block8):
+    """At rtol 1e-10 the dual QP's own round-off (eps times the gap 1e6 in b) sets a floor
+    near 1e-8: the KKT test stops there, with a warning that says so, at 3e-9."""
     case = sc.run("far", lambda: far_obstacle(block8, 1e6), rtol=1e-10)
     assert sc.rel_diff(case.solution.nodal_values(), far_reference(block8, 1e6)) < 1e-8
+    rep = case.report
+    assert rep.converged and rep.stopping["checks"] <= 4
+    if not rep.stopping["met"]:
+        assert any("round-off floor" in w for w in rep.warnings)
 
 
 @pytest.mark.parametrize("sides", [True, False], ids=["sides fixed in x", "free"])
@@ -418,8 +424,13 @@ def test_units(hertz, hertz_base, length, stress):
     case = sc.unit_change(hertz, length, stress, hertz_base)
     assert_solved(case, kkt=1e-9)
     assert case.numbers["du"] < 1e-8 and case.numbers["dforce"] < 1e-8
-    assert abs(case.report.iterations - hertz_base.report.iterations) <= \
-        0.1 * hertz_base.report.iterations
+    # The KKT test's stop moves with round-off (SMALBE's inner stops are near ties,
+    # docs/robustness.md finding 14: 83–96 iterations for the same problem on 2 ranks or on
+    # DOLFINx 0.11's PETSc); the count's invariance under units is checked under the dual test.
+    dual = [sc.run("dual", lambda s=s, n=n: sc.hertz_problem(hertz, length=n, stress=s),
+                   rtol=1e-10, stop_test="dual") for n, s in ((1.0, 1.0), (length, stress))]
+    assert abs(dual[1].report.iterations - dual[0].report.iterations) <= \
+        0.1 * dual[0].report.iterations
 
 
 def test_tolerance_1e_12(hertz):

@@ -1,0 +1,213 @@
+"""rtol as an accuracy: stop on the KKT conditions of the original problem, in physical units.
+
+The residuals (:func:`kkt_residuals`, also those of :meth:`.solution.Solution.check_kkt`):
+
+- ``equality``: the largest violation of a gluing or Dirichlet row, ``max |B u − c|``, against
+  ``‖u‖∞`` (lengths against the displacement scale);
+- ``primal_feasibility``: the largest penetration against ``‖u‖∞``;
+- ``dual_feasibility``: the largest negative contact force against the largest force;
+- ``complementarity``: ``max |λ_i (B u − c)_i|`` against ``max|λ| ‖u‖∞`` (the work of the
+  contact forces on the gaps, against the largest force times the displacement scale);
+- ``equilibrium``: ``‖K u − f + Bᵀλ‖`` against ``max(‖f‖, ‖Bᵀλ‖, κ ‖u‖)`` (force balance of
+  every subdomain, against the load).
+
+None of them involves the dual right-hand side b of the chosen method or the gaps of contact
+rows out of reach. :class:`KKTStop` makes them the stopping test: during the iterations a free
+bound — the projected gradient of the dual QP is, row by row, the violation ``B u − c`` of the
+primal solution its iterate implies (scaled by the row's ``scale``), so
+``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
+``primal_feasibility`` and ``complementarity`` up to the term ``P F P G̃ᵀG̃x`` of an iterate
+off ker G̃ (SMALBE's), and ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))``
+(``Λ`` a force scale) bounds that term and ``equilibrium``; when the bound holds, the primal
+solution is recovered (one F and one K⁺ application, counted) and the residuals above are
+evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
+measured and the QP solver continues from where it stopped (warm: the iterate and SMALBE's
+multiplier kept); if a check does not improve on the one before by :data:`STALL`, the round-off
+floor of the dual QP is reached and the solve stops there, with a warning.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..constraints.rows import Kind
+from ..qp import MaxGradientTest
+
+#: The residuals the stopping test bounds by rtol (friction adds its own two).
+KEYS = ("dual_feasibility", "primal_feasibility", "equality", "complementarity",
+        "equilibrium")
+#: At most this many exact checks in one solve (each a recovery of u); then the QP solver's
+#: stop is accepted as it is, with a warning naming the residual above rtol.
+MAX_CHECKS = 8
+#: A failed check aims the next bound at this fraction of what would just pass.
+SAFETY = 0.5
+#: A check whose largest residual is above this fraction of the best before, after the bound
+#: was tightened, has met the round-off floor of the dual QP (e.g. eps ‖b‖ of far gaps): the
+#: solve stops there, with a warning.
+STALL = 0.5
+
+
+def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
+                  u: PETSc.Vec, lam: PETSc.Vec, Bu: PETSc.Vec | None = None,
+                  friction=None) -> tuple[dict[str, float], float]:
+    """The KKT residuals of ``(u, λ)`` for the Total FETI ``system`` (collective).
+
+    Args:
+        system: The Total FETI system (``B``, ``c``, ``comm``, ``residuals``).
+        scale: Per local row, its scale (a row is the physical condition times its scale).
+        kind: Per local row, its :class:`.constraints.rows.Kind`.
+        ineq: Local mask of the inequality rows.
+        u: The primal solution, subdomain by subdomain.
+        lam: The multipliers of all rows.
+        Bu: ``B u`` if known (else computed).
+        friction: The solve's FrictionSolve, or None.
+
+    Returns:
+        The residuals by name (module docstring) and the largest penetration (a length).
+    """
+    comm = system.comm
+    own_Bu = Bu is None
+    if own_Bu:
+        Bu = system.B.createVecLeft()
+        system.B.mult(u, Bu)
+    viol = (Bu.array_r - system.c.array_r) / scale  # B u − c, physical units
+    lam_phys = lam.array_r * scale
+
+    def gmax(a, default=0.0):
+        return comm.allreduce(float(a.max()) if a.size else default, op=MPI.MAX)
+
+    lam_max = gmax(np.abs(lam_phys))
+    u_max = max(u.norm(PETSc.NormType.INFINITY), 1e-300)
+    pen = gmax(viol[ineq], -np.inf)
+    kkt = {
+        "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
+        "primal_feasibility": max(pen, 0.0) / u_max,
+        "equality": gmax(np.abs(viol[~ineq & (kind != Kind.TANGENT)])) / u_max,
+        "complementarity": gmax(np.abs(lam_phys[ineq] * viol[ineq]))
+        / max(lam_max * u_max, 1e-300),
+    }
+    if friction is not None:
+        kkt.update(friction.kkt(lam_phys, viol, lam_max, u_max))
+    kkt.update(system.residuals(u, lam))
+    if own_Bu:
+        Bu.destroy()
+    return kkt, (max(pen, 0.0) if np.isfinite(pen) else 0.0)
+
+
+def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per local row of ``qp.system``: scale, kind and the inequality mask."""
+    rows = qp.rows
+    n = qp.system.dual_size[0]
+    if rows is None:  # a hand-made system: unit scales, the kinds from the row types
+        ineq = np.asarray(qp.system.types == 1)
+        kind = np.where(ineq, Kind.OBSTACLE, Kind.GLUE)
+        return np.ones(n), kind, ineq
+    own = rows.own
+    return own.scale, own.kind, own.inequality
+
+
+class KKTStop:
+    """The stopping test of one solve: a bound during the iterations, the exact check after.
+
+    Args:
+        qp: The dual QP (:class:`.feti.chain.DualQP`).
+        rtol: The tolerance of every residual of :data:`KEYS`.
+
+    Attributes:
+        checks: Exact checks made (recoveries of u), the last one included.
+        stalled: Whether the last check failed to improve on the best one before by the
+            factor :data:`STALL`: the round-off floor, where more iterations do not help.
+        U: The displacement scale of the bound (``‖u‖∞`` of the last check; before the first,
+            ``max_i |b_i| / scale_i``, the violation of λ = λ̂).
+        Lam: The force scale of the equality bound (``‖λ‖`` of the QP's rows at the last
+            check; before the first, ``‖b‖ / ‖A‖``).
+    """
+
+    def __init__(self, qp, rtol: float) -> None:
+        self.rtol, self.comm = rtol, qp.system.comm
+        scale, _, _ = row_data(qp)
+        self.weight = 1.0 / scale[qp.row_index]
+        b = qp.b.array_r
+        self.U = self.comm.allreduce(float(np.max(np.abs(b) * self.weight, initial=0.0)),
+                                     op=MPI.MAX)
+        self.Lam = qp.b.norm() / max(qp.norm_A, 1e-300)
+        # ‖G̃x‖ ≠ 0 moves B u − c by up to ‖PFP‖ ‖G̃x‖ (SMALBE's iterates leave ker G̃): in
+        # lengths, times the largest weight
+        w_max = self.comm.allreduce(float(self.weight.max(initial=0.0)), op=MPI.MAX)
+        self.eq_unit = self.eq_unit_max = max(qp.norm_A * w_max, 1e-300)
+        self.tol_g = rtol * self.U
+        self.tol_e = min(rtol * self.Lam, self.tol_g / self.eq_unit)
+        self.checks = 0
+        self.stalled, self.flat = False, 0
+        self.worst = math.inf
+        self.test: MaxGradientTest | None = None
+        self.history: list[dict] = []
+
+    def make_test(self) -> MaxGradientTest:
+        """The bound for the next run of the QP solver."""
+        self.test = MaxGradientTest(self.weight, self.tol_g, self.comm, self.tol_e)
+        return self.test
+
+    def accept(self, kkt: dict[str, float], u: PETSc.Vec, lam_qp: PETSc.Vec,
+               Dx_norm: float | None) -> bool:
+        """Whether the exact residuals pass; if not, the bound of the next run (collective).
+
+        Args:
+            kkt: The exact residuals of the recovered solution.
+            u: The recovered primal solution.
+            lam_qp: λ = λ̂ + x on the QP's rows.
+            Dx_norm: ``‖G̃x‖`` at the stop (None: no equality in the QP).
+        """
+        self.checks += 1
+        rtol = self.rtol
+        primal = max([kkt.get(k, 0.0) for k in KEYS if k != "equilibrium"] +
+                     [v for k, v in kkt.items() if k.startswith("friction")])
+        equil = kkt.get("equilibrium", 0.0)
+        g_last = self.test.last if self.test is not None else math.inf
+        self.history.append({"check": self.checks, "bound": g_last, "tol_g": self.tol_g,
+                             "Dx": Dx_norm, "tol_e": self.tol_e, "primal": primal,
+                             "equilibrium": equil})
+        if primal <= rtol and equil <= rtol:
+            return True
+        worst = max(primal, equil)
+        self.flat = self.flat + 1 if worst > STALL * self.worst else 0
+        # one flat check ends it: past the floor a QP run chases an unreachable bound to its
+        # budget (a second flat check cost 1 600 iterations and max_outer on finding 8's case)
+        self.stalled, self.worst = self.flat >= 1, min(worst, self.worst)
+        if self.stalled:
+            return False
+        U = u.norm(PETSc.NormType.INFINITY)
+        Lam = lam_qp.norm()
+        tightened = False
+        if primal > rtol:
+            # the bound at this stop, scaled to what would have passed, and the scale U now
+            target = SAFETY * g_last * rtol / primal if math.isfinite(g_last) else math.inf
+            new = min(rtol * U, target) if U > 0 else target
+            tightened = new < self.tol_g
+            self.tol_g = min(self.tol_g, new) if math.isfinite(new) else 0.1 * self.tol_g
+        if equil > rtol:
+            if Dx_norm is not None and Dx_norm > 0:
+                new = min(SAFETY * Dx_norm * rtol / equil, rtol * Lam)
+                tightened = tightened or new < self.tol_e
+                self.tol_e = min(self.tol_e, new)
+            else:  # no coarse equality to tighten: the gradient decides the balance
+                self.tol_g *= 0.1
+                tightened = True
+        if Dx_norm and math.isfinite(g_last):
+            # what ‖G̃x‖ moved B u − c by at most, measured: the excess of the exact violation
+            # over the gradient bound (the worst case ‖PFP‖ max 1/scale over-solves 5–50×)
+            measured = max(primal * U, g_last) / Dx_norm
+            self.eq_unit = min(self.eq_unit_max, max(measured, 1e-3 * self.eq_unit_max))
+        if not tightened:  # the measured scales say the bound held: tighten it anyway
+            self.tol_g *= 0.1
+            self.tol_e *= 0.1
+        self.tol_e = min(self.tol_e, self.tol_g / self.eq_unit)
+        self.U, self.Lam = U, Lam
+        return False
+
+
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data"]
