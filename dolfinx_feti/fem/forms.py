@@ -63,6 +63,21 @@ def _scaled(L, factor: float, V):
     return L if L.empty() else compat.constant(compat.space_mesh(V), factor) * L
 
 
+def _load_key(kind: str, terms: list) -> tuple | None:
+    """The shape of a subdomain's loads: where each acts; None if one is a function of x.
+
+    A function of x may read state that changes between load cases: its form is built again.
+    """
+    if any(callable(v) for _, v in terms):
+        return None
+    return kind, tuple(where for where, _ in terms)
+
+
+def _load_values(terms: list, load_factor: float) -> list:
+    """The runtime constants' values in the order the forms make them, the load factor last."""
+    return [np.asarray(v, dtype=float) for _, v in terms] + [load_factor]
+
+
 def _frozen(value):
     """A per-body mapping as a sorted tuple (comparable), a number as itself."""
     return tuple(sorted(value.items())) if isinstance(value, Mapping) else value
@@ -119,6 +134,19 @@ class Elasticity:
         """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
         return "Elasticity", _frozen(self.E), _frozen(self.nu), self.degree
 
+    def _loads(self, sub) -> list:
+        """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""
+        terms = [] if self.body_force is None else [("dx", self.body_force)]
+        return terms + [(name, t) for name, t in self.tractions.items() if sub.has_facets(name)]
+
+    def load_key(self, sub) -> tuple | None:
+        """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
+        return _load_key("Elasticity", self._loads(sub))
+
+    def load_values(self, sub) -> list:
+        """The values of the loads' runtime constants on ``sub``, in the order they are made."""
+        return _load_values(self._loads(sub), self.load_factor)
+
     def check(self, mesh) -> None:
         """Validate the material data and the named groups against ``mesh``."""
         self._E = _per_body(self.E, mesh, "Young's modulus E")
@@ -164,17 +192,11 @@ class Elasticity:
 
         a = ufl.inner(sigma(u), eps(v)) * sub.dx()
         L = 0
-        if self.body_force is not None:
-            x = ufl.SpatialCoordinate(V.mesh)
-            b = self.body_force(x) if callable(self.body_force) else compat.constant(
-                compat.space_mesh(V), [float(c) for c in self.body_force])
-            L += ufl.inner(b, v) * sub.dx()
-        for name, t in self.tractions.items():
-            if sub.has_facets(name):
-                x = ufl.SpatialCoordinate(V.mesh)
-                tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
-                                                              [float(c) for c in t])
-                L += ufl.inner(tv, v) * sub.ds(name)
+        x = ufl.SpatialCoordinate(V.mesh)
+        for where, t in self._loads(sub):
+            tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
+                                                          [float(c) for c in t])
+            L += ufl.inner(tv, v) * (sub.dx() if where == "dx" else sub.ds(where))
         return a, _scaled(L, self.load_factor, V)
 
 
@@ -205,6 +227,19 @@ class Poisson:
     def stiffness_key(self) -> tuple:
         """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
         return "Poisson", _frozen(self.k), self.degree
+
+    def _loads(self, sub) -> list:
+        """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""
+        terms = [] if self.source == 0 and not callable(self.source) else [("dx", self.source)]
+        return terms + [(name, g) for name, g in self.flux.items() if sub.has_facets(name)]
+
+    def load_key(self, sub) -> tuple | None:
+        """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
+        return _load_key("Poisson", self._loads(sub))
+
+    def load_values(self, sub) -> list:
+        """The values of the loads' runtime constants on ``sub``, in the order they are made."""
+        return _load_values(self._loads(sub), self.load_factor)
 
     def check(self, mesh) -> None:
         """Validate the data and the named groups against ``mesh``."""

@@ -22,6 +22,7 @@ from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import row_keys
 from .dofmap import cell_dof_points
+from .load_form import LoadForm
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
 
@@ -246,6 +247,7 @@ class Subdomain:
         space and the dof permutation are kept for :meth:`assemble_load`.
         """
         a, L = self._forms(forms, value_size)
+        self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
         A = compat.assemble_matrix(a)
         indptr, indices, data = A.getValuesCSR()
         K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
@@ -258,12 +260,20 @@ class Subdomain:
             raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
                              "assembled stiffness matrix has non-finite entries (NaN/Inf in the "
                              "data)")
-        return K, self._load(L, K.shape[0])
+        return K, self._load(L, K.shape[0], self._kept_load)
 
     def assemble_load(self, forms, value_size: int) -> np.ndarray:
-        """Assemble only the linear form of ``forms`` (a new load case on the same space)."""
+        """Assemble only the linear form of ``forms`` (a new load case on the same space).
+
+        A load of the shape of the last one (see :mod:`~dolfinx_feti.fem.load_form`) sets the
+        kept compiled form's constants; any other is built and compiled again.
+        """
+        kept = getattr(self, "_kept_load", None)
+        if kept is not None and kept.matches(forms, self):
+            return self._load(None, self._perm.size, kept, forms)
         _, L = self._forms(forms, value_size)
-        return self._load(L, self._perm.size)
+        self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
+        return self._load(L, self._perm.size, self._kept_load)
 
     def _forms(self, forms, value_size: int):
         """The user's (a, L) on this subdomain's space, checked; the space's permutation kept."""
@@ -284,13 +294,22 @@ class Subdomain:
                                    f"the {what} form")
         return a, L
 
-    def _load(self, L, n: int) -> np.ndarray:
-        """The assembled linear form in the canonical order (zeros for no form)."""
-        if _is_zero(L):  # no load on this subdomain
+    def _load(self, L, n: int, kept: LoadForm | None = None, forms=None) -> np.ndarray:
+        """The assembled linear form in the canonical order (zeros for no form).
+
+        With ``kept`` the vector comes from the kept compiled form, its constants set to the
+        values of ``forms`` (by default: those ``L`` was built with).
+        """
+        if kept is not None:
+            f = kept.assemble(None if forms is None else forms.load_values(self))
+            if f is None:  # no load on this subdomain
+                return np.zeros(n)
+        elif _is_zero(L):
             return np.zeros(n)
-        b = compat.assemble_vector(L)
-        f = b.array.copy()
-        b.destroy()
+        else:
+            b = compat.assemble_vector(L)
+            f = b.array.copy()
+            b.destroy()
         f = f[self._perm]
         if not np.all(np.isfinite(f)):
             raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
