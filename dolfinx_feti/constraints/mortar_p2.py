@@ -26,6 +26,7 @@ from ..mesh.dofpoints import DofPoints
 from ..mesh.topology import facet_normals, surface_points
 from . import mortar_p2_curved
 from .mortar import MortarCoupling, candidate_pairs, default_search_distance, segment_overlaps
+from .mortar_p2_triangles import triangle6_coupling
 from .segment3 import WEIGHTS, shape
 from .self_contact import one_sided_pairs
 
@@ -79,6 +80,8 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
                        ) -> MortarCoupling:
     """The mortar coupling of two surfaces of 3-node segments (see :func:`.mortar_coupling`).
 
+    In 3D: of 6-node triangles (:func:`.mortar_p2_triangles.triangle6_coupling`).
+
     Args:
         x: Vertex coordinates (N, 2).
         cells: Cells (to orient the facets' outward normals).
@@ -92,6 +95,9 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
     Returns:
         The coupling over dof points: ``slave_nodes`` and the columns of ``M`` are dof points.
     """
+    if x.shape[1] == 3:  # 6-node triangles (P2 tetrahedra): the transformed dual basis
+        return triangle6_coupling(x, cells, slave, master, points, search_distance, cell_type,
+                                  self_contact)
     ns, _ = facet_normals(x, cells, slave, cell_type)
     nm, _ = facet_normals(x, cells, master, cell_type)
     if search_distance is None:

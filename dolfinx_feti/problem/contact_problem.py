@@ -151,7 +151,9 @@ class Mortar:
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
     triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
-    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points).
+    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points) and
+    on straight-sided tetrahedra (6-node triangles, the slave side in the transformed basis
+    of positive weights of Popp, Wohlmuth, Gee and Wall 2012).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -422,14 +424,14 @@ class ContactProblem:
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and self.degree != 1 and self.mesh.gdim != 2:
+        if mortar and self.degree != 1 and self.mesh.gdim != 2 \
+                and self.mesh.cell_type != "tetrahedron":
             raise InputError(
                 f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                f"implemented for degree 1 (any cell type) and for degree 2 in 2D, not for "
-                f"degree {self.degree} on {self.mesh.cell_type} cells: the dual multiplier "
-                "basis of quadratic surface facets needs a basis transformation to keep "
-                "positive weights (Popp, Wohlmuth, Gee and Wall 2012); use NodeToNode "
-                "(matching meshes) or RigidObstacle there, or degree 1")
+                f"implemented for degree 1 (any cell type), for degree 2 in 2D and on "
+                f"tetrahedra, not for degree {self.degree} on {self.mesh.cell_type} cells "
+                "(9-node quadrilateral facets); use NodeToNode (matching meshes) or "
+                "RigidObstacle there, or degree 1")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
