@@ -32,15 +32,13 @@ vertices of an overlap polygon and the points of the rule only).
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..mesh.dofpoints import DofPoints, facet_weights
-from ..mesh.topology import facet_normals, surface_points
+from ..mesh.topology import surface_points
 from .clipping import clip_polygons
-from .mortar import MortarCoupling, candidate_pairs, default_search_distance
+from .mortar import MortarCoupling, search
 from .mortar_quad import collapsed_gauss
 from .quadratic_triangles import ALPHA, EDGES
-from .self_contact import one_sided_pairs
 
 #: Rule on the reference triangle, exact for degree 4 (weights relative to the area).
 RULE_X, RULE_W = collapsed_gauss(3)
@@ -167,28 +165,12 @@ def triangle6_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray,
         The coupling over dof points: ``slave_nodes`` and the columns of ``M`` are dof points;
         ``D`` the integrals of the transformed basis Ñ (the rows are in ũ on the slave side).
     """
-    ns, _ = facet_normals(x, cells, slave, cell_type)
-    nm, _ = facet_normals(x, cells, master, cell_type)
-    if search_distance is None:
-        search_distance = default_search_distance(x, slave, master)
-    i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
-    zones = None
-    if self_contact:
-        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
-        used = np.unique(i)
-        slave, ns, i = slave[used], ns[used], np.searchsorted(used, i)
-        zones = (slave, np.unique(master[j], axis=0))
+    found = search(x, cells, slave, master, search_distance, cell_type, self_contact)
+    slave, ns, master, i, j = found.slave, found.ns, found.master, found.i, found.j
     sp_ = triangle_points(points, slave)
     mp_ = triangle_points(points, master)
     nodes, normals, D = surface_points(x, cells, slave, sp_, WEIGHTS, cell_type)
     vals, i, j = pair_integrals(x, slave, ns, master, i, j)
     r = np.repeat(sp_[i], 6, axis=1).ravel()
     c = np.tile(mp_[j], (1, 6)).ravel()
-    M = sp.csr_matrix((vals.ravel(), (np.searchsorted(nodes, r), c)),
-                      shape=(nodes.size, points.num_points))
-    M.sum_duplicates()
-    M.eliminate_zeros()
-    coverage = np.asarray(M.sum(axis=1)).ravel() / D
-    return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          search_distance=float(search_distance), pairs=int(i.size),
-                          zones=zones)
+    return found.coupling(nodes, normals, D, (r, c, vals.ravel()), points.num_points, i.size)

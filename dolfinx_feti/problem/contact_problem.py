@@ -152,8 +152,9 @@ class Mortar:
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
     triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
     degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points) and
-    on straight-sided tetrahedra (6-node triangles, the slave side in the transformed basis
-    of positive weights of Popp, Wohlmuth, Gee and Wall 2012).
+    on first-order tetrahedra (6-node triangles, the slave side in the transformed basis of
+    positive weights of Popp, Wohlmuth, Gee and Wall 2012) and hexahedra (9-node
+    quadrilaterals, whose functions have positive weights already).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -424,14 +425,11 @@ class ContactProblem:
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and self.degree != 1 and self.mesh.gdim != 2 \
-                and self.mesh.cell_type != "tetrahedron":
+        if mortar and self.mesh.gdim == 3 and self.mesh.geometry_degree != 1:
             raise InputError(
-                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                f"implemented for degree 1 (any cell type), for degree 2 in 2D and on "
-                f"tetrahedra, not for degree {self.degree} on {self.mesh.cell_type} cells "
-                "(9-node quadrilateral facets); use NodeToNode (matching meshes) or "
-                "RigidObstacle there, or degree 1")
+                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) in 3D are "
+                "implemented on first-order (straight-sided) meshes, for degree 1 and 2: the "
+                "facets of this second-order mesh are curved; use a first-order mesh")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "

@@ -1,10 +1,11 @@
-"""Mortar contact and ties on P2 tetrahedra (issue 25): 6-node triangles, transformed basis.
+"""Mortar contact and ties on P2 tetrahedra (6-node triangles, transformed basis) and Q2 hexahedra.
 
-Independent checks: the biorthogonality of the dual basis and the positive integrals of the
-transformed basis (a rule of higher degree than the module's), the mortar matrix against
-brute-force sampling (each point located in the master triangulation), the exact uniaxial
-state through a non-matching interface (contact with either side as slave, and a tie: the
-patch tests, serially and on 2 ranks), and mortar = node-to-node on matching meshes.
+Independent checks: the biorthogonality of the dual bases and the positive integrals of the
+transformed basis and of the 9-node functions (rules of higher degree than the modules'),
+the mortar matrix against brute-force sampling (each point located in the master
+triangulation), the exact uniaxial state through a non-matching interface on tetrahedra and
+hexahedra (contact with either side as slave, and a tie: the patch tests, serially and on 2
+ranks), and mortar = node-to-node on matching tetrahedra.
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ from test_mortar import occ_mesh
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints import mortar_p2_triangles as p2t
-from dolfinx_feti.constraints.mortar_quad import collapsed_gauss
+from dolfinx_feti.constraints import mortar_q2_quads as q2
+from dolfinx_feti.constraints.mortar_quad import area_element, collapsed_gauss, dual_basis
 from dolfinx_feti.io import meshes
 from dolfinx_feti.io.meshes_occ import stacked_blocks
 from dolfinx_feti.mesh.dofpoints import dof_points
@@ -109,13 +111,17 @@ def _problem(mesh, E_of_body, contact=(), ties=()):
         contact=list(contact), ties=list(ties), decomposition=df.Parts(3))
 
 
-@pytest.fixture(scope="module")
-def blocks():
-    return occ_mesh(stacked_blocks, 3, 0.25, 0.42)
+@pytest.fixture(scope="module", params=["P2 tetrahedra", "Q2 hexahedra"])
+def blocks(request):
+    """Non-matching stacked boxes: tetrahedra 0.25 / 0.42, or hexahedra 4 / 3 per side."""
+    hexes = request.param.startswith("Q2")
+    mesh = occ_mesh(stacked_blocks, 3, 0.25, 0.42 if not hexes else 0.34, recombine=hexes)
+    assert mesh.cell_type == ("hexahedron" if hexes else "tetrahedron")
+    return mesh
 
 
 @pytest.mark.parametrize("slave", ["upper_bottom", "lower_top"])
-def test_contact_patch_test_p2_tetrahedra(blocks, slave):
+def test_contact_patch_test_p2(blocks, slave):
     master = "lower_top" if slave == "upper_bottom" else "upper_bottom"
     problem = _problem(blocks, E, contact=[df.Mortar(slave, master)])
     sol = df.solve(problem, rtol=1e-12)
@@ -133,7 +139,7 @@ def test_contact_patch_test_p2_tetrahedra(blocks, slave):
     assert info["uncoupled_slave_nodes"] == 0 and info["rim_rows"] == 0
 
 
-def test_tie_patch_test_p2_tetrahedra(blocks):
+def test_tie_patch_test_p2(blocks):
     E_tie = {"lower": 100.0, "upper": 100.0}
     problem = _problem(blocks, E_tie, ties=[df.Tie("upper_bottom", "lower_top")])
     sol = df.solve(problem, rtol=1e-12)
@@ -163,10 +169,19 @@ def test_p2_mortar_equals_node_to_node_on_matching_tetrahedra():
                        atol=1e-9 * np.abs(b.contact.force).max())
 
 
-def test_q2_hexahedra_are_refused_by_name():
-    hexes = occ_mesh(stacked_blocks, 3, 0.5, 0.6, recombine=True)
-    assert hexes.cell_type == "hexahedron"
-    with pytest.raises(df.InputError, match="9-node quadrilateral"):
-        df.ContactProblem(hexes, df.Elasticity(E, NU, degree=2),
-                          dirichlet=[df.Dirichlet("bottom")],
-                          contact=[df.Mortar("upper_bottom", "lower_top")])
+def test_q2_dual_basis_is_biorthogonal_on_a_warped_facet():
+    """9-node facets: positive weights without a transformation, ψ per (warped) facet."""
+    P = np.array([[[0, 0, 0], [1.2, 0, 0.1], [0.1, 0.9, 0], [1.0, 1.1, 0.3]]], dtype=float)
+    A, D = dual_basis(P, q2.shape)
+    g, w = np.polynomial.legendre.leggauss(12)  # a finer rule than the module's
+    g, w = 0.5 * (g + 1.0), 0.5 * w
+    xi = np.stack(np.meshgrid(g, g, indexing="ij"), axis=-1).reshape(-1, 2)
+    wq = np.outer(w, w).ravel() * area_element(P, xi[None])[0]
+    N = q2.shape(xi)
+    assert np.allclose(N.sum(axis=1), 1.0)
+    assert np.allclose(q2.shape(q2.NODES), np.eye(9))  # nodal at its points
+    assert np.all(D > 0)
+    assert np.allclose(np.einsum("q,qj,qk->jk", wq, N @ A[0].T, N), np.diag(D[0]), atol=1e-9)
+    # On the unit square: 1/36, 1/9, 4/9 at the vertices, edge points, centre.
+    _, D1 = dual_basis(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]], float), q2.shape)
+    assert np.allclose(D1[0], [1 / 36] * 4 + [1 / 9] * 4 + [4 / 9], atol=1e-14)
