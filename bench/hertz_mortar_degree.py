@@ -18,10 +18,9 @@ or under mpirun).
 from __future__ import annotations
 
 import argparse
-import json
 
 import gmsh
-from hertz_degree import NU, P0, A, E, P, R, hertz_errors, print_row
+from hertz_degree import NU, P0, A, E, P, R, hertz_errors, print_row, save_rows
 from mpi4py import MPI
 
 import dolfinx_feti as df
@@ -61,9 +60,7 @@ def main() -> None:
         rows.append(run(hd, degree, curved, comm))
         if comm.rank == 0:
             print_row(rows[-1])
-    if comm.rank == 0 and args.json:
-        with open(args.json, "w") as f:
-            json.dump({"hertz": {"a": A, "p0": P0}, "rows": rows}, f, indent=1)
+    save_rows(comm, args.json, {"a": A, "p0": P0}, rows)
 
 
 if __name__ == "__main__":

@@ -140,7 +140,8 @@ class NodeToNode:
 
 
 @dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION,
+         normals=Choice("slave", "flatter"))
 class Mortar:
     """Contact of two surfaces of different bodies with independent (non-matching) meshes.
 
@@ -180,12 +181,19 @@ class Mortar:
         search_distance: How far apart two facets may be (along the slave normal, either
             side) and still be coupled; by default twice the larger mean facet size of the
             two surfaces, and at least 5 % of the slave surface's extent.
+        normals: The direction of each row: ``"slave"`` (the slave's averaged normal, the
+            usual choice) or ``"flatter"`` (per slave node the normal of whichever surface
+            bends less there, :mod:`dolfinx_feti.constraints.mortar_normals`): use it where
+            the slave has kinks or fillets in the contact zone and the master is flat (a
+            filleted punch as slave on a block), so that the normal forces carry no
+            tangential load and the friction forces sum to the applied shear.
     """
 
     slave: str
     master: str
     friction: Friction | None = None
     search_distance: float | None = None
+    normals: str = "slave"
 
     @property
     def group(self) -> str:
