@@ -185,3 +185,21 @@ def test_q2_dual_basis_is_biorthogonal_on_a_warped_facet():
     # On the unit square: 1/36, 1/9, 4/9 at the vertices, edge points, centre.
     _, D1 = dual_basis(np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]], float), q2.shape)
     assert np.allclose(D1[0], [1 / 36] * 4 + [1 / 9] * 4 + [4 / 9], atol=1e-14)
+
+
+@pytest.mark.parametrize("recombine", [False, True])
+def test_contact_patch_test_p2_on_a_distributed_mesh(recombine):
+    """read_gmsh(distribute=True): the rows from the cells along the surfaces gathered on
+    rank 0; the same forces as on the replicated mesh (and with normals="flatter" on flat
+    surfaces, the same too)."""
+    forces = []
+    for distribute in (False, True):
+        mesh = df.build_mesh(stacked_blocks, 3, 0.25, 0.34 if recombine else 0.42,
+                             recombine=recombine, distribute=distribute)
+        problem = _problem(mesh, E, contact=[df.Mortar("upper_bottom", "lower_top",
+                                                       normals="flatter")])
+        sol = df.solve(problem, rtol=1e-12)
+        assert sol.report.converged
+        assert np.allclose(sol.contact.pressure, P, rtol=1e-8)
+        forces.append(np.sort(sol.contact.force))
+    assert np.allclose(forces[0], forces[1], rtol=1e-10)
