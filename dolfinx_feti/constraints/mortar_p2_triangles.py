@@ -35,7 +35,7 @@ import numpy as np
 
 from ..mesh.dofpoints import DofPoints, facet_weights
 from ..mesh.topology import surface_points
-from .clipping import clip_polygons
+from .clipping import clip_polygons, fan_quadrature
 from .mortar import MortarCoupling, search
 from .mortar_quad import collapsed_gauss
 from .quadratic_triangles import ALPHA, EDGES
@@ -126,16 +126,7 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np.
     s_area = np.abs(s1[:, 0] * s2[:, 1] - s1[:, 1] * s2[:, 0])
     idx = np.flatnonzero((count >= 3) & (m_area > 1e-12 * s_area))  # a master seen edge-on: none
     poly, count = poly[idx], count[idx]
-    # Fan triangles (centroid, vertex k, vertex k + 1), listed pair after pair.
-    first = np.cumsum(count) - count
-    pair = np.repeat(np.arange(idx.size), count)
-    k = np.arange(pair.size) - first[pair]
-    v0 = (poly.sum(axis=1) / count[:, None])[pair]
-    f1 = poly[pair, k] - v0
-    f2 = poly[pair, (k + 1) % count[pair]] - v0
-    area = 0.5 * np.abs(f1[:, 0] * f2[:, 1] - f1[:, 1] * f2[:, 0])
-    q = v0[:, None] + RULE_X[None, :, 0:1] * f1[:, None] + RULE_X[None, :, 1:2] * f2[:, None]
-    w = area[:, None] * RULE_W  # (T, Q)
+    first, pair, q, w = fan_quadrature(poly, count, RULE_X, RULE_W)
     on = idx[pair]
     psi = shape(_barycentric(q, S[on])) @ _C.T  # (T, Q, 6)
     Nm = shape(_barycentric(q, Mp[on]))

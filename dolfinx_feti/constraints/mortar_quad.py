@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .clipping import clip_polygons
+from .clipping import clip_polygons, fan_quadrature
 
 #: Cyclic vertex order of a quadrilateral given in tensor order.
 CYCLIC = np.array([0, 1, 3, 2])
@@ -201,18 +201,7 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
     poly, count = clip_polygons(Mp[:, CYCLIC], np.full(i.size, 4), Sc)
     idx = np.flatnonzero(count >= 3)
     poly, count = poly[idx], count[idx]
-    # Fan triangles (centroid, vertex k, vertex k + 1) of each convex overlap polygon, listed
-    # pair after pair (a fan about a vertex has fewer triangles, but slivers: on trapezoids
-    # the rational integrand's error grows a hundredfold).
-    first = np.cumsum(count) - count
-    pair = np.repeat(np.arange(idx.size), count)
-    k = np.arange(pair.size) - first[pair]
-    v0 = (poly.sum(axis=1) / count[:, None])[pair]
-    e1 = poly[pair, k] - v0
-    e2 = poly[pair, (k + 1) % count[pair]] - v0
-    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    q = v0[:, None] + TRI_X[None, :, 0:1] * e1[:, None] + TRI_X[None, :, 1:2] * e2[:, None]
-    w = area[:, None] * TRI_W  # (T, Q), the plane's area element
+    first, pair, q, w = fan_quadrature(poly, count, TRI_X, TRI_W)  # w: the plane's area
     on = idx[pair]  # the (slave, master) pair of each triangle
     xs = inverse_bilinear(S[on], q)
     xm = inverse_bilinear(Mp[on], q)
