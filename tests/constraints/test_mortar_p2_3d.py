@@ -148,20 +148,29 @@ def test_tie_patch_test_p2(blocks):
     assert np.abs(sol.nodal_values() - exact).max() < 1e-8 * np.abs(exact).max()
 
 
-def test_p2_mortar_equals_node_to_node_on_matching_tetrahedra():
+@pytest.mark.parametrize("friction", [None, df.Tresca(0.3)])
+def test_p2_mortar_equals_node_to_node_on_matching_tetrahedra(friction):
     """Matching meshes: the mortar rows are the node-to-node rows (both in the basis ũ) under
-    a load with shear, so every row's coupling and the transformation must agree."""
+    a load with shear, so every row's coupling and the transformation must agree; with
+    friction the upper block is held sideways by it alone (its tangential rows too)."""
     mesh = df.build_mesh(meshes.blocks3d, n=3)
+    sides = [] if friction else [df.Dirichlet("sides_upper", components=[0, 1])]
 
     def problem(contact):
         return df.ContactProblem(
             mesh, df.Elasticity({"lower": 1000.0, "upper": 500.0}, NU,
                                 tractions={"top": (0.1, 0.05, -1.0)}, degree=2),
-            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sides_upper", components=[0, 1])],
-            contact=[contact], decomposition=df.Parts(3))
+            dirichlet=[df.Dirichlet("bottom"), *sides], contact=[contact],
+            decomposition=df.Parts(3))
 
-    a = df.solve(problem(df.Mortar("contact_upper", "contact_lower")), rtol=1e-12)
-    b = df.solve(problem(df.NodeToNode("contact_upper", "contact_lower")), rtol=1e-12)
+    a = df.solve(problem(df.Mortar("contact_upper", "contact_lower", friction=friction)),
+                 rtol=1e-12)
+    b = df.solve(problem(df.NodeToNode("contact_upper", "contact_lower", friction=friction)),
+                 rtol=1e-12)
+    assert a.report.converged and b.report.converged
+    if friction is not None:  # the friction forces on the upper block carry the shear
+        assert np.allclose(a.contact.tangential_force.sum(axis=0), [-0.1, -0.05, 0.0],
+                           atol=1e-8)
     ub = b.nodal_values()
     assert np.abs(a.nodal_values() - ub).max() < 1e-8 * np.abs(ub).max()
     order_a, order_b = np.argsort(a.contact.node), np.argsort(b.contact.node)
