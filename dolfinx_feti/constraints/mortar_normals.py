@@ -12,10 +12,11 @@ The interface there is the master surface, and its normal is the one to use.
 surfaces over the node's support:
 
 - the slave's: n_j (the averaged normal), bent by cos_s = min over the slave facets f ∋ j of
-  n_f · n_j;
+  b_f, b_f = min over the vertices v of f of n_f · n_v (the facet's normal against the
+  averaged normals at its vertices: an edge point of a 3-node segment bends as its ends);
 - the master's: m_j = −normalize(Σ_k |M_jk| m_k) with m_k the master's averaged normal at the
   master points k the row couples to (M_jk ≠ 0), bent by cos_m = min over those k of
-  min(m_k · (−m_j), min over the master facets g ∋ k of m_g · m_k);
+  min(m_k · (−m_j), the same b_g over the master facets g ∋ k);
 
 and uses the master's where cos_m > cos_s. On a flat master every row of the slave's curved
 or kinked part gets the master's normal exactly; on a flat slave against a curved or kinked
@@ -38,14 +39,24 @@ from .mortar import MortarCoupling
 CHOICES = ("slave", "flatter")
 
 
-def _bend(points: np.ndarray, normals: np.ndarray, facet_points: np.ndarray,
-          facet_n: np.ndarray) -> np.ndarray:
-    """cos of the largest angle between each point's normal and the facets around it."""
+def _bend(mesh: MeshData, facets: np.ndarray, facet_points: np.ndarray,
+          points: np.ndarray) -> np.ndarray:
+    """cos of how much the surface bends about each of ``points``.
+
+    A facet bends by the largest angle between its normal and the averaged normals at its
+    vertices; a point by the most any facet holding it bends. Measured at the vertices, an
+    edge point of a 3-node segment (on one facet only) bends as its segment's ends do.
+    """
+    fn, _ = facet_normals(mesh.x, mesh.cells, facets, mesh.cell_type)
+    nv = facets.shape[1]
+    verts, vn, _ = surface_points(mesh.x, mesh.cells, facets, facets, np.ones(nv),
+                                  mesh.cell_type)
+    at = np.searchsorted(verts, facets)
+    per_facet = np.einsum("fd,fvd->fv", fn, vn[at]).min(axis=1)
     pos = np.minimum(np.searchsorted(points, facet_points), points.size - 1)
-    hit = points[pos] == facet_points  # facet points among ``points``
-    f, k = np.nonzero(hit)
+    f, k = np.nonzero(points[pos] == facet_points)  # facet points among ``points``
     cos = np.ones(points.size)
-    np.minimum.at(cos, pos[f, k], np.einsum("ij,ij->i", facet_n[f], normals[pos[f, k]]))
+    np.minimum.at(cos, pos[f, k], per_facet[f])
     return cos
 
 
@@ -67,14 +78,12 @@ def flatter_normals(mesh: MeshData, slave: str, master: str, coupling: MortarCou
     pts = dof_points(mesh, 1) if points is None else points
     nodes, n_s = coupling.slave_nodes, coupling.normals
     s_facets = mesh.facets(slave) if coupling.zones is None else coupling.zones[0]
-    s_fn, _ = facet_normals(mesh.x, mesh.cells, s_facets, mesh.cell_type)
-    cos_s = _bend(nodes, n_s, pts.facet_points(mesh, s_facets), s_fn)
+    cos_s = _bend(mesh, s_facets, pts.facet_points(mesh, s_facets), nodes)
     m_facets = mesh.facets(master)
     m_fp = pts.facet_points(mesh, m_facets)
     m_nodes, m_n, _ = surface_points(mesh.x, mesh.cells, m_facets, m_fp, pts.facet_weights,
                                      mesh.cell_type)
-    m_fn, _ = facet_normals(mesh.x, mesh.cells, m_facets, mesh.cell_type)
-    cos_pm = _bend(m_nodes, m_n, m_fp, m_fn)
+    cos_pm = _bend(mesh, m_facets, m_fp, m_nodes)
     W = abs(coupling.M).tocoo()
     at = np.searchsorted(m_nodes, W.col)
     ok = (at < m_nodes.size) & (m_nodes[np.minimum(at, m_nodes.size - 1)] == W.col)

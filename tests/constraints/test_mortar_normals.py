@@ -18,7 +18,9 @@ from filleted_punch import filleted_punch
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
 from dolfinx_feti.constraints.mortar_normals import flatter_normals
-from dolfinx_feti.io.meshes_occ import sphere_on_block
+from dolfinx_feti.constraints.mortar_p2 import quadratic_coupling
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block
+from dolfinx_feti.mesh.dofpoints import dof_points
 
 TAU, P, TOP = 0.2, 1.0, 2.0 - 2 * 0.4  # the punch's top line: its width less the fillets
 
@@ -78,3 +80,21 @@ def test_a_sphere_on_a_flat_block_takes_the_block_normal():
     assert np.allclose(normals[take], [0.0, 0.0, -1.0], atol=1e-12)
     assert np.array_equal(normals[~take], c.normals[~take])
     assert np.allclose(np.linalg.norm(normals, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_a_disk_on_a_flat_block_takes_the_block_normal_at_every_point(degree):
+    """2D, 3-node segments too: an edge point lies on one segment only, yet it bends as its
+    segment's ends do, so vertices and edge points alike take the block's normal."""
+    mesh = df.build_mesh(disk_on_block, 0.2, 0.34)
+    points = dof_points(mesh, degree)
+    slave, master = mesh.facets("disk_contact"), mesh.facets("block_contact")
+    if degree == 1:
+        c = mortar_coupling(mesh.x, mesh.cells, slave, master, cell_type=mesh.cell_type)
+    else:
+        c = quadratic_coupling(mesh.x, mesh.cells, slave, master, points,
+                               cell_type=mesh.cell_type)
+    normals, take = flatter_normals(mesh, "disk_contact", "block_contact", c,
+                                    None if degree == 1 else points)
+    assert np.all(take[c.coupled]) and c.coupled.sum() > 5
+    assert np.allclose(normals[c.coupled], [0.0, -1.0], atol=1e-12)
