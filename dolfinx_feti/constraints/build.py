@@ -101,9 +101,11 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
                 SurfaceCondition(problem, spec, i, node_ptr, node_subs, fixed))
             if info is not None:
                 found.append(info)
-            elif needs_transform(problem.mesh, problem.dof_points):  # 6-node triangles
+            if needs_transform(problem.mesh, problem.dof_points):  # 6-node triangles
+                # mortar rows: the slave side only (its own entries), in the basis ũ
                 block = transform_rows(block, problem.mesh, problem.dof_points,
-                                       surface_groups(spec))
+                                       (spec.slave,) if info is not None else surface_groups(spec),
+                                       own_only=info is not None)
             if getattr(spec, "friction", None) is not None:  # tangential rows beside normal
                 block = with_tangential_rows(block)
             blocks.append(block)

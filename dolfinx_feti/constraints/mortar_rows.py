@@ -26,6 +26,7 @@ from ..mesh.dofpoints import DofPoints
 from ..problem.contact_problem import Mortar, Tie
 from .contact import surface
 from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
+from .mortar_normals import with_normals
 from .mortar_p2 import quadratic_coupling
 from .rows import Kind, Rows
 
@@ -138,6 +139,7 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
         raise InputError(f"{name}: both surfaces belong to body "
                          f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
     coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
+    coupling = with_normals(mesh, spec.slave, spec.master, coupling, spec.normals, points)
     keep = coupling.coupled
     n = -coupling.normals[keep]  # toward the slave: the master's outward direction
     first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node

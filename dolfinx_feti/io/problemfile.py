@@ -80,7 +80,7 @@ BOX_KEYS = ("min", "max", "value")
 #: ``[[dirichlet]]`` keys.
 DIRICHLET_KEYS = ("group", "value", "components")
 #: ``[[contact]]`` keys by contact type.
-CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance"),
+CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance", "normals"),
                 "node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
                 "obstacle": ("type", "group", "plane", "sphere", "cylinder", "friction")}
 #: ``contact[i].friction`` keys by friction law.
@@ -894,6 +894,9 @@ class _Reader:
                                                "a number > 0", lambda v: v > 0)
                 if "search_distance" in t:
                     kw["search_distance"] = self._search_distance(t, key)
+                if "normals" in t and kind == "mortar":
+                    kw["normals"] = c.string(t["normals"], _key(key, "normals"),
+                                             ("slave", "flatter"))
                 cls = NodeToNode if kind == "node_to_node" else Mortar
                 if "friction" in t:
                     kw["friction"] = self._friction(t["friction"], _key(key, "friction"), cls,

@@ -140,7 +140,8 @@ class NodeToNode:
 
 
 @dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION,
+         normals=Choice("slave", "flatter"))
 class Mortar:
     """Contact of two surfaces of different bodies with independent (non-matching) meshes.
 
@@ -151,7 +152,10 @@ class Mortar:
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
     triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
-    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points).
+    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points) and
+    on first-order tetrahedra (6-node triangles, the slave side in the transformed basis of
+    positive weights of Popp, Wohlmuth, Gee and Wall 2012) and hexahedra (9-node
+    quadrilaterals, whose functions have positive weights already).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -177,12 +181,19 @@ class Mortar:
         search_distance: How far apart two facets may be (along the slave normal, either
             side) and still be coupled; by default twice the larger mean facet size of the
             two surfaces, and at least 5 % of the slave surface's extent.
+        normals: The direction of each row: ``"slave"`` (the slave's averaged normal, the
+            usual choice) or ``"flatter"`` (per slave node the normal of whichever surface
+            bends less there, :mod:`dolfinx_feti.constraints.mortar_normals`): use it where
+            the slave has kinks or fillets in the contact zone and the master is flat (a
+            filleted punch as slave on a block), so that the normal forces carry no
+            tangential load and the friction forces sum to the applied shear.
     """
 
     slave: str
     master: str
     friction: Friction | None = None
     search_distance: float | None = None
+    normals: str = "slave"
 
     @property
     def group(self) -> str:
@@ -422,14 +433,11 @@ class ContactProblem:
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
         mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and self.degree != 1 and self.mesh.gdim != 2:
+        if mortar and self.mesh.gdim == 3 and self.mesh.geometry_degree != 1:
             raise InputError(
-                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                f"implemented for degree 1 (any cell type) and for degree 2 in 2D, not for "
-                f"degree {self.degree} on {self.mesh.cell_type} cells: the dual multiplier "
-                "basis of quadratic surface facets needs a basis transformation to keep "
-                "positive weights (Popp, Wohlmuth, Gee and Wall 2012); use NodeToNode "
-                "(matching meshes) or RigidObstacle there, or degree 1")
+                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) in 3D are "
+                "implemented on first-order (straight-sided) meshes, for degree 1 and 2: the "
+                "facets of this second-order mesh are curved; use a first-order mesh")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
