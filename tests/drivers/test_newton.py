@@ -1,0 +1,137 @@
+"""Large-deformation contact by Newton over FETI contact QPs (``df.NeoHookean``, ``df.solve``).
+
+The patch test: a block pressed 20 % and 40 % by its top (vertical displacement prescribed,
+horizontal free) onto a frictionless rigid plane, its left side on a symmetry plane. The exact
+solution is homogeneous, u = ((a − 1) x, (s − 1) y) with s = 1 − strain and the lateral stretch
+a from the scalar equation P₁₁(a) = 0 (plane strain), solved independently by ``brentq``; P1
+elements hold it exactly, so the FE solution equals it to round-off. The contact force is
+the exact first Piola–Kirchhoff traction P₂₂ times the reference width.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import ufl
+from element_models import rectangle
+from scipy.optimize import brentq
+
+import dolfinx_feti as df
+
+E, NU, LX = 10.0, 0.3, 2.0
+MU, LMBDA = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+
+
+@pytest.fixture(scope="module")
+def block():
+    return df.build_mesh(rectangle, h=0.3, gdim=2, lx=LX)
+
+
+def pressed(mesh, strain: float, material, decomposition=None) -> df.ContactProblem:
+    return df.ContactProblem(
+        mesh, material,
+        dirichlet=[df.Dirichlet("top", -strain, components=[1]),
+                   df.Dirichlet("left", 0.0, components=[0])],
+        contact=[df.RigidObstacle("bottom", df.Plane((0.0, 0.0), (0.0, 1.0)))],
+        decomposition=decomposition or df.ByTags())
+
+
+def neo_hookean_exact(strain: float) -> tuple[float, float]:
+    """Lateral stretch a and the traction P₂₂ of the homogeneous state (plane strain)."""
+    s = 1.0 - strain
+    a = brentq(lambda a: MU * (a - 1 / a) + LMBDA * np.log(a * s) / a, 0.5, 3.0, xtol=1e-15)
+    return a, MU * (s - 1 / s) + LMBDA * np.log(a * s) / s
+
+
+def svk_exact(strain: float) -> tuple[float, float]:
+    s = 1.0 - strain
+    e22 = (s * s - 1) / 2
+    e11 = brentq(lambda e: LMBDA * (e + e22) + 2 * MU * e, -0.49, 2.0, xtol=1e-15)
+    return np.sqrt(1 + 2 * e11), s * (LMBDA * (e11 + e22) + 2 * MU * e22)
+
+
+def nodal(sol) -> tuple[np.ndarray, np.ndarray]:
+    u = sol.u
+    X = u.function_space.tabulate_dof_coordinates()[:, :2]
+    return X, u.x.array.reshape(-1, 2)
+
+
+def residuals(sol) -> list[float]:
+    return [h["residual"] for h in sol.report.extra["newton"]]
+
+
+@pytest.mark.parametrize("strain", (0.2, 0.4))
+@pytest.mark.parametrize("parts", (1, 2))
+def test_neo_hookean_patch_test(block, strain, parts):
+    dec = df.ByTags() if parts == 1 else df.Parts(parts)
+    sol = df.solve(pressed(block, strain, df.NeoHookean(E, NU), dec), rtol=1e-12,
+                   newton_rtol=1e-10)
+    assert sol.report.converged, sol.report.extra["newton"]
+    a, p22 = neo_hookean_exact(strain)
+    X, U = nodal(sol)
+    exact = np.c_[(a - 1) * X[:, 0], -strain * X[:, 1]]
+    assert np.abs(U - exact).max() < 1e-8 * strain
+    force = sol.total_contact_force
+    assert abs(force[1] - (-p22) * LX) < 1e-8 * abs(p22) * LX
+    assert abs(force[0]) < 1e-10 * abs(p22)
+    assert max(sol.report.kkt.values()) < 1e-9
+    # quadratic convergence: each residual above round-off at most ~ the square of the last
+    r = residuals(sol)
+    assert len(r) <= 8
+    pairs = [(r0, r1) for r0, r1 in zip(r, r[1:], strict=False) if r1 > 1e-13]
+    assert pairs, r
+    for r0, r1 in pairs:
+        assert r1 <= 10 * r0 ** 2, r
+
+
+def test_saint_venant_kirchhoff_patch_test(block):
+    strain = 0.2
+    sol = df.solve(pressed(block, strain, df.SaintVenantKirchhoff(E, NU)), rtol=1e-12,
+                   newton_rtol=1e-10)
+    assert sol.report.converged
+    a, p22 = svk_exact(strain)
+    X, U = nodal(sol)
+    assert np.abs(U - np.c_[(a - 1) * X[:, 0], -strain * X[:, 1]]).max() < 1e-8 * strain
+    assert abs(sol.total_contact_force[1] + p22 * LX) < 1e-8 * abs(p22) * LX
+
+
+def test_user_energy_equals_ready_made(block):
+    """df.Hyperelastic(energy) with the neo-Hookean density written out gives the same."""
+    def psi(F):
+        J = ufl.det(F)
+        return MU / 2 * (ufl.tr(F.T * F) - 2) - MU * ufl.ln(J) + LMBDA / 2 * ufl.ln(J) ** 2
+
+    mine = df.solve(pressed(block, 0.3, df.Hyperelastic(psi)), rtol=1e-12, newton_rtol=1e-10)
+    ready = df.solve(pressed(block, 0.3, df.NeoHookean(E, NU)), rtol=1e-12, newton_rtol=1e-10)
+    assert mine.report.converged and ready.report.converged
+    assert np.abs(nodal(mine)[1] - nodal(ready)[1]).max() < 1e-12
+
+
+def test_small_loads_differ_from_linear_by_load_squared(block):
+    """u_NH(δ) − u_lin(δ) = O(δ²): the linearization at the unloaded state is Elasticity."""
+    diffs = []
+    for strain in (1e-3, 2e-3, 4e-3):
+        nl = df.solve(pressed(block, strain, df.NeoHookean(E, NU)), rtol=1e-13,
+                      newton_rtol=1e-12)
+        lin = df.solve(pressed(block, strain, df.Elasticity(E, NU)), rtol=1e-13,
+                       method="fetidp")
+        assert nl.report.converged and lin.report.converged
+        diffs.append(np.abs(nodal(nl)[1] - nodal(lin)[1]).max())
+    ratios = np.array(diffs[1:]) / np.array(diffs[:-1])
+    assert np.all(np.abs(ratios - 4.0) < 0.05), (diffs, ratios)
+
+
+def test_refused_by_name(block):
+    mesh = block
+    with pytest.raises(df.InputError, match="Sphere is not supported by the Newton driver"):
+        df.solve(df.ContactProblem(
+            mesh, df.NeoHookean(E, NU), dirichlet=[df.Dirichlet("top", -0.1)],
+            contact=[df.RigidObstacle("bottom", df.Sphere((1.0, -5.0), 5.0))]))
+    with pytest.raises(df.InputError, match="needs a Dirichlet condition"):
+        df.solve(df.ContactProblem(
+            mesh, df.NeoHookean(E, NU),
+            contact=[df.RigidObstacle("bottom", df.Plane((0.0, 0.0), (0.0, 1.0)))]))
+    with pytest.raises(df.InputError, match="Poisson's ratio"):
+        pressed(mesh, 0.1, df.NeoHookean(E, 0.5))
+    with pytest.raises(df.InputError, match="energy must be a function"):
+        df.Hyperelastic(3.0)
