@@ -34,15 +34,16 @@ The choices:
 - **Stop** when the KKT residuals of the nonlinear problem in physical units
   (:func:`.kkt_stop.kkt_residuals`, equilibrium r(u) − Bᵀλ against max(‖r at the start of
   the step‖, ‖Bᵀλ‖)) and the last increment (‖Δu‖∞ against ‖u‖∞) are all below
-  ``newton_rtol``. The Newton history (residuals, steps, QP iterations, F-multiplications,
-  seconds) is the report's ``extra["newton"]``.
+  ``newton_rtol`` (the increment against its square root: converging quadratically, the next
+  one would be of the order of its square). The Newton history (residuals, steps, QP
+  iterations, F-multiplications, seconds) is the report's ``extra["newton"]``.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -50,13 +51,15 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import InputError, NotConverged
+from ..errors import InputError, NotConverged, collective
 from ..fem.hyperelastic import NewtonState
+from ..log import Progress
 from ..options import SolverOptions
 from ..problem.contact_problem import ContactProblem, Plane, RigidObstacle
 from ..results.solution import Solution
-from ..solver import SOLVE_BY, FetiSolver
+from ..solver import COLD, SOLVE_BY, FetiSolver
 from .kkt_stop import kkt_residuals
+from .load_path import PATH_BY, problem_at_time
 
 
 @dataclass(frozen=True)
@@ -172,6 +175,8 @@ class NewtonSolver:
         self.u = B.createVecRight()
         self.u.zeroEntries()
         self._fresh = True  # the set-up's tangent and rows are those of u = 0
+        self._cold = False
+        self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
         data = self.solver.data
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
@@ -209,14 +214,9 @@ class NewtonSolver:
         entry = active[own.e_row]
         r, col = own.e_row[entry], rows.cols[entry] - data.primal_start
         coef = own.e_coef[entry] / own.scale[r]
-        # rows with several entries (one node, several components) give b bᵀ per row
-        pairs = np.flatnonzero(r[:, None] == r[None, :]) if r.size < 4096 else None
-        if pairs is None:
-            raise InputError("large-deformation contact: too many active rows for the dense "
-                             "augmentation")
-        i, j = np.divmod(pairs, r.size)
         n = data.K.shape[0]
-        return sp.csr_matrix((kappa * coef[i] * coef[j], (col[i], col[j])), shape=(n, n))
+        Ba = sp.csr_matrix((coef, (r, col)), shape=(own.size, n))
+        return (kappa * (Ba.T @ Ba)).tocsr()
 
     def _Bu(self, u: PETSc.Vec) -> np.ndarray:
         B = self.solver.qp.system.B
@@ -272,12 +272,15 @@ class NewtonSolver:
                                                       rtol=0, atol=0):
                 pass  # the set-up is the linearization at u = 0 with these rows
             else:
-                solver.update_stiffness(current, rows=rows, shift=self._augmentation(lam))
+                active = lam if lam is not None else self._lam
+                solver.update_stiffness(current, rows=rows, shift=self._augmentation(active))
             self._fresh = False
             if sol is not None:
                 sol = None
-            qp = solver.solve()
+            qp = solver.solve(COLD if self._cold else None)
+            self._cold = False
             du, lam = qp.u_vec, qp.lam
+            self._lam = lam
             if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
                 history.append(self._record(k, math.nan, 0.0, qp, t0, {}))
                 sol = self._solution(problem, qp, c0, r, r_scale, history, False)
@@ -314,7 +317,9 @@ class NewtonSolver:
                 self.u.norm(PETSc.NormType.INFINITY), 1e-300)
             kkt = self._kkt(c0, r, r_scale, lam, own0)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
-            if max(kkt.values()) <= opts.rtol and du_rel <= opts.rtol and qp.report.converged:
+            # quadratic convergence: the next increment would be of the order du_rel²
+            if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
+                    qp.report.converged:
                 converged = True
                 break
         sol = self._solution(problem, qp, c0, r, r_scale, history, converged)
@@ -367,6 +372,8 @@ class NewtonSolver:
         """Go back to a saved displacement (a load step's cut-back)."""
         self.u.array[:] = u
         self.state.set(self.solver.data, self.u.array_r)
+        self._cold = True  # the failed iterate's multipliers are no start
+        self._lam = None
 
 
 def solve_newton(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -394,6 +401,90 @@ def solve_newton(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     return sol
 
 
-SOLVE_BY["newton"] = solve_newton
+def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.ndarray,
+                      first: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+                      options: SolverOptions | Sequence[str] | None = None,
+                      progress: bool = True, max_cutbacks: int = 8, **kwargs
+                      ) -> list[Solution]:
+    """A load path of a hyperelastic problem, one Newton solve per step (collective).
 
-__all__ = ["NewtonOptions", "NewtonSolver", "rows_with_rhs", "solve_newton"]
+    What :func:`dolfinx_feti.solve_path` runs for forms with ``solve_by = "newton"``. Each
+    step starts from the last converged state. A step whose Newton iteration fails (no
+    convergence within ``newton_max_it``, a line search that finds no decrease, an indefinite
+    tangent) is cut back: the state goes back to the last converged one and the interval is
+    halved (``problem_at`` at the intermediate times), at most ``max_cutbacks`` times per
+    step; the sub-steps then go on at the halved interval to the step's end. The
+    unloaded state is taken to be t = 0 (the first step's cut-back starts there if
+    ``times[0] > 0``).
+
+    Returns:
+        One Solution per time; ``report.extra`` holds ``step``, ``time``, ``substeps`` (the
+        times solved on the way, cut-backs included) and ``cutbacks``. A step that fails
+        after every cut-back is returned not converged and ends the path (or raises
+        NotConverged with ``error_if_not_converged``).
+    """
+    newton = NewtonOptions.pop(kwargs)
+    raise_if = bool(kwargs.get("error_if_not_converged", False))
+    line = Progress(comm, 1 if progress else 0)
+    run = NewtonSolver(first, comm=comm, options=options, newton=newton, **kwargs)
+    sols: list[Solution] = []
+    t_done = 0.0 if times[0] > 0 else None
+    try:
+        for k, tk in enumerate(times):
+            sol, substeps, cuts = _path_step(run, problem_at, first if k == 0 else None,
+                                             t_done, float(tk), max_cutbacks, comm)
+            sol.report.extra.update({"step": k, "time": float(tk), "substeps": substeps,
+                                     "cutbacks": cuts})
+            sol.dual = None
+            sols.append(sol)
+            line.info(f"step {k + 1}/{times.size} t = {tk:g}: "
+                      f"{'converged' if sol.report.converged else 'NOT converged'}, "
+                      f"{len(substeps)} sub-step(s), {cuts} cut-back(s), "
+                      f"{sol.report.extra['newton_iterations']} Newton iterations")
+            if not sol.report.converged:
+                if raise_if:
+                    raise NotConverged(f"solve_path: Newton failed at t = {tk:g} after {cuts} "
+                                       "cut-backs", sol)
+                break
+            t_done = float(tk)
+    finally:
+        run.destroy()
+    return sols
+
+
+def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutbacks: int,
+               comm: MPI.Comm):
+    """Newton to the problem at ``tk`` from the state at ``t_done``, with cut-backs."""
+    saved = run.save()
+    start = tk if t_done is None else t_done
+    dt = tk - start
+    t_now, cuts, substeps = start, 0, []
+    sol = None
+    while True:
+        t_next = tk if dt <= 0 or t_now + dt >= tk - 1e-12 * abs(tk) else t_now + dt
+        if first is not None and t_next == tk:
+            problem = first
+        else:
+            problem = None
+            with collective(comm):
+                problem = problem_at_time(problem_at, t_next)
+        sol, ok = run.step(problem)
+        substeps.append(t_next)
+        if ok:
+            saved, t_now = run.save(), t_next
+            if t_now >= tk:
+                return sol, substeps, cuts
+            dt = min(dt, tk - t_now)
+            continue
+        if cuts >= max_cutbacks or dt <= 0:
+            return sol, substeps, cuts
+        cuts += 1
+        run.reset(saved)
+        dt /= 2
+
+
+SOLVE_BY["newton"] = solve_newton
+PATH_BY["newton"] = solve_path_newton
+
+__all__ = ["NewtonOptions", "NewtonSolver", "rows_with_rhs", "solve_newton",
+           "solve_path_newton"]

@@ -135,3 +135,25 @@ def test_refused_by_name(block):
         pressed(mesh, 0.1, df.NeoHookean(E, 0.5))
     with pytest.raises(df.InputError, match="energy must be a function"):
         df.Hyperelastic(3.0)
+
+
+def test_path_equals_single_solves_and_cuts_back(block):
+    """df.solve_path steps the load; a step Newton cannot take is cut back and reached."""
+    sols = df.solve_path(lambda t: pressed(block, t, df.NeoHookean(E, NU)), [0.2, 0.4],
+                         rtol=1e-12, newton_rtol=1e-10)
+    assert [s.report.converged for s in sols] == [True, True]
+    for sol, strain in zip(sols, (0.2, 0.4), strict=True):
+        a, _ = neo_hookean_exact(strain)
+        X, U = nodal(sol)
+        assert np.abs(U - np.c_[(a - 1) * X[:, 0], -strain * X[:, 1]]).max() < 1e-8 * strain
+    # too few Newton iterations for 40 % at once: halved until it goes, then back to 40 %
+    cut = df.solve_path(lambda t: pressed(block, t, df.NeoHookean(E, NU)), [0.4], rtol=1e-12,
+                        newton_rtol=1e-10, newton_max_it=3)
+    sol = cut[0]
+    assert sol.report.converged and sol.report.extra["cutbacks"] >= 1
+    assert sol.report.extra["substeps"][-1] == 0.4 and len(sol.report.extra["substeps"]) > 2
+    a, _ = neo_hookean_exact(0.4)
+    X, U = nodal(sol)
+    assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.4 * X[:, 1]]).max() < 1e-8 * 0.4
+    with pytest.raises(df.InputError, match="not written"):
+        df.solve_path(lambda t: pressed(block, t, df.NeoHookean(E, NU)), [0.1], xdmf="x.xdmf")
