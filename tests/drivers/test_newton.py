@@ -15,8 +15,10 @@ import pytest
 import ufl
 from element_models import rectangle
 from scipy.optimize import brentq
+from snes_vi import match, neo_hookean, snes_vi
 
 import dolfinx_feti as df
+from dolfinx_feti.io.meshes_rubber import quarter_disk
 
 E, NU, LX = 10.0, 0.3, 2.0
 MU, LMBDA = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
@@ -157,3 +159,39 @@ def test_path_equals_single_solves_and_cuts_back(block):
     assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.4 * X[:, 1]]).max() < 1e-8 * 0.4
     with pytest.raises(df.InputError, match="not written"):
         df.solve_path(lambda t: pressed(block, t, df.NeoHookean(E, NU)), [0.1], xdmf="x.xdmf")
+
+
+def test_cylinder_against_snes_vi():
+    """A soft neo-Hookean cylinder (quarter model) pressed onto a rigid plane until the contact
+    half-width exceeds 30 % of the radius: the FETI Newton path and PETSc SNES VI
+    (vinewtonrsls, the plane as a bound) on the same energy and mesh agree."""
+    Ec, nuc, R = 1.0, 0.3, 1.0
+    mesh = df.build_mesh(quarter_disk, R=R, h_contact=0.03, h_far=0.2, gdim=2)
+    loads = [0.0375, 0.075, 0.1125, 0.15]
+
+    def problem(t):
+        return df.ContactProblem(
+            mesh, df.NeoHookean(Ec, nuc),
+            dirichlet=[df.Dirichlet("top", -t, components=[1]),
+                       df.Dirichlet("axis", 0.0, components=[0])],
+            contact=[df.RigidObstacle("arc", df.Plane((0.0, -R), (0.0, 1.0)))],
+            decomposition=df.Parts(2))
+
+    sols = df.solve_path(problem, loads, rtol=1e-12, newton_rtol=1e-11)
+    assert all(s.report.converged for s in sols)
+    assert all(s.report.extra["newton_iterations"] <= 8 for s in sols)
+
+    def fixed(X, comp, load):
+        top = (comp == 1) & (np.abs(X[:, 1]) < 1e-12)
+        axis = (comp == 0) & (np.abs(X[:, 0]) < 1e-12)
+        m = top | axis
+        return m, np.where(top, -load, 0.0)[m]
+
+    mu, lmbda = Ec / (2 * (1 + nuc)), Ec * nuc / ((1 + nuc) * (1 - 2 * nuc))
+    Xr, Ur, Rr, _ = snes_vi(mesh, neo_hookean(mu, lmbda), fixed, -R, loads)
+    X, U = nodal(sols[-1])
+    assert np.abs(U - Ur[match(Xr, X)]).max() < 1e-8 * np.abs(Ur).max()
+    touching = Xr[:, 1] + Ur[:, 1] + R < 1e-9
+    assert (Xr[touching, 0] + Ur[touching, 0]).max() >= 0.3 * R
+    force = Rr[touching, 1].sum()
+    assert abs(sols[-1].total_contact_force[1] - force) < 1e-8 * force
