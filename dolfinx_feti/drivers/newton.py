@@ -51,7 +51,7 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..errors import InputError, NotConverged, collective
+from ..errors import InputError, NotConverged, SolveError, collective
 from ..fem.hyperelastic import NewtonState
 from ..log import Progress
 from ..options import SolverOptions
@@ -60,6 +60,10 @@ from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
 from .kkt_stop import kkt_residuals
 from .load_path import PATH_BY, problem_at_time
+
+
+class StepFailed(SolveError):
+    """A Newton step that cannot go on (a tangent that cannot be factored): cut back."""
 
 
 @dataclass(frozen=True)
@@ -159,8 +163,10 @@ class NewtonSolver:
                  options: SolverOptions | Sequence[str] | None = None,
                  newton: NewtonOptions | None = None, **kwargs) -> None:
         check_newton_problem(problem)
-        if options is None and "method" not in kwargs:
-            kwargs["method"] = "fetidp"
+        named = isinstance(options, SolverOptions) or (
+            options is not None and any(str(a).startswith("-feti_method") for a in options))
+        if not named:
+            kwargs.setdefault("method", "fetidp")
         self.comm, self.newton = comm, newton or NewtonOptions()
         self.state = NewtonState()
         self.solver = FetiSolver(self._at_state(problem), comm=comm, options=options,
@@ -171,6 +177,18 @@ class NewtonSolver:
                              "Dirichlet condition stops some of its rigid motions); the tangent "
                              "of a stressed floating body has no known kernel: hold every "
                              "body by a Dirichlet condition")
+        steps = self.solver.qp.steps
+        free = [int(self.solver.data.local_subs[i]) for i, R in
+                enumerate(getattr(steps[-1], "kernels_rr", []) if steps else []) if R.shape[1]]
+        free = sorted(set().union(*comm.allgather(free)))
+        if free:
+            self.solver.destroy()
+            raise InputError(
+                f"large-deformation contact: subdomains {free} are held by too few corners in "
+                "FETI-DP (they may turn about them): the kernel of a prestressed tangent is not "
+                "a rigid motion. Decompose so that every subdomain has at least two corners "
+                "(gdim of them in 3D) or a Dirichlet condition of its own (e.g. more parts), "
+                "or one subdomain per body (ByTags)")
         B = self.solver.qp.system.B
         self.u = B.createVecRight()
         self.u.zeroEntries()
@@ -273,7 +291,12 @@ class NewtonSolver:
                 pass  # the set-up is the linearization at u = 0 with these rows
             else:
                 active = lam if lam is not None else self._lam
-                solver.update_stiffness(current, rows=rows, shift=self._augmentation(active))
+                try:
+                    solver.update_stiffness(current, rows=rows,
+                                            shift=self._augmentation(active))
+                except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
+                    raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
+                                     f"factored ({e}): a singular or indefinite tangent") from e
             self._fresh = False
             if sol is not None:
                 sol = None
@@ -459,7 +482,7 @@ def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutb
     start = tk if t_done is None else t_done
     dt = tk - start
     t_now, cuts, substeps = start, 0, []
-    sol = None
+    sol = failure = None
     while True:
         t_next = tk if dt <= 0 or t_now + dt >= tk - 1e-12 * abs(tk) else t_now + dt
         if first is not None and t_next == tk:
@@ -468,7 +491,10 @@ def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutb
             problem = None
             with collective(comm):
                 problem = problem_at_time(problem_at, t_next)
-        sol, ok = run.step(problem)
+        try:
+            sol, ok = run.step(problem)
+        except StepFailed as e:
+            sol, ok, failure = None, False, e
         substeps.append(t_next)
         if ok:
             saved, t_now = run.save(), t_next
@@ -477,6 +503,9 @@ def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutb
             dt = min(dt, tk - t_now)
             continue
         if cuts >= max_cutbacks or dt <= 0:
+            if sol is None:
+                raise SolveError(f"solve_path: Newton failed at t = {t_next:g} after {cuts} "
+                                 f"cut-backs: {failure}")
             return sol, substeps, cuts
         cuts += 1
         run.reset(saved)

@@ -175,7 +175,7 @@ def test_cylinder_against_snes_vi():
             dirichlet=[df.Dirichlet("top", -t, components=[1]),
                        df.Dirichlet("axis", 0.0, components=[0])],
             contact=[df.RigidObstacle("arc", df.Plane((0.0, -R), (0.0, 1.0)))],
-            decomposition=df.Parts(2))
+            decomposition=df.Parts(4))
 
     sols = df.solve_path(problem, loads, rtol=1e-12, newton_rtol=1e-11)
     assert all(s.report.converged for s in sols)
