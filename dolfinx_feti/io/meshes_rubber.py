@@ -41,4 +41,46 @@ def quarter_disk(R: float = 1.0, h_contact: float = 0.03, h_far: float = 0.15
     return physical_groups()
 
 
-__all__ = ["quarter_disk"]
+def quarter_hemisphere(R: float = 1.0, h_contact: float = 0.06, h_far: float = 0.25
+                       ) -> dict[str, tuple[int, int]]:
+    """A quarter of the lower half ball {x >= 0, y >= 0, z <= 0, |x| <= R} (tetrahedra).
+
+    The ball of radius R, centre at the origin, touches the plane z = −R at (0, 0, −R).
+    Elements of size ``h_contact`` at the lowest point, growing linearly to ``h_far`` at a
+    distance R from it.
+
+    Physical groups: "body" (3, 1); "x0" (2, 11) and "y0" (2, 12) the symmetry planes; "top"
+    (2, 13) the face z = 0; "sphere" (2, 14) the spherical surface.
+    """
+    if not 0 < h_contact <= h_far < R:
+        raise ValueError(f"quarter_hemisphere: need 0 < h_contact <= h_far < R, got "
+                         f"{h_contact}, {h_far}, {R}")
+    gmsh.model.add("quarter_hemisphere")
+    set_output_options()
+    occ = gmsh.model.occ
+    ball = occ.addSphere(0, 0, 0, R)
+    box = occ.addBox(0, 0, -R, R, R, R)
+    (vol,), _ = occ.intersect([(3, ball)], [(3, box)])
+    occ.synchronize()
+    add_group(3, [vol[1]], 1, "body")
+    faces = {"x0": [], "y0": [], "top": [], "sphere": []}
+    for _, f in gmsh.model.getBoundary([vol], oriented=False):
+        c = occ.getCenterOfMass(2, f)
+        name = "x0" if abs(c[0]) < 1e-9 else "y0" if abs(c[1]) < 1e-9 else \
+            "top" if abs(c[2]) < 1e-9 else "sphere"
+        faces[name].append(f)
+    for k, (name, ents) in enumerate(faces.items()):
+        add_group(2, ents, 11 + k, name)
+    field = gmsh.model.mesh.field
+    dist = field.add("MathEval")
+    field.setString(dist, "F", f"{h_contact} + ({h_far} - {h_contact}) * "
+                    f"Min(1, Sqrt(x*x + y*y + (z + {R})*(z + {R})) / {R})")
+    field.setAsBackgroundMesh(dist)
+    gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+    gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 0)
+    gmsh.model.mesh.generate(3)
+    return physical_groups()
+
+
+__all__ = ["quarter_disk", "quarter_hemisphere"]

@@ -18,7 +18,7 @@ from scipy.optimize import brentq
 from snes_vi import match, neo_hookean, snes_vi
 
 import dolfinx_feti as df
-from dolfinx_feti.io.meshes_rubber import quarter_disk
+from dolfinx_feti.io.meshes_rubber import quarter_disk, quarter_hemisphere
 
 E, NU, LX = 10.0, 0.3, 2.0
 MU, LMBDA = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
@@ -195,3 +195,41 @@ def test_cylinder_against_snes_vi():
     assert (Xr[touching, 0] + Ur[touching, 0]).max() >= 0.3 * R
     force = Rr[touching, 1].sum()
     assert abs(sols[-1].total_contact_force[1] - force) < 1e-8 * force
+
+
+def test_hemisphere_against_snes_vi():
+    """3D: a soft neo-Hookean hemisphere (quarter model) pressed onto a rigid plane until the
+    contact radius exceeds 30 % of the radius, against SNES VI on the same energy and mesh."""
+    Ec, nuc, R = 1.0, 0.3, 1.0
+    mesh = df.build_mesh(quarter_hemisphere, R=R, h_contact=0.05, h_far=0.2)
+    loads = [0.0375, 0.075, 0.1125, 0.15]
+
+    def problem(t):
+        return df.ContactProblem(
+            mesh, df.NeoHookean(Ec, nuc),
+            dirichlet=[df.Dirichlet("top", -t, components=[2]),
+                       df.Dirichlet("x0", 0.0, components=[0]),
+                       df.Dirichlet("y0", 0.0, components=[1])],
+            contact=[df.RigidObstacle("sphere", df.Plane((0.0, 0.0, -R), (0.0, 0.0, 1.0)))],
+            decomposition=df.Parts(4))
+
+    sols = df.solve_path(problem, loads, rtol=1e-12, newton_rtol=1e-11)
+    assert all(s.report.converged for s in sols)
+    assert all(s.report.extra["newton_iterations"] <= 8 for s in sols)
+
+    def fixed(X, comp, load):
+        top = (comp == 2) & (np.abs(X[:, 2]) < 1e-12)
+        sym = ((comp == 0) & (np.abs(X[:, 0]) < 1e-12)) | ((comp == 1) & (np.abs(X[:, 1]) < 1e-12))
+        m = top | sym
+        return m, np.where(top, -load, 0.0)[m]
+
+    mu, lmbda = Ec / (2 * (1 + nuc)), Ec * nuc / ((1 + nuc) * (1 - 2 * nuc))
+    Xr, Ur, Rr, _ = snes_vi(mesh, neo_hookean(mu, lmbda), fixed, -R, loads)
+    u = sols[-1].u
+    X, U = u.function_space.tabulate_dof_coordinates(), u.x.array.reshape(-1, 3)
+    assert np.abs(U - Ur[match(Xr, X)]).max() < 1e-8 * np.abs(Ur).max()
+    touching = Xr[:, 2] + Ur[:, 2] + R < 1e-9
+    radius = np.hypot(*(Xr[touching, :2] + Ur[touching, :2]).T)
+    assert radius.max() >= 0.3 * R
+    force = Rr[touching, 2].sum()
+    assert abs(sols[-1].total_contact_force[2] - force) < 1e-8 * force
