@@ -51,15 +51,20 @@ import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..constraints.contact import obstacle_gaps
+from ..constraints.rows import Kind
 from ..errors import InputError, NotConverged, SolveError, collective
 from ..fem.hyperelastic import NewtonState
 from ..log import Progress
 from ..options import SolverOptions
-from ..problem.contact_problem import ContactProblem, Plane, RigidObstacle
+from ..problem.contact_problem import ContactProblem, RigidObstacle
 from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
 from .kkt_stop import kkt_residuals
 from .load_path import PATH_BY, problem_at_time
+
+#: The obstacles' curvature term enters the tangent once the relative residual is below this.
+CURVATURE_FROM = 1e-3
 
 
 class StepFailed(SolveError):
@@ -94,12 +99,11 @@ class NewtonOptions:
 def check_newton_problem(problem: ContactProblem) -> None:
     """Refuse by name what the Newton driver does not handle."""
     for c in problem.contact:
-        if not isinstance(c, RigidObstacle) or not isinstance(c.obstacle, Plane):
+        if not isinstance(c, RigidObstacle):
             raise InputError(
-                f"large-deformation contact: {type(c).__name__} "
-                f"{'with a ' + type(c.obstacle).__name__ if isinstance(c, RigidObstacle) else ''}"
-                " is not supported by the Newton driver yet (rigid planes only: their gap is "
-                "linear in u)")
+                f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
+                "driver yet (rigid obstacles only: two-body contact needs the normals and "
+                "gaps of the deformed surfaces)")
         if c.friction is not None:
             raise InputError("large-deformation contact: friction is not supported by the "
                              "Newton driver yet")
@@ -112,22 +116,30 @@ def check_newton_problem(problem: ContactProblem) -> None:
                          "kernel that is not its rigid motions)")
 
 
-def rows_with_rhs(rows, rhs: np.ndarray, comm: MPI.Comm):
+def rows_with_rhs(rows, rhs: np.ndarray, comm: MPI.Comm, coef: np.ndarray | None = None,
+                  normal: np.ndarray | None = None):
     """``rows`` with the right-hand sides ``rhs`` of the rank's own rows (collective).
 
-    The contact rows every rank keeps (``rows.contact``) take theirs by one gather.
+    ``coef`` (per entry) and ``normal`` (per row) replace the coefficients and the normals
+    (those of the current configuration) when given. The contact rows every rank keeps
+    (``rows.contact``) take their right-hand sides and normals by one gather.
     """
     own = rows.own
+    normal = own.normal if normal is None else normal
     index = rows.start + np.arange(own.size)
     mine = np.isin(index, rows.contact_index)
-    parts = comm.allgather((index[mine], rhs[mine]))
+    parts = comm.allgather((index[mine], rhs[mine], normal[mine]))
     idx = np.concatenate([p[0] for p in parts])
     contact = rows.contact
     if idx.size:
-        crhs = contact.rhs.copy()
-        crhs[rows.contact_rows(idx)] = np.concatenate([p[1] for p in parts])
-        contact = replace(contact, rhs=crhs)
-    return replace(rows, own=replace(own, rhs=np.asarray(rhs, dtype=float)), contact=contact)
+        pos = rows.contact_rows(idx)
+        crhs, cnormal = contact.rhs.copy(), contact.normal.copy()
+        crhs[pos] = np.concatenate([p[1] for p in parts])
+        cnormal[pos] = np.concatenate([p[2] for p in parts])
+        contact = replace(contact, rhs=crhs, normal=cnormal)
+    own = replace(own, rhs=np.asarray(rhs, dtype=float), normal=normal,
+                  e_coef=own.e_coef if coef is None else coef)
+    return replace(rows, own=own, contact=contact)
 
 
 class _Nonlinear:
@@ -195,6 +207,7 @@ class NewtonSolver:
         self._fresh = True  # the set-up's tangent and rows are those of u = 0
         self._cold = False
         self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
+        self._geometry = None  # obstacle rows, their nodes' current positions, the problem
         data = self.solver.data
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
@@ -216,7 +229,7 @@ class NewtonSolver:
         self.state.set(self.solver.data, u)
         return self.solver.assemble_rhs(problem)
 
-    def _augmentation(self, lam: PETSc.Vec | None):
+    def _augmentation(self, lam: PETSc.Vec | None, curved: bool = True):
         """κ Σ b_r b_rᵀ over the rows active in the last QP (λ_r > 0), b_r in physical units.
 
         Convex on the critical cone of the contact, where the bare tangent
@@ -234,7 +247,53 @@ class NewtonSolver:
         coef = own.e_coef[entry] / own.scale[r]
         n = data.K.shape[0]
         Ba = sp.csr_matrix((coef, (r, col)), shape=(own.size, n))
-        return (kappa * (Ba.T @ Ba)).tocsr()
+        aug = kappa * (Ba.T @ Ba)
+        return (aug + self._curvature(lam_phys, rows, n) if curved else aug).tocsr()
+
+    def _factor(self, problem, rows, lam, curved: bool, k: int) -> None:
+        """The tangent at the current iterate with the augmentation, refactored."""
+        try:
+            self.solver.update_stiffness(problem, rows=rows,
+                                         shift=self._augmentation(lam, curved))
+        except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
+            raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
+                             f"factored ({e}): a singular or indefinite tangent") from e
+
+    def _curvature(self, lam_phys: np.ndarray, rows, n: int) -> sp.csr_matrix:
+        """−λ_r ∂n/∂y at the node of every active obstacle row (zero for a plane).
+
+        The derivative of the contact force λ n(x + u), by central differences of the
+        obstacle's normals.
+        """
+        geometry = self._geometry
+        if geometry is None:
+            return sp.csr_matrix((n, n))
+        obst, y, problem = geometry
+        own = rows.own
+        act = lam_phys[obst] > 0
+        ya, ra, lam = y[act], obst[act], lam_phys[obst][act]
+        if not ra.size:
+            return sp.csr_matrix((n, n))
+        gdim = ya.shape[1]
+        eps = 1e-6 * (1.0 + float(np.abs(ya).max()))
+        dn = np.zeros((ra.size, gdim, gdim))
+        spec = own.spec[ra]
+        for j in range(gdim):
+            step = np.zeros(gdim)
+            step[j] = eps
+            for sp_ in np.unique(spec):
+                m = spec == sp_
+                cond = problem.contact[int(sp_)]
+                dn[m, :, j] = (obstacle_gaps(cond, ya[m] + step)[1]
+                               - obstacle_gaps(cond, ya[m] - step)[1]) / (2 * eps)
+        dn = 0.5 * (dn + dn.transpose(0, 2, 1))  # a Hessian of the distance: symmetric
+        colmap = np.full((own.size, gdim), -1, dtype=np.int64)
+        ent = np.flatnonzero(np.isin(own.e_row, ra))
+        colmap[own.e_row[ent], own.e_comp[ent]] = rows.cols[ent] - self.solver.data.primal_start
+        C = colmap[ra]
+        ii = np.broadcast_to(C[:, :, None], dn.shape).ravel()
+        jj = np.broadcast_to(C[:, None, :], dn.shape).ravel()
+        return sp.csr_matrix(((-lam[:, None, None] * dn).ravel(), (ii, jj)), shape=(n, n))
 
     def _Bu(self, u: PETSc.Vec) -> np.ndarray:
         B = self.solver.qp.system.B
@@ -244,19 +303,60 @@ class NewtonSolver:
         out.destroy()
         return a
 
-    def _violation(self, Bu: np.ndarray, c0: np.ndarray, own) -> np.ndarray:
-        v = (Bu - c0) / own.scale
+    def _at(self, problem, rows0, c0: np.ndarray, u: PETSc.Vec, keep: bool = False):
+        """The rank's rows linearized at u: right-hand sides, coefficients, normals.
+
+        Rows linear in u (gluing, Dirichlet) take c − B u; an obstacle row the gap and the
+        normal of the current position x + u of its node (for a plane the same as c − B u).
+        """
+        own = rows0.own
+        rhs = c0 - self._Bu(u)
+        obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
+        if not self.comm.allreduce(obst.size, op=MPI.SUM):
+            return rhs, None, None
+        data, share = self.solver.data, self.solver.qp.share
+        pos = np.full(own.size, -1)
+        pos[obst] = np.arange(obst.size)
+        ent = np.flatnonzero(pos[own.e_row] >= 0)
+        local = rows0.cols[ent] - data.primal_start
+        gdim = own.normal.shape[1]
+        U = np.zeros((obst.size, gdim))
+        U[pos[own.e_row[ent]], own.e_comp[ent]] = u.array_r[local]
+        x = share.points.x[np.searchsorted(share.point_ids, own.node[obst])][:, :gdim] + U
+        gap, n = np.zeros(obst.size), np.zeros((obst.size, gdim))
+        for spec in np.unique(own.spec[obst]):
+            m = own.spec[obst] == spec
+            gap[m], n[m] = obstacle_gaps(problem.contact[int(spec)], x[m])
+        rhs[obst] = gap * own.scale[obst]
+        if keep:  # the positions the next tangent's curvature term is taken at
+            self._geometry = (obst, x, problem)
+        coef = own.e_coef.copy()
+        coef[ent] = -n[pos[own.e_row[ent]], own.e_comp[ent]] * own.scale[own.e_row[ent]]
+        normal = own.normal.copy()
+        normal[obst] = n
+        return rhs, coef, normal
+
+    def _c_at(self, problem, rows0, c0: np.ndarray) -> np.ndarray:
+        """c such that B u − c is the rows' value at the current u, for the solver's B.
+
+        For an obstacle row: −gap. What the KKT check and the Solution's contact data read.
+        """
+        return self._Bu(self.u) + self._at(problem, rows0, c0, self.u)[0]
+
+    def _violation(self, rhs: np.ndarray, own) -> np.ndarray:
+        """The violation of the rows (physical units) given their right-hand sides at u."""
+        v = -rhs / own.scale
         ineq = own.inequality
         v[ineq] = np.maximum(v[ineq], 0.0)
         return v
 
-    def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, c0: np.ndarray, own
+    def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
                ) -> tuple[float, np.ndarray]:
         try:
             r = self._residual(problem, u.array_r)
         except InputError:  # non-finite: a cell turned inside out (J <= 0) at this trial
             return math.inf, None
-        v = self._violation(self._Bu(u), c0, own)
+        v = self._violation(self._at(problem, rows0, c0, u)[0], rows0.own)
         s = float(np.sum((r - BTlam) ** 2)) + self._kappa ** 2 * float(np.sum(v ** 2))
         s = self.comm.allreduce(s, op=MPI.SUM)
         return (math.sqrt(s) if np.isfinite(s) else math.inf), r
@@ -285,28 +385,29 @@ class NewtonSolver:
         for k in range(opts.max_it):
             t0 = time.perf_counter()
             self.state.set(solver.data, self.u.array_r)
-            rows = rows_with_rhs(rows0, c0 - self._Bu(self.u), comm)
+            rhs, coef, normal = self._at(current, rows0, c0, self.u, keep=True)
+            rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
             if self._fresh and k == 0 and np.allclose(rows.own.rhs, solver.qp.rows.own.rhs,
                                                       rtol=0, atol=0):
                 pass  # the set-up is the linearization at u = 0 with these rows
             else:
                 active = lam if lam is not None else self._lam
-                try:
-                    solver.update_stiffness(current, rows=rows,
-                                            shift=self._augmentation(active))
-                except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
-                    raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
-                                     f"factored ({e}): a singular or indefinite tangent") from e
+                # the obstacles' curvature term (−λ ∂n/∂y) near the solution only: far from
+                # it an overshooting λ would make the tangent indefinite
+                curved = bool(history) and history[-1]["residual"] < CURVATURE_FROM
+                self._factor(current, rows, active, curved, k)
             self._fresh = False
-            if sol is not None:
-                sol = None
             qp = solver.solve(COLD if self._cold else None)
             self._cold = False
+            if qp.report.reason == "unbounded" and curved:  # once more without the term
+                self._factor(current, rows, active, False, k)
+                qp = solver.solve(COLD)
             du, lam = qp.u_vec, qp.lam
             self._lam = lam
             if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
                 history.append(self._record(k, math.nan, 0.0, qp, t0, {}))
-                sol = self._solution(problem, qp, c0, r, r_scale, history, False)
+                sol = self._solution(problem, qp, self._c_at(current, rows0, c0), r, r_scale,
+                                     history, False)
                 sol.report.reason = "indefinite tangent"
                 sol.report.warnings.append(
                     f"Newton iteration {k}: the tangent stiffness K̃_t is indefinite (the QP is "
@@ -318,34 +419,36 @@ class NewtonSolver:
             solver.qp.system.B.multTranspose(lam, w)
             BTlam = w.array_r.copy()
             w.destroy()
-            phi0, r_k = self._merit(current, self.u, BTlam, c0, own0)
+            phi0, r_k = self._merit(current, self.u, BTlam, rows0, c0)
             # below this the merit is round-off (of the forces and of K u)
             floor = 1e3 * np.finfo(float).eps * (math.sqrt(comm.allreduce(
                 float(BTlam @ BTlam), op=MPI.SUM)) + self._kappa * self.u.norm() + r_scale)
             alpha, trial = 1.0, self.u.duplicate()
             for _ in range(opts.max_backtracks + 1):
                 trial.waxpy(alpha, du, self.u)
-                phi, r = self._merit(current, trial, BTlam, c0, own0)
+                phi, r = self._merit(current, trial, BTlam, rows0, c0)
                 if phi <= max((1 - 1e-4 * alpha) * phi0, floor):
                     break
                 alpha *= 0.5
             else:
                 trial.destroy()
                 history.append(self._record(k, math.nan, alpha, qp, t0, {}))
-                return self._solution(problem, qp, c0, r_k, r_scale, history, False), False
+                c_now = self._c_at(current, rows0, c0)
+                return self._solution(problem, qp, c_now, r_k, r_scale, history, False), False
             self.u.axpy(alpha, du)
             trial.destroy()
             self.state.set(solver.data, self.u.array_r)
             du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
                 self.u.norm(PETSc.NormType.INFINITY), 1e-300)
-            kkt = self._kkt(c0, r, r_scale, lam, own0)
+            c_now = self._c_at(current, rows0, c0)
+            kkt = self._kkt(c_now, r, r_scale, lam, own0)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
             if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged:
                 converged = True
                 break
-        sol = self._solution(problem, qp, c0, r, r_scale, history, converged)
+        sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
         return sol, converged
 
     def _kkt(self, c0, r, r_scale, lam, own) -> dict[str, float]:
