@@ -56,8 +56,9 @@ from ..constraints.rows import Kind
 from ..errors import InputError, NotConverged, SolveError, collective
 from ..fem.hyperelastic import NewtonState
 from ..log import Progress
+from ..mesh.topology import surface_points
 from ..options import SolverOptions
-from ..problem.contact_problem import ContactProblem, RigidObstacle
+from ..problem.contact_problem import ContactProblem, NodeToNode, RigidObstacle
 from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
 from .kkt_stop import kkt_residuals
@@ -99,11 +100,19 @@ class NewtonOptions:
 def check_newton_problem(problem: ContactProblem) -> None:
     """Refuse by name what the Newton driver does not handle."""
     for c in problem.contact:
-        if not isinstance(c, RigidObstacle):
+        if not isinstance(c, RigidObstacle | NodeToNode):
             raise InputError(
                 f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
-                "driver yet (rigid obstacles only: two-body contact needs the normals and "
-                "gaps of the deformed surfaces)")
+                "driver yet (rigid obstacles and node-to-node contact only: mortar contact "
+                "needs the search and the integrals on the deformed surfaces)")
+        if isinstance(c, NodeToNode) and (c.gap is not None or problem.value_size == 1):
+            raise InputError("large-deformation contact: node-to-node contact takes its gap "
+                             "from the geometry (no gap override, a vector problem)")
+    if problem.contact and any(isinstance(c, NodeToNode) for c in problem.contact) and \
+            problem.degree != 1:
+        raise InputError("large-deformation contact: node-to-node contact of degree-1 "
+                         "meshes only")
+    for c in problem.contact:
         if c.friction is not None:
             raise InputError("large-deformation contact: friction is not supported by the "
                              "Newton driver yet")
@@ -207,6 +216,7 @@ class NewtonSolver:
         self._fresh = True  # the set-up's tangent and rows are those of u = 0
         self._cold = False
         self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
+        self._dropped = 0.0  # a pair normal's component the rows have no entry for
         self._geometry = None  # obstacle rows, their nodes' current positions, the problem
         data = self.solver.data
         self._kappa = comm.allreduce(
@@ -241,7 +251,14 @@ class NewtonSolver:
         rows = self.solver.qp.rows
         own, data, kappa = rows.own, self.solver.data, self._kappa
         lam_phys = lam.array_r * own.scale
-        active = own.inequality & (lam_phys > 0)
+        # rows of one subdomain only (obstacles): K stays block diagonal
+        # rows of one subdomain only (obstacles): a pair row couples two subdomains, and
+        # K must stay block diagonal (its two sides apart would change the step)
+        lo = np.full(own.size, np.iinfo(np.int64).max)
+        hi = np.full(own.size, -1)
+        np.minimum.at(lo, own.e_row, own.e_sub.astype(np.int64))
+        np.maximum.at(hi, own.e_row, own.e_sub.astype(np.int64))
+        active = own.inequality & (lam_phys > 0) & (lo == hi)
         entry = active[own.e_row]
         r, col = own.e_row[entry], rows.cols[entry] - data.primal_start
         coef = own.e_coef[entry] / own.scale[r]
@@ -311,9 +328,13 @@ class NewtonSolver:
         """
         own = rows0.own
         rhs = c0 - self._Bu(u)
+        coef, normal = own.e_coef.copy(), own.normal.copy()
+        pairs = rows0.contact.kind == Kind.CONTACT
+        if np.any(pairs):  # the same on every rank (the contact rows are replicated)
+            self._pairs_at(problem, rows0, u, rhs, coef, normal)
         obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
         if not self.comm.allreduce(obst.size, op=MPI.SUM):
-            return rhs, None, None
+            return rhs, coef, normal
         data, share = self.solver.data, self.solver.qp.share
         pos = np.full(own.size, -1)
         pos[obst] = np.arange(obst.size)
@@ -330,16 +351,61 @@ class NewtonSolver:
         rhs[obst] = gap * own.scale[obst]
         if keep:  # the positions the next tangent's curvature term is taken at
             self._geometry = (obst, x, problem)
-        coef = own.e_coef.copy()
         coef[ent] = -n[pos[own.e_row[ent]], own.e_comp[ent]] * own.scale[own.e_row[ent]]
-        normal = own.normal.copy()
         normal[obst] = n
         return rhs, coef, normal
+
+    def _pairs_at(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
+        """Node-to-node rows at u, in place (collective).
+
+        The normal of the deformed master surface at the master node, the gap of the current
+        positions. The displacements of the pairs' nodes are gathered on every rank (surfaces only).
+        """
+        own, contact, data = rows0.own, rows0.contact, self.solver.data
+        mesh = problem.mesh
+        pairs = contact.kind == Kind.CONTACT
+        points = np.unique(np.r_[contact.node[pairs], contact.partner[pairs]])
+        mine = np.isin(data.dof_node, points)
+        parts = self.comm.allgather((data.dof_node[mine], data.dof_comp[mine],
+                                     u.array_r[mine]))
+        gdim = mesh.gdim
+        U = np.zeros((mesh.num_nodes, gdim))
+        for nodes, comps, vals in parts:  # copies of a point agree to the gluing's round-off
+            U[nodes, comps] = vals
+        y = mesh.x[:, :gdim] + U
+        n_at = np.zeros((mesh.num_nodes, gdim))
+        for spec in np.unique(contact.spec[pairs]):
+            cond = problem.contact[int(spec)]
+            facets = mesh.facets(cond.master)
+            weights = np.full(facets.shape[1], 1.0 / facets.shape[1])
+            nodes, nrm, _ = surface_points(y, mesh.cells, facets, facets, weights,
+                                           mesh.cell_type)
+            n_at[nodes] = nrm
+        rows = np.flatnonzero(own.kind == Kind.CONTACT)
+        s_node, m_node = own.node[rows], own.partner[rows]
+        n = n_at[m_node]
+        pos = np.full(own.size, -1)
+        pos[rows] = np.arange(rows.size)
+        ent = np.flatnonzero(pos[own.e_row] >= 0)
+        r = pos[own.e_row[ent]]
+        # the set-up kept only the components its normals needed: a normal that turns out
+        # of them is projected back (an iterate on the way; the solution must not need it)
+        have = np.zeros((rows.size, gdim), dtype=bool)
+        have[r, own.e_comp[ent]] = True
+        dropped = float(np.abs(n[~have]).max(initial=0.0))
+        self._dropped = self.comm.allreduce(dropped, op=MPI.MAX)
+        n = np.where(have, n, 0.0)
+        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+        rhs[rows] = own.scale[rows] * np.einsum("ij,ij->i", y[s_node] - y[m_node], n)
+        normal[rows] = n
+        sign = np.where(own.e_node[ent] == s_node[r], -1.0, 1.0)
+        coef[ent] = sign * n[r, own.e_comp[ent]] * own.scale[own.e_row[ent]]
 
     def _c_at(self, problem, rows0, c0: np.ndarray) -> np.ndarray:
         """c such that B u − c is the rows' value at the current u, for the solver's B.
 
-        For an obstacle row: −gap. What the KKT check and the Solution's contact data read.
+        For an obstacle or a pair row: −gap. What the KKT check and the Solution's contact
+        data read.
         """
         return self._Bu(self.u) + self._at(problem, rows0, c0, self.u)[0]
 
@@ -445,7 +511,7 @@ class NewtonSolver:
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
             if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
-                    qp.report.converged:
+                    qp.report.converged and self._dropped <= opts.rtol:
                 converged = True
                 break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
@@ -464,7 +530,8 @@ class NewtonSolver:
         return {"iteration": k, "step": float(alpha), "du_rel": float(du_rel),
                 "residual": float(kkt.get("equilibrium", math.nan)),
                 "kkt": {key: float(v) for key, v in kkt.items()},
-                "qp_converged": bool(qp.report.converged),
+                "normal_dropped": float(self._dropped),
+                "qp_converged": bool(qp.report.converged), "qp_reason": qp.report.reason,
                 "hessian_mults": int(qp.report.hessian_mults),
                 "seconds": self.comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)}
 
