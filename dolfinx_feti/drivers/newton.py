@@ -21,12 +21,17 @@ The choices:
   assembled, Dirichlet conditions eliminated): K̃_t is the tangent of whole bodies held by
   their Dirichlet conditions, definite wherever the equilibrium is stable. A body with no
   Dirichlet condition (held by contact only) leaves K̃_t singular with a kernel that is not
-  the rigid motions: it is refused by name. TFETI (``method="tfeti"``) may be asked for: the
+  the rigid motions: it is refused by name, as is a subdomain FETI-DP's corners leave free
+  to turn. An augmentation κ Σ b_r b_rᵀ on the active obstacle rows keeps the QP convex where
+  a compressed free surface makes the bare tangent indefinite (docs/large_deformation.md).
+  TFETI (``method="tfeti"``) may be asked for: the
   set-up's check K K⁺ K = K on the reference kernels then refuses a prestressed floating
   subdomain whose rotations left the kernel.
-- **Gaps.** Rigid planes: the gap of the current position, exact (φ(x + u) = φ(x) + n·u), so
-  the rows keep B and take c − B u_k. Curved obstacles and two-body contact (normals of the
-  deformed surfaces, mortar integrals on them) are refused by name here.
+- **Gaps.** Every obstacle row takes the gap and the normal of its node's current position
+  (for a plane exactly c − B u_k), with the obstacle's curvature term in the tangent near the
+  solution; node-to-node pairs the normal of the deformed master surface and the gap of the
+  current positions. Mortar contact (the search and the integrals on the deformed surfaces),
+  ties and friction are refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a

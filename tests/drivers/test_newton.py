@@ -292,3 +292,11 @@ def test_two_blocks_node_to_node_patch_test():
     r = residuals(sol)
     assert len(r) <= 8 and all(r1 <= 10 * r0 ** 2 for r0, r1 in zip(r, r[1:], strict=False)
                                if r1 > 1e-13)
+
+
+def test_tfeti_refuses_a_prestressed_floating_subdomain(block):
+    """Asked for TFETI, the set-up's check K K⁺ K = K (with the reference rigid modes as the
+    kernel) refuses the tangent of a stressed floating subdomain, whose rotations left it."""
+    with pytest.raises(df.SolveError, match="K K⁺ K = K fails"):
+        df.solve(pressed(block, 0.2, df.NeoHookean(E, NU), df.Parts(2)), method="tfeti",
+                 rtol=1e-10)
