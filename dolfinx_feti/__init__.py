@@ -13,6 +13,7 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 # compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
 from . import compat  # noqa: F401
 from .drivers import newton as _newton  # noqa: F401  (registers solve_by = "newton")
+from .drivers import newton_path as _newton_path  # noqa: F401  (and its load paths)
 from .drivers.load_path import solve_cases, solve_path
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -58,16 +58,14 @@ from petsc4py import PETSc
 
 from ..constraints.contact import obstacle_gaps
 from ..constraints.rows import Kind
-from ..errors import InputError, NotConverged, SolveError, collective
+from ..errors import InputError, NotConverged, SolveError
 from ..fem.hyperelastic import NewtonState
-from ..log import Progress
 from ..mesh.topology import surface_points
 from ..options import SolverOptions
 from ..problem.contact_problem import ContactProblem, NodeToNode, RigidObstacle
 from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
 from .kkt_stop import kkt_residuals
-from .load_path import PATH_BY, problem_at_time
 
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
@@ -599,96 +597,7 @@ def solve_newton(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     return sol
 
 
-def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.ndarray,
-                      first: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
-                      options: SolverOptions | Sequence[str] | None = None,
-                      progress: bool = True, max_cutbacks: int = 8, **kwargs
-                      ) -> list[Solution]:
-    """A load path of a hyperelastic problem, one Newton solve per step (collective).
-
-    What :func:`dolfinx_feti.solve_path` runs for forms with ``solve_by = "newton"``. Each
-    step starts from the last converged state. A step whose Newton iteration fails (no
-    convergence within ``newton_max_it``, a line search that finds no decrease, an indefinite
-    tangent) is cut back: the state goes back to the last converged one and the interval is
-    halved (``problem_at`` at the intermediate times), at most ``max_cutbacks`` times per
-    step; the sub-steps then go on at the halved interval to the step's end. The
-    unloaded state is taken to be t = 0 (the first step's cut-back starts there if
-    ``times[0] > 0``).
-
-    Returns:
-        One Solution per time; ``report.extra`` holds ``step``, ``time``, ``substeps`` (the
-        times solved on the way, cut-backs included) and ``cutbacks``. A step that fails
-        after every cut-back is returned not converged and ends the path (or raises
-        NotConverged with ``error_if_not_converged``).
-    """
-    newton = NewtonOptions.pop(kwargs)
-    raise_if = bool(kwargs.get("error_if_not_converged", False))
-    line = Progress(comm, 1 if progress else 0)
-    run = NewtonSolver(first, comm=comm, options=options, newton=newton, **kwargs)
-    sols: list[Solution] = []
-    t_done = 0.0 if times[0] > 0 else None
-    try:
-        for k, tk in enumerate(times):
-            sol, substeps, cuts = _path_step(run, problem_at, first if k == 0 else None,
-                                             t_done, float(tk), max_cutbacks, comm)
-            sol.report.extra.update({"step": k, "time": float(tk), "substeps": substeps,
-                                     "cutbacks": cuts})
-            sol.dual = None
-            sols.append(sol)
-            line.info(f"step {k + 1}/{times.size} t = {tk:g}: "
-                      f"{'converged' if sol.report.converged else 'NOT converged'}, "
-                      f"{len(substeps)} sub-step(s), {cuts} cut-back(s), "
-                      f"{sol.report.extra['newton_iterations']} Newton iterations")
-            if not sol.report.converged:
-                if raise_if:
-                    raise NotConverged(f"solve_path: Newton failed at t = {tk:g} after {cuts} "
-                                       "cut-backs", sol)
-                break
-            t_done = float(tk)
-    finally:
-        run.destroy()
-    return sols
-
-
-def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutbacks: int,
-               comm: MPI.Comm):
-    """Newton to the problem at ``tk`` from the state at ``t_done``, with cut-backs."""
-    saved = run.save()
-    start = tk if t_done is None else t_done
-    dt = tk - start
-    t_now, cuts, substeps = start, 0, []
-    sol = failure = None
-    while True:
-        t_next = tk if dt <= 0 or t_now + dt >= tk - 1e-12 * abs(tk) else t_now + dt
-        if first is not None and t_next == tk:
-            problem = first
-        else:
-            problem = None
-            with collective(comm):
-                problem = problem_at_time(problem_at, t_next)
-        try:
-            sol, ok = run.step(problem)
-        except StepFailed as e:
-            sol, ok, failure = None, False, e
-        substeps.append(t_next)
-        if ok:
-            saved, t_now = run.save(), t_next
-            if t_now >= tk:
-                return sol, substeps, cuts
-            dt = min(dt, tk - t_now)
-            continue
-        if cuts >= max_cutbacks or dt <= 0:
-            if sol is None:
-                raise SolveError(f"solve_path: Newton failed at t = {t_next:g} after {cuts} "
-                                 f"cut-backs: {failure}")
-            return sol, substeps, cuts
-        cuts += 1
-        run.reset(saved)
-        dt /= 2
-
-
 SOLVE_BY["newton"] = solve_newton
-PATH_BY["newton"] = solve_path_newton
 
-__all__ = ["NewtonOptions", "NewtonSolver", "rows_with_rhs", "solve_newton",
-           "solve_path_newton"]
+__all__ = ["CURVATURE_FROM", "NewtonOptions", "NewtonSolver", "StepFailed", "rows_with_rhs",
+           "solve_newton"]
