@@ -52,19 +52,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..constraints.contact import obstacle_gaps
-from ..constraints.rows import Kind
 from ..errors import InputError, NotConverged, SolveError
 from ..fem.hyperelastic import NewtonState
-from ..mesh.topology import surface_points
 from ..options import SolverOptions
 from ..problem.contact_problem import ContactProblem, NodeToNode, RigidObstacle
 from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
+from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
 
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
@@ -126,32 +123,6 @@ def check_newton_problem(problem: ContactProblem) -> None:
         raise InputError("large-deformation contact: every body needs a Dirichlet condition "
                          "(a body held by contact only leaves the tangent singular with a "
                          "kernel that is not its rigid motions)")
-
-
-def rows_with_rhs(rows, rhs: np.ndarray, comm: MPI.Comm, coef: np.ndarray | None = None,
-                  normal: np.ndarray | None = None):
-    """``rows`` with the right-hand sides ``rhs`` of the rank's own rows (collective).
-
-    ``coef`` (per entry) and ``normal`` (per row) replace the coefficients and the normals
-    (those of the current configuration) when given. The contact rows every rank keeps
-    (``rows.contact``) take their right-hand sides and normals by one gather.
-    """
-    own = rows.own
-    normal = own.normal if normal is None else normal
-    index = rows.start + np.arange(own.size)
-    mine = np.isin(index, rows.contact_index)
-    parts = comm.allgather((index[mine], rhs[mine], normal[mine]))
-    idx = np.concatenate([p[0] for p in parts])
-    contact = rows.contact
-    if idx.size:
-        pos = rows.contact_rows(idx)
-        crhs, cnormal = contact.rhs.copy(), contact.normal.copy()
-        crhs[pos] = np.concatenate([p[1] for p in parts])
-        cnormal[pos] = np.concatenate([p[2] for p in parts])
-        contact = replace(contact, rhs=crhs, normal=cnormal)
-    own = replace(own, rhs=np.asarray(rhs, dtype=float), normal=normal,
-                  e_coef=own.e_coef if coef is None else coef)
-    return replace(rows, own=own, contact=contact)
 
 
 class _Nonlinear:
@@ -219,11 +190,10 @@ class NewtonSolver:
         self._fresh = True  # the set-up's tangent and rows are those of u = 0
         self._cold = False
         self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
-        self._dropped = 0.0  # a pair normal's component the rows have no entry for
-        self._geometry = None  # obstacle rows, their nodes' current positions, the problem
         data = self.solver.data
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
+        self.rows = CurrentRows(self.solver, comm, self._kappa)
 
     def _at_state(self, problem: ContactProblem) -> ContactProblem:
         forms = problem.forms
@@ -242,182 +212,14 @@ class NewtonSolver:
         self.state.set(self.solver.data, u)
         return self.solver.assemble_rhs(problem)
 
-    def _augmentation(self, lam: PETSc.Vec | None, curved: bool = True):
-        """κ Σ b_r b_rᵀ over the rows active in the last QP (λ_r > 0), b_r in physical units.
-
-        Convex on the critical cone of the contact, where the bare tangent
-        of a compressed surface may not be; a constant on the step when the active set is
-        right (B_r Δu is fixed there), so the Newton step and its fixed point are unchanged.
-        """
-        if lam is None:
-            return None
-        rows = self.solver.qp.rows
-        own, data, kappa = rows.own, self.solver.data, self._kappa
-        lam_phys = lam.array_r * own.scale
-        # rows of one subdomain only (obstacles): K stays block diagonal
-        # rows of one subdomain only (obstacles): a pair row couples two subdomains, and
-        # K must stay block diagonal (its two sides apart would change the step)
-        lo = np.full(own.size, np.iinfo(np.int64).max)
-        hi = np.full(own.size, -1)
-        np.minimum.at(lo, own.e_row, own.e_sub.astype(np.int64))
-        np.maximum.at(hi, own.e_row, own.e_sub.astype(np.int64))
-        active = own.inequality & (lam_phys > 0) & (lo == hi)
-        entry = active[own.e_row]
-        r, col = own.e_row[entry], rows.cols[entry] - data.primal_start
-        coef = own.e_coef[entry] / own.scale[r]
-        n = data.K.shape[0]
-        Ba = sp.csr_matrix((coef, (r, col)), shape=(own.size, n))
-        aug = kappa * (Ba.T @ Ba)
-        return (aug + self._curvature(lam_phys, rows, n) if curved else aug).tocsr()
-
     def _factor(self, problem, rows, lam, curved: bool, k: int) -> None:
         """The tangent at the current iterate with the augmentation, refactored."""
         try:
             self.solver.update_stiffness(problem, rows=rows,
-                                         shift=self._augmentation(lam, curved))
+                                         shift=self.rows.augmentation(lam, curved))
         except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
             raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
                              f"factored ({e}): a singular or indefinite tangent") from e
-
-    def _curvature(self, lam_phys: np.ndarray, rows, n: int) -> sp.csr_matrix:
-        """−λ_r ∂n/∂y at the node of every active obstacle row (zero for a plane).
-
-        The derivative of the contact force λ n(x + u), by central differences of the
-        obstacle's normals.
-        """
-        geometry = self._geometry
-        if geometry is None:
-            return sp.csr_matrix((n, n))
-        obst, y, problem = geometry
-        own = rows.own
-        act = lam_phys[obst] > 0
-        ya, ra, lam = y[act], obst[act], lam_phys[obst][act]
-        if not ra.size:
-            return sp.csr_matrix((n, n))
-        gdim = ya.shape[1]
-        eps = 1e-6 * (1.0 + float(np.abs(ya).max()))
-        dn = np.zeros((ra.size, gdim, gdim))
-        spec = own.spec[ra]
-        for j in range(gdim):
-            step = np.zeros(gdim)
-            step[j] = eps
-            for sp_ in np.unique(spec):
-                m = spec == sp_
-                cond = problem.contact[int(sp_)]
-                dn[m, :, j] = (obstacle_gaps(cond, ya[m] + step)[1]
-                               - obstacle_gaps(cond, ya[m] - step)[1]) / (2 * eps)
-        dn = 0.5 * (dn + dn.transpose(0, 2, 1))  # a Hessian of the distance: symmetric
-        colmap = np.full((own.size, gdim), -1, dtype=np.int64)
-        ent = np.flatnonzero(np.isin(own.e_row, ra))
-        colmap[own.e_row[ent], own.e_comp[ent]] = rows.cols[ent] - self.solver.data.primal_start
-        C = colmap[ra]
-        ii = np.broadcast_to(C[:, :, None], dn.shape).ravel()
-        jj = np.broadcast_to(C[:, None, :], dn.shape).ravel()
-        return sp.csr_matrix(((-lam[:, None, None] * dn).ravel(), (ii, jj)), shape=(n, n))
-
-    def _Bu(self, u: PETSc.Vec) -> np.ndarray:
-        B = self.solver.qp.system.B
-        out = B.createVecLeft()
-        B.mult(u, out)
-        a = out.array_r.copy()
-        out.destroy()
-        return a
-
-    def _at(self, problem, rows0, c0: np.ndarray, u: PETSc.Vec, keep: bool = False):
-        """The rank's rows linearized at u: right-hand sides, coefficients, normals.
-
-        Rows linear in u (gluing, Dirichlet) take c − B u; an obstacle row the gap and the
-        normal of the current position x + u of its node (for a plane the same as c − B u).
-        """
-        own = rows0.own
-        rhs = c0 - self._Bu(u)
-        coef, normal = own.e_coef.copy(), own.normal.copy()
-        pairs = rows0.contact.kind == Kind.CONTACT
-        if np.any(pairs):  # the same on every rank (the contact rows are replicated)
-            self._pairs_at(problem, rows0, u, rhs, coef, normal)
-        obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
-        if not self.comm.allreduce(obst.size, op=MPI.SUM):
-            return rhs, coef, normal
-        data, share = self.solver.data, self.solver.qp.share
-        pos = np.full(own.size, -1)
-        pos[obst] = np.arange(obst.size)
-        ent = np.flatnonzero(pos[own.e_row] >= 0)
-        local = rows0.cols[ent] - data.primal_start
-        gdim = own.normal.shape[1]
-        U = np.zeros((obst.size, gdim))
-        U[pos[own.e_row[ent]], own.e_comp[ent]] = u.array_r[local]
-        x = share.points.x[np.searchsorted(share.point_ids, own.node[obst])][:, :gdim] + U
-        gap, n = np.zeros(obst.size), np.zeros((obst.size, gdim))
-        for spec in np.unique(own.spec[obst]):
-            m = own.spec[obst] == spec
-            gap[m], n[m] = obstacle_gaps(problem.contact[int(spec)], x[m])
-        rhs[obst] = gap * own.scale[obst]
-        if keep:  # the positions the next tangent's curvature term is taken at
-            self._geometry = (obst, x, problem)
-        coef[ent] = -n[pos[own.e_row[ent]], own.e_comp[ent]] * own.scale[own.e_row[ent]]
-        normal[obst] = n
-        return rhs, coef, normal
-
-    def _pairs_at(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
-        """Node-to-node rows at u, in place (collective).
-
-        The normal of the deformed master surface at the master node, the gap of the current
-        positions. The displacements of the pairs' nodes are gathered on every rank (surfaces only).
-        """
-        own, contact, data = rows0.own, rows0.contact, self.solver.data
-        mesh = problem.mesh
-        pairs = contact.kind == Kind.CONTACT
-        points = np.unique(np.r_[contact.node[pairs], contact.partner[pairs]])
-        mine = np.isin(data.dof_node, points)
-        parts = self.comm.allgather((data.dof_node[mine], data.dof_comp[mine],
-                                     u.array_r[mine]))
-        gdim = mesh.gdim
-        U = np.zeros((mesh.num_nodes, gdim))
-        for nodes, comps, vals in parts:  # copies of a point agree to the gluing's round-off
-            U[nodes, comps] = vals
-        y = mesh.x[:, :gdim] + U
-        n_at = np.zeros((mesh.num_nodes, gdim))
-        for spec in np.unique(contact.spec[pairs]):
-            cond = problem.contact[int(spec)]
-            facets = mesh.facets(cond.master)
-            weights = np.full(facets.shape[1], 1.0 / facets.shape[1])
-            nodes, nrm, _ = surface_points(y, mesh.cells, facets, facets, weights,
-                                           mesh.cell_type)
-            n_at[nodes] = nrm
-        rows = np.flatnonzero(own.kind == Kind.CONTACT)
-        s_node, m_node = own.node[rows], own.partner[rows]
-        n = n_at[m_node]
-        pos = np.full(own.size, -1)
-        pos[rows] = np.arange(rows.size)
-        ent = np.flatnonzero(pos[own.e_row] >= 0)
-        r = pos[own.e_row[ent]]
-        # the set-up kept only the components its normals needed: a normal that turns out
-        # of them is projected back (an iterate on the way; the solution must not need it)
-        have = np.zeros((rows.size, gdim), dtype=bool)
-        have[r, own.e_comp[ent]] = True
-        dropped = float(np.abs(n[~have]).max(initial=0.0))
-        self._dropped = self.comm.allreduce(dropped, op=MPI.MAX)
-        n = np.where(have, n, 0.0)
-        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
-        rhs[rows] = own.scale[rows] * np.einsum("ij,ij->i", y[s_node] - y[m_node], n)
-        normal[rows] = n
-        sign = np.where(own.e_node[ent] == s_node[r], -1.0, 1.0)
-        coef[ent] = sign * n[r, own.e_comp[ent]] * own.scale[own.e_row[ent]]
-
-    def _c_at(self, problem, rows0, c0: np.ndarray) -> np.ndarray:
-        """c such that B u − c is the rows' value at the current u, for the solver's B.
-
-        For an obstacle or a pair row: −gap. What the KKT check and the Solution's contact
-        data read.
-        """
-        return self._Bu(self.u) + self._at(problem, rows0, c0, self.u)[0]
-
-    def _violation(self, rhs: np.ndarray, own) -> np.ndarray:
-        """The violation of the rows (physical units) given their right-hand sides at u."""
-        v = -rhs / own.scale
-        ineq = own.inequality
-        v[ineq] = np.maximum(v[ineq], 0.0)
-        return v
 
     def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
                ) -> tuple[float, np.ndarray]:
@@ -425,7 +227,7 @@ class NewtonSolver:
             r = self._residual(problem, u.array_r)
         except InputError:  # non-finite: a cell turned inside out (J <= 0) at this trial
             return math.inf, None
-        v = self._violation(self._at(problem, rows0, c0, u)[0], rows0.own)
+        v = self.rows.violation(self.rows.at(problem, rows0, c0, u)[0], rows0.own)
         s = float(np.sum((r - BTlam) ** 2)) + self._kappa ** 2 * float(np.sum(v ** 2))
         s = self.comm.allreduce(s, op=MPI.SUM)
         return (math.sqrt(s) if np.isfinite(s) else math.inf), r
@@ -454,7 +256,7 @@ class NewtonSolver:
         for k in range(opts.max_it):
             t0 = time.perf_counter()
             self.state.set(solver.data, self.u.array_r)
-            rhs, coef, normal = self._at(current, rows0, c0, self.u, keep=True)
+            rhs, coef, normal = self.rows.at(current, rows0, c0, self.u, keep=True)
             rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
             if self._fresh and k == 0 and np.allclose(rows.own.rhs, solver.qp.rows.own.rhs,
                                                       rtol=0, atol=0):
@@ -475,8 +277,8 @@ class NewtonSolver:
             self._lam = lam
             if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
                 history.append(self._record(k, math.nan, 0.0, qp, t0, {}))
-                sol = self._solution(problem, qp, self._c_at(current, rows0, c0), r, r_scale,
-                                     history, False)
+                c_now = self.rows.c_at(current, rows0, c0, self.u)
+                sol = self._solution(problem, qp, c_now, r, r_scale, history, False)
                 sol.report.reason = "indefinite tangent"
                 sol.report.warnings.append(
                     f"Newton iteration {k}: the tangent stiffness K̃_t is indefinite (the QP is "
@@ -502,19 +304,19 @@ class NewtonSolver:
             else:
                 trial.destroy()
                 history.append(self._record(k, math.nan, alpha, qp, t0, {}))
-                c_now = self._c_at(current, rows0, c0)
+                c_now = self.rows.c_at(current, rows0, c0, self.u)
                 return self._solution(problem, qp, c_now, r_k, r_scale, history, False), False
             self.u.axpy(alpha, du)
             trial.destroy()
             self.state.set(solver.data, self.u.array_r)
             du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
                 self.u.norm(PETSc.NormType.INFINITY), 1e-300)
-            c_now = self._c_at(current, rows0, c0)
+            c_now = self.rows.c_at(current, rows0, c0, self.u)
             kkt = self._kkt(c_now, r, r_scale, lam, own0)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
             if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
-                    qp.report.converged and self._dropped <= opts.rtol:
+                    qp.report.converged and self.rows.dropped <= opts.rtol:
                 converged = True
                 break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
@@ -533,7 +335,7 @@ class NewtonSolver:
         return {"iteration": k, "step": float(alpha), "du_rel": float(du_rel),
                 "residual": float(kkt.get("equilibrium", math.nan)),
                 "kkt": {key: float(v) for key, v in kkt.items()},
-                "normal_dropped": float(self._dropped),
+                "normal_dropped": float(self.rows.dropped),
                 "qp_converged": bool(qp.report.converged), "qp_reason": qp.report.reason,
                 "hessian_mults": int(qp.report.hessian_mults),
                 "seconds": self.comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)}
