@@ -151,7 +151,7 @@ class CurrentRows:
         coef, normal = own.e_coef.copy(), own.normal.copy()
         pairs = rows0.contact.kind == Kind.CONTACT
         if np.any(pairs):  # the same on every rank (the contact rows are replicated)
-            self._pairsat(problem, rows0, u, rhs, coef, normal)
+            self._pairs_at(problem, rows0, u, rhs, coef, normal)
         obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
         if not self.comm.allreduce(obst.size, op=MPI.SUM):
             return rhs, coef, normal
@@ -175,7 +175,7 @@ class CurrentRows:
         normal[obst] = n
         return rhs, coef, normal
 
-    def _pairsat(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
+    def _pairs_at(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
         """Node-to-node rows at u, in place (collective).
 
         The normal of the deformed master surface at the master node, the gap of the current
