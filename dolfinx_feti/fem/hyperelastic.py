@@ -146,7 +146,13 @@ class Hyperelastic:
         u = compat.function(V, "u")
         v, du = ufl.TestFunction(V), ufl.TrialFunction(V)
         F = ufl.variable(ufl.Identity(len(u)) + ufl.grad(u))
-        Pi = self._psi(F, sub) * sub.dx()
+        psi = self._psi(F, sub)
+        if not isinstance(psi, ufl.core.expr.Expr) or psi.ufl_shape != ():
+            shape = getattr(psi, "ufl_shape", None)
+            raise InputError(f"Hyperelastic: energy(F) must return a scalar UFL expression of "
+                             f"F, got {type(psi).__name__}"
+                             f"{'' if shape is None else f' of shape {shape}'}")
+        Pi = psi * sub.dx()
         W = self._external(V, sub, u)
         if W is not None:
             Pi = Pi - W

@@ -137,6 +137,8 @@ def test_refused_by_name(block):
         pressed(mesh, 0.1, df.NeoHookean(E, 0.5))
     with pytest.raises(df.InputError, match="energy must be a function"):
         df.Hyperelastic(3.0)
+    with pytest.raises(df.InputError, match="must return a scalar UFL expression"):
+        df.solve(pressed(mesh, 0.1, df.Hyperelastic(lambda F: F)))
 
 
 def test_path_equals_single_solves_and_cuts_back(block):
