@@ -199,6 +199,15 @@ class Subdomain:
         q.x.array[dofs] = table[body_of_cell]
         return q
 
+    @property
+    def dof_permutation(self) -> np.ndarray:
+        """The DOLFINx dof of each canonical dof of the space the forms were given.
+
+        Set before the first call of the forms: ``w.x.array[perm] = values`` puts canonical
+        values into a Function ``w`` of that space.
+        """
+        return self._perm
+
     def _canonical_points(self, V) -> np.ndarray:
         """For each (blocked) dof of V, its index in the canonical order of the dof points."""
         block = self._cell_block[:, None]

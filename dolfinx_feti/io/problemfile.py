@@ -47,6 +47,7 @@ from mpi4py import MPI
 
 from ..errors import InputError, SolveError, collective
 from ..fem import Elasticity, Poisson
+from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
 from ..mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
 from ..problem.contact_problem import (
@@ -72,7 +73,11 @@ TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
 TIE_KEYS = ("slave", "master", "search_distance")
 #: ``[model]`` keys by model type.
 MODEL_KEYS = {"elasticity": ("type", "E", "nu", "tractions", "body_force"),
+              "neo-hookean": ("type", "E", "nu", "tractions", "body_force"),
+              "svk": ("type", "E", "nu", "tractions", "body_force"),
               "poisson": ("type", "source", "k", "flux", "source_boxes")}
+#: The solid models of ``[model] type``: small strain, and hyperelastic (solved by Newton).
+SOLIDS = {"elasticity": Elasticity, "neo-hookean": NeoHookean, "svk": SaintVenantKirchhoff}
 #: Keys of an affine traction ``model.tractions.<group> = {value, gradient}``.
 AFFINE_KEYS = ("value", "gradient")
 #: ``[[model.source_boxes]]`` keys.
@@ -444,7 +449,7 @@ class ProblemFile:
     Attributes:
         path: The problem file.
         title: Its title (the file name when none is given).
-        model: ``"elasticity"`` or ``"poisson"``.
+        model: ``"elasticity"``, ``"neo-hookean"``, ``"svk"`` or ``"poisson"``.
         mesh: The mesh, on every rank.
         mesh_source: The mesh file, or the generator call that built the mesh.
         problem: The :class:`~dolfinx_feti.ContactProblem`.
@@ -620,7 +625,7 @@ class _Reader:
         mesh_source = self._mesh()
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \
-            (self.mesh.gdim if model == "elasticity" else 1)
+            (self.mesh.gdim if model in SOLIDS else 1)
         dirichlet = self._dirichlet(value_size)
         contact = self._contact(model)
         ties = self._ties()
@@ -742,12 +747,12 @@ class _Reader:
         if kind is None:
             return None, None
         m = c.table(m, "model", MODEL_KEYS[kind],
-                    required=("E", "nu") if kind == "elasticity" else ())
+                    required=("E", "nu") if kind in SOLIDS else ())
         if m is None:
             return None, None
         self.model = kind
         gdim = None if mesh is None else mesh.gdim
-        if kind == "elasticity":
+        if kind in SOLIDS:
             E = c.per_body(m.get("E"), "model.E", mesh, "a number > 0", lambda v: v > 0) \
                 if "E" in m else None
             nu = c.per_body(m.get("nu"), "model.nu", mesh, "a number in (-1, 0.5)",
@@ -769,7 +774,7 @@ class _Reader:
                 body_force = c.vector(m["body_force"], "model.body_force", gdim)
             if E is None or nu is None:
                 return kind, None
-            return kind, Elasticity(E, nu, tractions=tractions, body_force=body_force)
+            return kind, SOLIDS[kind](E, nu, tractions=tractions, body_force=body_force)
         source = c.per_body(m.get("source", 0.0), "model.source", mesh, "a number",
                             None, complete=False)
         k = c.per_body(m.get("k", 1.0), "model.k", mesh, "a number > 0", lambda v: v > 0)
