@@ -249,20 +249,8 @@ def fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
 
 
 def choose_method(problem: ContactProblem, dec, rows) -> str:
-    """The method ``method="auto"`` picks (the rule of docs/solvers.md).
-
-    Derived from ``bench/method_choice.py`` (F-multiplications of every method on problems with
-    and without floating bodies, 2D and 3D, few and many subdomains):
-
-    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
-      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
-    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
-      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
-      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
-      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
-      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
-    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
-      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
+    """The method ``method="auto"`` picks, by the rule of
+    :func:`dolfinx_feti.setup.stages.choose_method`, on the global arrays.
 
     Reads the global decomposition and rows (on the rank that holds them).
     """
