@@ -43,9 +43,10 @@ def curved_plate(root):
                              dirichlet=[df.Dirichlet("outer")], decomposition=df.Parts(3))
 
 
-def curved_mortar(root):
+def curved_mortar(root, replicate=True):
     """2D Hertz on curved (second-order) cells, mortar contact on the curved arc."""
-    mesh = df.build_mesh(curved_disk_on_block, 0.5, 0.85, h_far=2.0, refine=2.0)
+    mesh = df.build_mesh(curved_disk_on_block, 0.5, 0.85, h_far=2.0, refine=2.0,
+                         replicate=replicate)
     return df.ContactProblem(
         mesh, df.Elasticity(1.0, 0.3, tractions={"load": (0.0, -0.01)}),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
@@ -64,6 +65,7 @@ CASES = {"membranes_P2": lambda root: membranes(root),
          "membranes_root_only": lambda root: membranes(root, replicate=False),
          "ptscotch": lambda root: membranes(root, method="ptscotch"),
          "curved_plate": curved_plate, "curved_mortar": curved_mortar,
+         "curved_mortar_root_only": lambda root: curved_mortar(root, replicate=False),
          "all_midpoints": all_midpoints,
          **{name: (lambda make: lambda root: make(root, False))(INPUT_CASES[name])
             for name in ("hertz_mortar", "tied_blocks_3d", "hertz_tresca",
