@@ -460,13 +460,11 @@ class FetiSolver:
         """The mortar checks (rank 0 holds the surfaces), on every rank's report."""
         comm, qp = self.comm, self.qp
         c, found = sol.contact, None
-        surface = sol.surface  # a distributed mesh: the cells along the surfaces (rank 0)
-        nodal = sol.nodal_values_on_root() if self.problem.mesh.part is None else \
-            sol.surface_values()
-        if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
-            mesh, node = (self.problem.mesh, c.node) if surface is None else \
-                (surface.problem.mesh, surface.local(c.node))
-            found = mortar_warnings(mesh, qp.mortar, nodal, c.spec, node, c.force)
+        surface = sol.surface  # the cells at the surfaces the rows came from (rank 0)
+        nodal = sol.surface_values()  # collective; rank 0 has the values at their points
+        if comm.rank == 0:
+            found = mortar_warnings(surface.problem.mesh, qp.mortar, nodal, c.spec,
+                                    surface.local(c.node), c.force)
         warn, report.extra["mortar"] = comm.bcast(found, root=0)
         report.warnings.extend(warn)
 

@@ -1059,22 +1059,16 @@ class _Reader:
 
     def _dry_run_contact(self, problem: ContactProblem) -> None:
         """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
-        from ..constraints.contact import node_to_node_rows, obstacle_rows
-        from ..constraints.mortar_rows import mortar_contact_rows
+        from ..constraints.build import ROW_BUILDERS, SurfaceCondition
 
-        mesh, points = problem.mesh, problem.dof_points
+        points = problem.dof_points
         node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
         node_subs = np.zeros(points.num_points, dtype=np.int32)
+        fixed = np.zeros((points.num_points, problem.value_size), dtype=bool)
         for i, spec in enumerate(problem.contact):
-            try:
-                if isinstance(spec, NodeToNode):
-                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
-                                      points)
-                elif isinstance(spec, Mortar):
-                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
-                                        points)
-                else:
-                    obstacle_rows(mesh, spec, i, node_ptr, node_subs, points)
+            try:  # the condition's own row builder, on one subdomain
+                ROW_BUILDERS[type(spec)](SurfaceCondition(problem, spec, i, node_ptr, node_subs,
+                                                          fixed))
             except InputError as e:
                 self.c.fault(_key("contact", i), str(e))
             except Exception:  # noqa: BLE001 - internals changed: the solve checks it again

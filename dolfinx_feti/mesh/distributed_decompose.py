@@ -460,7 +460,7 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
         label = np.zeros(0, dtype=np.int64)
         with collective(comm, "decomposition"):
             if nc:  # a rank without cells does not call the labeller
-                label = _labels_of(how, midpoints)
+                label = labels_of(how, midpoints)
     else:
         raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
                          "ByFunction(fn)")
@@ -474,7 +474,7 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     return cell_sub, sub_body.astype(cell_body.dtype)
 
 
-def _labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
+def labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     """The user's labels of the midpoints, checked as the serial decomposition checks them."""
     try:
         label = np.asarray(how.fn(midpoints))
@@ -486,4 +486,4 @@ def _labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     return label
 
 
-__all__ = ["decompose_distributed", "rcb_distributed", "split_components_distributed"]
+__all__ = ["decompose_distributed", "labels_of", "rcb_distributed", "split_components_distributed"]

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
@@ -133,10 +133,33 @@ class NodeToNode:
     match_tol: float = 1e-4
     friction: Friction | None = None
 
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = False
+    #: Two surfaces of different bodies (one group with itself is refused: :meth:`check`).
+    self_contact = False
+
     @property
     def group(self) -> str:
         """The surface whose nodes carry the rows (the slave)."""
         return self.slave
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        problem.mesh.facets(self.slave)
+        problem.mesh.facets(self.master)
+        if self.slave == self.master:
+            raise InputError(f"contact pair {self.slave!r} with itself")
+        if self.gap is not None and not np.isfinite(self.gap):
+            raise InputError(f"contact pair {self.slave!r}/{self.master!r}: gap is not finite")
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
+        return _structure_key(self)
 
 
 @dataclass(frozen=True)
@@ -195,10 +218,31 @@ class Mortar:
     search_distance: float | None = None
     normals: str = "slave"
 
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = True
+
     @property
     def group(self) -> str:
         """The surface whose nodes carry the rows (the slave)."""
         return self.slave
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    @property
+    def self_contact(self) -> bool:
+        """Whether a body touches itself (one group on both sides)."""
+        return self.slave == self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        _check_pair(problem.mesh, "mortar contact", self)
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
+        return _structure_key(self)
 
 
 @dataclass(frozen=True)
@@ -219,6 +263,29 @@ class Tie:
     slave: str
     master: str
     search_distance: float | None = None
+
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = True
+    #: A tie glues two surfaces: it has no friction.
+    friction = None
+    #: One group with itself is refused (:meth:`check`).
+    self_contact = False
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        if self.slave == self.master:
+            problem.mesh.facets(self.slave)
+            raise InputError(f"tie {self.slave!r} with itself")
+        _check_pair(problem.mesh, "tie", self)
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition itself."""
+        return _structure_key(self)
 
 
 class Obstacle(Protocol):
@@ -318,6 +385,31 @@ class RigidObstacle:
     obstacle: Obstacle
     friction: Friction | None = None
 
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = False
+    #: A body against an obstacle, not against itself.
+    self_contact = False
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return (self.group,)
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        problem.mesh.facets(self.group)
+        if problem.value_size == 1:
+            raise InputError("rigid obstacles need a vector (elasticity) problem")
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`).
+
+        Not the obstacle's position, nor the friction values: only the obstacle's kind and
+        whether there is friction.
+        """
+        return (type(self).__name__, self.group, type(self.obstacle).__name__,
+                self.friction is not None)
+
 
 #: The contact conditions; each has ``group``, the surface whose nodes carry its rows.
 Contact = NodeToNode | Mortar | RigidObstacle
@@ -394,31 +486,18 @@ class ContactProblem:
         for t in self.ties:
             if not isinstance(t, Tie):
                 raise InputError(f"ties must be df.Tie conditions, got {t!r}")
-            _check_pair(self.mesh, "tie", t)
+            t.check(self)
         for c in self.contact:
-            if isinstance(c, Mortar):
-                _check_pair(self.mesh, "mortar contact", c)
-            elif isinstance(c, NodeToNode):
-                self.mesh.facets(c.slave)
-                self.mesh.facets(c.master)
-                if c.slave == c.master:
-                    raise InputError(f"contact pair {c.slave!r} with itself")
-                if c.gap is not None and not np.isfinite(c.gap):
-                    raise InputError(f"contact pair {c.slave!r}/{c.master!r}: gap is not finite")
-            elif isinstance(c, RigidObstacle):
-                self.mesh.facets(c.group)
-                if self.value_size == 1:
-                    raise InputError("rigid obstacles need a vector (elasticity) problem")
-            else:
+            if isinstance(c, Tie) or not callable(getattr(c, "check", None)):
                 raise InputError(f"unknown contact condition {c!r}")
+            c.check(self)
             fr = c.friction
             if fr is not None and not isinstance(fr, (Tresca, Coulomb)):
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
         check_dimensions(self)
-        contact_groups = [g for c in [*self.contact, *self.ties] for g in
-                          ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
+        contact_groups = [g for c in [*self.contact, *self.ties] for g in c.groups]
         if self.mesh.part is not None:  # rank 0 checked the whole mesh at input
             _check_verdicts(self.mesh.part.verdicts, self, contact_groups)
         elif self.mesh.root_only is None:
@@ -432,7 +511,7 @@ class ContactProblem:
             points = comm.bcast(points, root=0)
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
-        mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
+        mortar = [c for c in [*self.contact, *self.ties] if c.mortar]
         if mortar and self.mesh.gdim == 3 and self.mesh.geometry_degree != 1:
             raise InputError(
                 f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) in 3D are "
@@ -470,6 +549,15 @@ def _degree(degree, forms, default: int) -> int:
     return int(degree)
 
 
+def _structure_key(c) -> tuple:
+    """A pair condition's part of the set-up's structure.
+
+    Itself without its friction values (whether there is friction counts).
+    """
+    fr = getattr(c, "friction", None) is not None
+    return type(c).__name__, replace(c, friction=None) if fr else c, fr
+
+
 def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     """The groups of a mortar condition exist, the search distance is sane.
 
@@ -477,8 +565,6 @@ def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     """
     mesh.facets(c.slave)
     mesh.facets(c.master)
-    if c.slave == c.master and isinstance(c, Tie):
-        raise InputError(f"{what} {c.slave!r} with itself")
     if mesh.tdim != mesh.gdim:
         raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")
     d = c.search_distance
