@@ -16,7 +16,8 @@ from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
-from ..validation import Choice, Function, Integer, checked, per_body
+from ..validation import Choice, Flag, Function, Integer, checked, per_body
+from .connected_parts import merge_fragments
 from .data import MeshData
 from .dofpoints import DofPoints
 from .topology import cell_volumes, facet_neighbours
@@ -32,7 +33,7 @@ class ByTags:
 
 @dataclass(frozen=True)
 @checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"),
-         balance=Choice("cells", "volume"))
+         balance=Choice("cells", "volume"), merge=Flag())
 class Parts:
     """Split every body into parts of (nearly) equal size.
 
@@ -48,11 +49,16 @@ class Parts:
             counts give many small subdomains (and pieces that fall apart) where the contact
             is; equal volumes give compact subdomains with the fine cells inside them, and far
             fewer F-multiplications (docs/benchmarks.md § 5).
+        merge: Whether the pieces a cut leaves apart (a part in pieces that share no facet)
+            are merged into their neighbouring parts, so that every body gives about ``n``
+            connected subdomains (the default; :mod:`.connected_parts`), or kept as
+            subdomains of their own (``False``: one subdomain per piece).
     """
 
     n: int | Mapping[str, int]
     method: str = "rcb"
     balance: str = "cells"
+    merge: bool = True
 
 
 @dataclass(frozen=True)
@@ -193,6 +199,8 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
         raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
                          "ByFunction(fn)")
     cell_sub = _split_components(mesh.cells, label, mesh.cell_type)
+    if isinstance(how, Parts) and how.merge:
+        cell_sub = merge_fragments(mesh.cells, cell_sub, label, mesh.cell_body, mesh.cell_type)
     cell_points = mesh.cells if points is None else points.cell_points
     num_points = mesh.num_nodes if points is None else points.num_points
     return _build(mesh, cell_sub, comm_size, cell_points, num_points)
