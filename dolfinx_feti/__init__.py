@@ -15,7 +15,7 @@ from . import compat  # noqa: F401
 from .drivers.load_path import solve_cases, solve_path
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
-from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
+from .mesh import Auto, ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
 from .options import SolverOptions
 from .problem.contact_problem import (
                       ContactProblem,
@@ -36,7 +36,7 @@ from .results.solution import ContactData, Solution
 from .setup.stages import DualQP, dual_qp
 from .solver import FetiSolver, solve
 
-__all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
+__all__ = ["Auto", "ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
            "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "InputError", "MeshData", "Mortar",
            "NodeToNode", "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
            "SignedDistance", "Solution", "SolveError", "SolverOptions", "Sphere", "Subdomain",

@@ -246,9 +246,14 @@ class EliminateCorners:
 
     # --- the coarse problem ----------------------------------------------------------------
     def _colours(self) -> list[np.ndarray]:
-        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks."""
+        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks.
+
+        Also sets ``_owner``: per block and colour, the corner unknown of that colour in the
+        block (-1: none).
+        """
         ci = np.flatnonzero(self.is_corner)
         self._blocks_of = {}
+        self._owner = np.full((len(self.parent.kernels), 0), -1, dtype=np.int64)
         if ci.size == 0:
             return []
         pairs = np.unique(np.stack([self.coarse[ci], self._block[ci]], axis=1), axis=0)
@@ -265,7 +270,10 @@ class EliminateCorners:
             for b in blocks:
                 colour_of_block.setdefault(int(b), set()).add(k)
         self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
-        return [cols[colour == k] for k in range(int(colour.max(initial=-1)) + 1)]
+        ncolour = int(colour.max(initial=-1)) + 1
+        self._owner = np.full((len(self.parent.kernels), ncolour), -1, dtype=np.int64)
+        self._owner[pairs[:, 1], colour[np.searchsorted(cols, pairs[:, 0])]] = pairs[:, 0]
+        return [cols[colour == k] for k in range(ncolour)]
 
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
@@ -279,20 +287,24 @@ class EliminateCorners:
             n = self._n_local
             rows, cols, vals = [], [], []
             groups = self._colours()
+            # the sum of the columns of each colour: one sparse product, not a column
+            # slice of K_rc per colour (which cost as much as the solves on 3D meshes)
+            member = sp.csc_matrix((np.ones(sum(g.size for g in groups)),
+                                    (_cat(groups, np.int64),
+                                     np.repeat(np.arange(len(groups)),
+                                               [g.size for g in groups]))),
+                                   shape=(nc, len(groups)))
+            colour_sums = (self.K_rc @ member).tocsc()
             for first in range(0, len(groups), _BATCH):
                 batch = groups[first:first + _BATCH]
-                rhs = np.column_stack([np.asarray(self.K_rc[:, g].sum(axis=1)).ravel()
-                                       for g in batch])
+                rhs = colour_sums[:, first:first + len(batch)].toarray()
                 Y = self.Krr_plus.solve_matrix(rhs)
-                for group, y in zip(batch, Y.T, strict=True):
-                    owner = np.full(len(parent.kernels), -1, dtype=np.int64)
-                    for j in group:
-                        owner[self._blocks_of[int(j)]] = j
-                    col = owner[self._block]
-                    sel = np.flatnonzero((col >= 0) & (y != 0.0))
-                    rows.append(sel)
-                    cols.append(col[sel])
-                    vals.append(y[sel])
+                # the column of Ψ each entry of Y belongs to: its block's unknown of the colour
+                col = self._owner[self._block, first:first + len(batch)]
+                r, k = np.nonzero((col >= 0) & (Y != 0.0))
+                rows.append(r)
+                cols.append(col[r, k])
+                vals.append(Y[r, k])
             self.Psi = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
                                                            _cat(cols, np.int64))), shape=(n, nc))
             S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()

@@ -17,6 +17,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
 from ..validation import Choice, Flag, Function, Integer, checked, per_body
+from .auto_parts import Auto, auto_parts
 from .connected_parts import merge_fragments
 from .data import MeshData
 from .dofpoints import DofPoints
@@ -149,11 +150,16 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
 
     Args:
         mesh: The mesh.
-        how: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
+        how: :class:`ByTags`, :class:`Parts`, :class:`ByFunction` or
+            :class:`~.auto_parts.Auto` (Parts by the mesh's size and the ranks).
         comm: The communicator, or just its size (for planning without MPI).
         points: The dof points that number the primal dofs (default: the vertices, degree 1).
     """
     comm_size = comm if isinstance(comm, int) else comm.size
+    if isinstance(how, Auto):
+        how = Parts(auto_parts(how, np.bincount(mesh.cell_body,
+                                                minlength=len(mesh.body_names)),
+                               mesh.body_names, mesh.cell_type, comm_size))
     midpoints = midpoints_of(mesh.x, mesh.cells) if not isinstance(how, ByTags) else None
     if isinstance(how, ByTags):
         label = mesh.cell_body.astype(np.int64)
@@ -196,7 +202,7 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
             raise InputError("ByFunction: the function must return one integer label per cell "
                              f"(shape ({mesh.cells.shape[0]},)), got {label.dtype} {label.shape}")
     else:
-        raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
+        raise InputError(f"unknown decomposition {how!r}: use Auto(), ByTags(), Parts(n) or "
                          "ByFunction(fn)")
     cell_sub = _split_components(mesh.cells, label, mesh.cell_type)
     if isinstance(how, Parts) and how.merge:

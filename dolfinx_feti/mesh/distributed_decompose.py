@@ -33,6 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError, collective
 from ..parallel.distributed_graph import component_minima
 from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
+from .auto_parts import Auto, auto_parts
 from .connected_parts import merge_fragments_distributed, rank_facets
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
 from .topology import cell_volumes, reference, row_keys
@@ -419,6 +420,10 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     cell_body = np.asarray(cell_body)
     nc, nvc, gdim = cell_x.shape
     midpoints = cell_x.mean(axis=1)
+    if isinstance(how, Auto):  # Parts by the cells of each body over all ranks
+        count = np.bincount(cell_body, minlength=len(body_names)).astype(np.int64)
+        comm.Allreduce(MPI.IN_PLACE, count, op=MPI.SUM)
+        how = Parts(auto_parts(how, count, body_names, cell_type, comm.size))
     if isinstance(how, ByTags):
         label = cell_body.astype(np.int64)
     elif isinstance(how, Parts):
@@ -456,7 +461,7 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
             if nc:  # a rank without cells does not call the labeller
                 label = _labels_of(how, midpoints)
     else:
-        raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
+        raise InputError(f"unknown decomposition {how!r}: use Auto(), ByTags(), Parts(n) or "
                          "ByFunction(fn)")
     cell_sub, first = _split(cells, cell_ids, label, cell_type, comm, num_cells)
     if isinstance(how, Parts) and how.merge:  # first: each cell's group's first cell is a first
