@@ -54,11 +54,11 @@ def build(case: str, dec) -> df.ContactProblem:
     return G.box_problem(int(case[3:]), dec)
 
 
-def parts_for(mesh: df.MeshData, cells: int) -> df.Parts:
-    """Parts(n) with n per body the body's cells over ``cells`` (at least 1)."""
+def parts_for(mesh: df.MeshData, cells: int, balance: str) -> df.Parts:
+    """Parts(n, balance) with n per body the body's cells over ``cells`` (at least 1)."""
     count = np.bincount(mesh.cell_body, minlength=len(mesh.body_names))
     return df.Parts({name: max(1, round(int(c) / cells))
-                     for name, c in zip(mesh.body_names, count, strict=True)})
+                     for name, c in zip(mesh.body_names, count, strict=True)}, balance=balance)
 
 
 def main() -> None:
@@ -67,6 +67,7 @@ def main() -> None:
     parser.add_argument("--cells", default="1000,2500,5000,10000,20000")
     parser.add_argument("--methods", default=",".join(METHODS))
     parser.add_argument("--rtol", type=float, default=1e-6)
+    parser.add_argument("--balance", default="volume", choices=("cells", "volume"))
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/auto_decomposition.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
@@ -74,7 +75,7 @@ def main() -> None:
     for case in args.cases.split(","):
         mesh = build(case, df.ByTags()).mesh
         for cells in (int(c) for c in args.cells.split(",")):
-            dec = parts_for(mesh, cells)
+            dec = parts_for(mesh, cells, args.balance)
             row = {"case": case, "cells": int(mesh.cells.shape[0]), "per_sub": cells}
             for method in args.methods.split(","):
                 problem = build(case, dec)
@@ -96,7 +97,8 @@ def main() -> None:
     if comm.rank != 0:
         return
     methods = args.methods.split(",")
-    lines = [f"Cells per subdomain against wall time, rtol {args.rtol:g}, {comm.size} rank(s): "
+    lines = [f"Cells per subdomain against time, Parts(n, balance={args.balance!r}), "
+             f"rtol {args.rtol:g}, {comm.size} rank(s): "
              "F-mults / set-up [s] / total CPU [s]; the least total of a case in bold", "",
              "| case | cells | primal dofs | cells per subdomain | subdomains | "
              + " | ".join(methods) + " |", "|---" * (5 + len(methods)) + "|"]

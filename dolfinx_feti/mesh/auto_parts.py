@@ -1,17 +1,23 @@
 """``Auto()``: the decomposition chosen from the mesh and the ranks (the default).
 
-A user who gives no decomposition gets :class:`~.decompose.Parts` with a number of parts per
-body from the body's size and the number of ranks:
+A user who gives no decomposition gets :class:`~.decompose.Parts` of equal volume with a
+number of parts per body from the body's size and the number of ranks:
 
-- every body in parts of about ``cells`` cells (:data:`TARGET_CELLS` by cell type: where the
-  total wall time of a solve was least on the graded 2D Hertz mesh, the graded 3D rigid sphere
-  and a graded DOLFINx box, ``bench/auto_decomposition.py``, docs/benchmarks.md) — an H/h of
-  about 20–30 in 2D and 10–15 in 3D, in the range the seed's scalability results use;
+- every body in parts of about ``cells`` cells (:data:`TARGET_CELLS` by cell type), cut to
+  equal volumes (:data:`BALANCE`) and merged into connected subdomains
+  (:mod:`.connected_parts`). The targets are where the CPU time of a solve was least on one
+  rank (``bench/auto_decomposition.py``, docs/benchmarks.md § 20): on the graded 2D Hertz
+  mesh H2, the graded 3D rigid sphere S2 and a user's graded DOLFINx box of 30 k and 110 k
+  dofs, fewer subdomains took less time down to one per body (box, 197 k tetrahedra: 11.0 s
+  whole, 15.4 s in 5 parts, 15.5 s in 13, FETI-1): a factorization of up to 110 k dofs
+  costs less than the iterations more subdomains add. The targets are the largest parts
+  measured (triangles 40 k, tetrahedra 200 k cells); quadrilaterals and hexahedra take about
+  the same dofs per subdomain (half and a fifth of the cells), not measured;
 - on several ranks, at least one subdomain per rank when the mesh has at least
   :data:`MIN_CELLS` cells per rank (a rank without a subdomain would idle), the extra parts
-  given to the bodies by their size; a smaller mesh keeps the parts of one rank;
-- a body smaller than half a part stays whole; the parts are cut with equal cell counts and
-  merged into connected subdomains (:mod:`.connected_parts`).
+  given to the bodies by their size; a smaller mesh keeps the parts of one rank (a choice,
+  not measured);
+- a body smaller than half a part stays whole (on a small mesh ``Auto()`` is ``ByTags()``).
 
 The counts depend on the mesh's cells, not on its numbering: the same on every rank, and for
 a distributed mesh (the cell counts summed over the ranks) the serial result.
@@ -26,11 +32,14 @@ import numpy as np
 
 from ..validation import Integer, Maybe, checked
 
-#: Cells per subdomain with the least wall time, by cell type (bench/auto_decomposition.py).
-TARGET_CELLS = {"triangle": 4000, "quadrilateral": 2000, "tetrahedron": 4000,
-                "hexahedron": 700}
+#: Cells per subdomain with the least time, by cell type (bench/auto_decomposition.py).
+TARGET_CELLS = {"triangle": 40000, "quadrilateral": 20000, "tetrahedron": 200000,
+                "hexahedron": 40000}
 #: The fewest cells per rank for which every rank gets a subdomain.
-MIN_CELLS = 1000
+MIN_CELLS = 5000
+#: What the parts make equal: their volumes (on meshes graded toward a contact 1.3–5× less
+#: time than equal cell counts, bench/auto_decomposition.py --balance cells).
+BALANCE = "volume"
 
 
 @dataclass(frozen=True)
@@ -38,8 +47,9 @@ MIN_CELLS = 1000
 class Auto:
     """The decomposition chosen from the mesh and the ranks (the default of a problem).
 
-    ``Parts(n)`` with n per body the body's cells over ``cells`` (at least 1), raised on
-    several ranks to one subdomain per rank or more (module :mod:`.auto_parts`).
+    ``Parts(n, balance="volume")`` with n per body the body's cells over ``cells`` (at least
+    1), raised on several ranks to one subdomain per rank or more (module
+    :mod:`.auto_parts`).
 
     Args:
         cells: The cells per subdomain to aim at; None: the measured default of the cell
@@ -51,7 +61,7 @@ class Auto:
 
 def auto_parts(how: Auto, body_cells: Sequence[int], body_names: Sequence[str],
                cell_type: str | None, comm_size: int) -> dict[str, int]:
-    """The parts per body that ``how`` stands for: ``Parts(auto_parts(...))``.
+    """The parts per body that ``how`` stands for: ``Parts(auto_parts(...), balance=BALANCE)``.
 
     Args:
         how: The Auto decomposition.
@@ -76,4 +86,4 @@ def auto_parts(how: Auto, body_cells: Sequence[int], body_names: Sequence[str],
     return {name: int(k) for name, k in zip(body_names, n, strict=True)}
 
 
-__all__ = ["MIN_CELLS", "TARGET_CELLS", "Auto", "auto_parts"]
+__all__ = ["BALANCE", "MIN_CELLS", "TARGET_CELLS", "Auto", "auto_parts"]

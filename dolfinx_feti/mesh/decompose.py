@@ -17,7 +17,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
 from ..validation import Choice, Flag, Function, Integer, checked, per_body
-from .auto_parts import Auto, auto_parts
+from .auto_parts import BALANCE, Auto, auto_parts
 from .connected_parts import merge_fragments
 from .data import MeshData
 from .dofpoints import DofPoints
@@ -159,7 +159,7 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
     if isinstance(how, Auto):
         how = Parts(auto_parts(how, np.bincount(mesh.cell_body,
                                                 minlength=len(mesh.body_names)),
-                               mesh.body_names, mesh.cell_type, comm_size))
+                               mesh.body_names, mesh.cell_type, comm_size), balance=BALANCE)
     midpoints = midpoints_of(mesh.x, mesh.cells) if not isinstance(how, ByTags) else None
     if isinstance(how, ByTags):
         label = mesh.cell_body.astype(np.int64)

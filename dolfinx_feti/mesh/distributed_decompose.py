@@ -33,7 +33,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError, collective
 from ..parallel.distributed_graph import component_minima
 from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
-from .auto_parts import Auto, auto_parts
+from .auto_parts import BALANCE, Auto, auto_parts
 from .connected_parts import merge_fragments_distributed, rank_facets
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
 from .topology import cell_volumes, reference, row_keys
@@ -423,7 +423,7 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     if isinstance(how, Auto):  # Parts by the cells of each body over all ranks
         count = np.bincount(cell_body, minlength=len(body_names)).astype(np.int64)
         comm.Allreduce(MPI.IN_PLACE, count, op=MPI.SUM)
-        how = Parts(auto_parts(how, count, body_names, cell_type, comm.size))
+        how = Parts(auto_parts(how, count, body_names, cell_type, comm.size), balance=BALANCE)
     if isinstance(how, ByTags):
         label = cell_body.astype(np.int64)
     elif isinstance(how, Parts):
