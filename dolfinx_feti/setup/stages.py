@@ -43,6 +43,7 @@ from ..feti.transforms import EliminateDirichlet
 from ..mesh.decompose import decompose
 from ..problem.contact_problem import ContactProblem
 from ..timing import Timer
+from .method_rule import method_by_time
 from .share import share_out
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
@@ -209,13 +210,13 @@ def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, me
                          "too (dual.CORNERS_ON_CONTACT); read the mesh with distribute=False")
     share, surface, mortar = share_from_parts(problem, comm, timer)
     with timer.phase("constraints"):
-        auto = method == "auto"
-        if auto:  # choose_method's rule, its first branch here
+        if method == "auto":  # choose_method's rule (setup/method_rule.py)
             glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
-            method = "fetidp" if glued else "feti1"
-        if method == "fetidp":  # the rule's last branch: "tfeti" if a primal component floats
+            method = method_by_time(glued, share.dec.num_subdomains,
+                                    len(problem.mesh.body_names))
+        if method == "fetidp":
             method, share.extra = fetidp_share(
-                share, problem.value_size, problem.mesh.body_names, comm, auto=auto,
+                share, problem.value_size, problem.mesh.body_names, comm,
                 edges=CORNER_EDGES and problem.mesh.gdim == 3)
     fdata = None
     if any(getattr(c, "friction", None) is not None for c in problem.contact):
@@ -251,31 +252,12 @@ def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
 
 
 def choose_method(problem: ContactProblem, dec, rows) -> str:
-    """The method ``method="auto"`` picks (the rule of docs/solvers.md).
-
-    Derived from ``bench/method_choice.py`` (F-multiplications of every method on problems with
-    and without floating bodies, 2D and 3D, few and many subdomains):
-
-    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
-      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
-    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
-      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
-      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
-      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
-      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
-    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
-      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
+    """The method ``method="auto"`` picks: :func:`.method_rule.method_by_time`.
 
     Reads the global decomposition and rows (on the rank that holds them).
     """
-    if not np.any(rows.kind == Kind.GLUE):
-        return "feti1"
-    fixed, _ = dirichlet_mask(problem, problem.mesh)
-    none = np.zeros(0, dtype=np.int64)
-    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size,
-                               [(none, none, none)], problem.dof_points.x,
-                               primal_components(problem.mesh, dec))
-    return "tfeti" if free else "fetidp"
+    return method_by_time(bool(np.any(rows.kind == Kind.GLUE)), dec.num_subdomains,
+                          len(problem.mesh.body_names))
 
 
 __all__ = ["METHODS", "DualQP", "SharedProblem", "chain_qp", "dual_qp", "qp_of_share",
