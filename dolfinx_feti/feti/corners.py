@@ -74,6 +74,32 @@ class CornerSystem(RowOperands):
         self.f = f
         self.n_coarse = step.n_coarse
 
+    def _psi_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ψ's CSR pattern: a row of block b holds b's corner unknowns, sorted (none at corners).
+
+        Returns:
+            ``(indptr, indices, slot)``; ``slot[b, colour]`` is the position, within a row of
+            block b, of b's unknown of that colour (-1: none). Built once from ``_owner``, so
+            the entries of each batch of solves are placed without a sort.
+        """
+        own = self._owner
+        big = np.iinfo(np.int64).max
+        order = np.argsort(np.where(own >= 0, own, big), axis=1, kind="stable")
+        slot = np.empty_like(own)
+        np.put_along_axis(slot, order, np.arange(own.shape[1])[None, :].repeat(own.shape[0], 0),
+                          axis=1)
+        slot[own < 0] = -1
+        per_block = (own >= 0).sum(axis=1)
+        count = np.where(self.is_corner, 0, per_block[self._block])
+        indptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+        sorted_cols = np.take_along_axis(own, order, axis=1)
+        rows = np.bincount(self._block[~self.is_corner], minlength=own.shape[0])
+        # rows are block by block: block b's rows repeat its sorted columns (a loop over the
+        # rank's subdomains, not its dofs)
+        indices = _cat([np.tile(sorted_cols[b, :per_block[b]], rows[b])
+                        for b in range(own.shape[0])], np.int64)
+        return indptr, indices, slot
+
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """Factor K_rr, build Ψ and S_cc, factor S_cc (collective; ``site``: the guard's)."""
         self._step.factorize(factor, site)
@@ -275,6 +301,32 @@ class EliminateCorners:
         self._owner[pairs[:, 1], colour[np.searchsorted(cols, pairs[:, 0])]] = pairs[:, 0]
         return [cols[colour == k] for k in range(ncolour)]
 
+    def _psi_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ψ's CSR pattern: a row of block b holds b's corner unknowns, sorted (none at corners).
+
+        Returns:
+            ``(indptr, indices, slot)``; ``slot[b, colour]`` is the position, within a row of
+            block b, of b's unknown of that colour (-1: none). Built once from ``_owner``, so
+            the entries of each batch of solves are placed without a sort.
+        """
+        own = self._owner
+        big = np.iinfo(np.int64).max
+        order = np.argsort(np.where(own >= 0, own, big), axis=1, kind="stable")
+        slot = np.empty_like(own)
+        np.put_along_axis(slot, order, np.arange(own.shape[1])[None, :].repeat(own.shape[0], 0),
+                          axis=1)
+        slot[own < 0] = -1
+        per_block = (own >= 0).sum(axis=1)
+        count = np.where(self.is_corner, 0, per_block[self._block])
+        indptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+        sorted_cols = np.take_along_axis(own, order, axis=1)
+        rows = np.bincount(self._block[~self.is_corner], minlength=own.shape[0])
+        # rows are block by block: block b's rows repeat its sorted columns (a loop over the
+        # rank's subdomains, not its dofs)
+        indices = _cat([np.tile(sorted_cols[b, :per_block[b]], rows[b])
+                        for b in range(own.shape[0])], np.int64)
+        return indptr, indices, slot
+
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
 
@@ -285,8 +337,9 @@ class EliminateCorners:
         with collective(comm, site):
             self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
             n = self._n_local
-            rows, cols, vals = [], [], []
             groups = self._colours()
+            indptr, indices, slot = self._psi_pattern()
+            data = np.zeros(indices.size)
             # the sum of the columns of each colour: one sparse product, not a column
             # slice of K_rc per colour (which cost as much as the solves on 3D meshes)
             member = sp.csc_matrix((np.ones(sum(g.size for g in groups)),
@@ -299,14 +352,12 @@ class EliminateCorners:
                 batch = groups[first:first + _BATCH]
                 rhs = colour_sums[:, first:first + len(batch)].toarray()
                 Y = self.Krr_plus.solve_matrix(rhs)
-                # the column of Ψ each entry of Y belongs to: its block's unknown of the colour
-                col = self._owner[self._block, first:first + len(batch)]
-                r, k = np.nonzero((col >= 0) & (Y != 0.0))
-                rows.append(r)
-                cols.append(col[r, k])
-                vals.append(Y[r, k])
-            self.Psi = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
-                                                           _cat(cols, np.int64))), shape=(n, nc))
+                # each entry of Y goes to its row's slot of its block's unknown of the colour
+                at = slot[self._block, first:first + len(batch)]
+                r, k = np.nonzero((at >= 0) & ~self.is_corner[:, None])
+                data[indptr[r] + at[r, k]] = Y[r, k]
+            self.Psi = sp.csr_matrix((data, indices, indptr), shape=(n, nc))
+            self.Psi.eliminate_zeros()
             S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()
         parts = comm.allgather((S_loc.row, S_loc.col, S_loc.data))
         S = sp.csr_matrix((np.concatenate([p[2] for p in parts]),
