@@ -74,32 +74,6 @@ class CornerSystem(RowOperands):
         self.f = f
         self.n_coarse = step.n_coarse
 
-    def _psi_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Ψ's CSR pattern: a row of block b holds b's corner unknowns, sorted (none at corners).
-
-        Returns:
-            ``(indptr, indices, slot)``; ``slot[b, colour]`` is the position, within a row of
-            block b, of b's unknown of that colour (-1: none). Built once from ``_owner``, so
-            the entries of each batch of solves are placed without a sort.
-        """
-        own = self._owner
-        big = np.iinfo(np.int64).max
-        order = np.argsort(np.where(own >= 0, own, big), axis=1, kind="stable")
-        slot = np.empty_like(own)
-        np.put_along_axis(slot, order, np.arange(own.shape[1])[None, :].repeat(own.shape[0], 0),
-                          axis=1)
-        slot[own < 0] = -1
-        per_block = (own >= 0).sum(axis=1)
-        count = np.where(self.is_corner, 0, per_block[self._block])
-        indptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-        sorted_cols = np.take_along_axis(own, order, axis=1)
-        rows = np.bincount(self._block[~self.is_corner], minlength=own.shape[0])
-        # rows are block by block: block b's rows repeat its sorted columns (a loop over the
-        # rank's subdomains, not its dofs)
-        indices = _cat([np.tile(sorted_cols[b, :per_block[b]], rows[b])
-                        for b in range(own.shape[0])], np.int64)
-        return indptr, indices, slot
-
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """Factor K_rr, build Ψ and S_cc, factor S_cc (collective; ``site``: the guard's)."""
         self._step.factorize(factor, site)
