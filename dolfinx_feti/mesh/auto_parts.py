@@ -15,8 +15,8 @@ number of parts per body from the body's size and the number of ranks:
   the same dofs per subdomain (half and a fifth of the cells), not measured;
 - on several ranks, at least one subdomain per rank when the mesh has at least
   :data:`MIN_CELLS` cells per rank (a rank without a subdomain would idle), the extra parts
-  given to the bodies by their size; a smaller mesh keeps the parts of one rank (a choice,
-  not measured);
+  given to the bodies by their size; a smaller mesh keeps the parts of one rank (measured
+  on 2 ranks at two sizes only);
 - a body smaller than half a part stays whole (on a small mesh ``Auto()`` is ``ByTags()``).
 
 The counts depend on the mesh's cells, not on its numbering: the same on every rank, and for
@@ -35,8 +35,10 @@ from ..validation import Integer, Maybe, checked
 #: Cells per subdomain with the least time, by cell type (bench/auto_decomposition.py).
 TARGET_CELLS = {"triangle": 40000, "quadrilateral": 20000, "tetrahedron": 200000,
                 "hexahedron": 40000}
-#: The fewest cells per rank for which every rank gets a subdomain.
-MIN_CELLS = 5000
+#: The fewest cells per rank for which every rank gets a subdomain (2 ranks: the sphere S2,
+#: 32 801 cells, took 1.2–1.4× longer in 2 subdomains than whole; the box of 48 000 cells 0.88×
+#: in 3; bench/auto_decomposition.py under mpirun).
+MIN_CELLS = 20000
 #: What the parts make equal: their volumes (on meshes graded toward a contact 1.3–5× less
 #: time than equal cell counts, bench/auto_decomposition.py --balance cells).
 BALANCE = "volume"
