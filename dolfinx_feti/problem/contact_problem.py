@@ -9,6 +9,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import InputError, collective
+from ..mesh.auto_parts import Auto
 from ..mesh.checks import (
     check_boundary_group,
     check_conforming,
@@ -421,8 +422,9 @@ Contact = NodeToNode | Mortar | RigidObstacle
          forms=Function("a function forms(V, sub) -> (a, L)"),
          value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
          contact=SequenceOf(Instance(object, what="a contact condition")),
-         decomposition=Instance(ByTags, Parts, ByFunction,
-                                what="a decomposition: ByTags(), Parts(n) or ByFunction(fn)"),
+         decomposition=Instance(Auto, ByTags, Parts, ByFunction,
+                                what="a decomposition: Auto(), ByTags(), Parts(n) or "
+                                "ByFunction(fn)"),
          gluing=Choice("orthonormal", "redundant", "nonredundant"),
          ties=SequenceOf(Instance(Tie)), degree=Maybe(Integer(ge=1, le=2)))
 class ContactProblem:
@@ -440,7 +442,9 @@ class ContactProblem:
         dirichlet: Dirichlet conditions.
         contact: Contact conditions (:class:`Mortar`, :class:`NodeToNode`,
             :class:`RigidObstacle`).
-        decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
+        decomposition: :class:`Auto` (the default: Parts by the mesh's size and the
+            number of ranks, docs/solvers.md), :class:`ByTags`, :class:`Parts` or
+            :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
         degree: Degree of the Lagrange space ``V`` given to ``forms`` (1 or 2); taken from
@@ -454,7 +458,7 @@ class ContactProblem:
     value_size: int | None = None
     dirichlet: Sequence[Dirichlet] = field(default_factory=list)
     contact: Sequence[Contact] = field(default_factory=list)
-    decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
+    decomposition: Auto | ByTags | Parts | ByFunction = field(default_factory=Auto)
     gluing: str = "orthonormal"
     ties: Sequence[Tie] = field(default_factory=list)
     degree: int | None = None

@@ -39,6 +39,7 @@ from ..feti.system import BlockSystem
 from ..feti.transforms import EliminateDirichlet
 from ..problem.contact_problem import ContactProblem
 from ..timing import Timer
+from .method_rule import method_by_time
 from .whole_mesh import as_blocks
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
@@ -194,29 +195,18 @@ def choose_method(problem: ContactProblem, share, comm: MPI.Comm, method: str) -
     """The method, ``"auto"`` resolved by the rule of docs/solvers.md (collective).
 
     For FETI-DP (asked for, or chosen) the share gets its corners and floating motions
-    (``share.extra``, :func:`~.fem.distributed_corners.fetidp_share`). The rule, derived from
-    ``bench/method_choice.py`` (F-multiplications of every method on problems with and
-    without floating bodies, 2D and 3D, few and many subdomains):
-
-    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
-      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
-    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
-      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
-      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
-      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
-      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
-    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
-      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
+    (``share.extra``, :func:`~.fem.distributed_corners.fetidp_share`). The rule is
+    :func:`.method_rule.method_by_time` (measured wall time): FETI-1 without gluing rows or
+    with few subdomains per body, FETI-DP with many.
     """
     from ..fem.distributed_corners import fetidp_share
 
-    auto = method == "auto"
-    if auto:
+    if method == "auto":
         glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
-        method = "fetidp" if glued else "feti1"
-    if method == "fetidp":  # the rule's last branch: "tfeti" if a primal component floats
+        method = method_by_time(glued, share.dec.num_subdomains, len(problem.mesh.body_names))
+    if method == "fetidp":
         method, share.extra = fetidp_share(
-            share, problem.value_size, problem.mesh.body_names, comm, auto=auto,
+            share, problem.value_size, problem.mesh.body_names, comm,
             edges=CORNER_EDGES and problem.mesh.gdim == 3)
     return method
 

@@ -120,16 +120,21 @@ def membranes_by_tags(root, distribute):
     return replace(INPUT_CASES["membranes_P1"](root, distribute), decomposition=df.ByTags())
 
 
+def membranes_many(root, distribute):
+    """B1 in 32 parts per membrane: more than setup.method_rule.MANY_PER_BODY."""
+    return replace(INPUT_CASES["membranes_P1"](root, distribute), decomposition=df.Parts(32))
+
+
 @pytest.mark.parametrize("name, expected", [
-    ("membranes_P1", "tfeti"), ("hexahedra_P2", "fetidp"), ("island", "fetidp"),
-    ("membranes_by_tags", "feti1")])
+    ("membranes_P1", "feti1"), ("hexahedra_P2", "feti1"), ("island", "feti1"),
+    ("membranes_by_tags", "feti1"), ("membranes_many", "fetidp")])
 def test_auto_chooses_as_on_the_whole_mesh(root, name, expected):
-    """No gluing → feti1; floating bodies → tfeti; every body held → fetidp (the full rule of
-    choose_method)."""
-    make = membranes_by_tags if name == "membranes_by_tags" else CASES[name]
-    chosen = [serial_dual_qp(make(root, False), method="auto").method] + \
-        [df.dual_qp(make(root, d), method="auto").method for d in (False, True)]
-    assert chosen == [expected] * 3
+    """No gluing or few subdomains per body → feti1; many → fetidp, floating bodies too (the
+    rule of choose_method, setup/method_rule.py)."""
+    make = {"membranes_by_tags": membranes_by_tags,
+            "membranes_many": membranes_many}.get(name) or CASES[name]
+    chosen = [df.dual_qp(make(root, d), method="auto").method for d in (False, True)]
+    assert chosen == [expected, expected]
 
 
 def test_corners_off_contact_are_refused(root, monkeypatch):
