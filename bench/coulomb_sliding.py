@@ -11,6 +11,9 @@ the frictionless solve of the normal load alone (k = 0), the Coulomb fixed-point
 F-multiplications of each step, the Coulomb residual max|g − 𝓕λ_N|/max λ (``report.kkt``) and
 the seconds (a shared machine: indicative only).
 
+With ``--tresca G`` the friction is Tresca with the traction bound G instead (no fixed point:
+the same QP in the full and the half model, which isolates what the symmetry plane costs).
+
 Run: ``python bench/coulomb_sliding.py`` (``--help``); writes ``output/bench/coulomb_sliding.md``.
 """
 
@@ -53,6 +56,8 @@ def main() -> None:
     parser.add_argument("--parts", type=int, default=4)
     parser.add_argument("--rtol", type=float, default=1e-6)
     parser.add_argument("--max-it", type=int, default=100000)
+    parser.add_argument("--tresca", type=float, default=None,
+                        help="Tresca bound (a traction) instead of Coulomb")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/coulomb_sliding.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
@@ -71,16 +76,17 @@ def main() -> None:
                      f"{ref.report.converged} | – | – | – |")
         for ratio in (float(v) for v in args.ratios.split(",")):
             t0 = time.perf_counter()
-            sol = df.solve(problem(mesh, ratio, half, args.parts, df.Coulomb(MU)),
+            friction = df.Coulomb(MU) if args.tresca is None else df.Tresca(args.tresca)
+            sol = df.solve(problem(mesh, ratio, half, args.parts, friction),
                            rtol=args.rtol, max_it=args.max_it, comm=comm)
             dt = time.perf_counter() - t0
             rep = sol.report
             fr = rep.extra["friction"]
-            per_step = "/".join(str(s["hessian_mults"]) for s in fr["steps"])
+            per_step = "/".join(str(s["hessian_mults"]) for s in fr.get("steps", []))
             state = sol.contact.state
             lines.append(
                 f"| {model} | {ratio} | {rep.hessian_mults} | {rep.hessian_mults / base:.0f} | "
-                f"{fr['fixed_point_steps']} | {per_step} | {rep.converged} | "
+                f"{fr.get('fixed_point_steps', '–')} | {per_step or '–'} | {rep.converged} | "
                 f"{rep.kkt.get('coulomb_bound', float('nan')):.1e} | "
                 f"{int((state == 1).sum())} / {int((state == 2).sum())} | {dt:.0f} |")
             if comm.rank == 0:
