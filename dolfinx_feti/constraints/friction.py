@@ -161,23 +161,41 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
         node = rows.node[t[m]]
         area[m] = a[np.searchsorted(nodes, node)]
         fr = c.friction
-        if isinstance(fr, Tresca):
-            tresca[m] = _traction_bound(fr, problem.dof_points.x[node], group) * area[m]
-        elif isinstance(fr, Coulomb):
-            coefficient[m] = float(fr.coefficient)
-            rtol, max_steps = min(rtol, float(fr.rtol)), max(max_steps, int(fr.max_steps))
+        tresca[m], coefficient[m] = NODAL_VALUES[type(fr)](fr, problem.dof_points.x[node],
+                                                           group, area[m])
+        if fr.fixed_point() is not None:
+            r, n = fr.fixed_point()
+            rtol, max_steps = min(rtol, r), max(max_steps, n)
     return FrictionData(rows=t, normal_row=normal_row, per_node=nt, tresca=tresca,
                         coefficient=coefficient, area=area, rtol=float(rtol),
                         max_steps=int(max_steps))
 
 
-def _traction_bound(fr: Tresca, x: np.ndarray, group: str) -> np.ndarray:
-    """The Tresca traction bound g(x) at the nodes x, checked."""
+def _tresca_values(fr: Tresca, x: np.ndarray | None, group: str, area: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The nodal slip bounds g(x)·A of Tresca's rows (no Coulomb coefficient)."""
+    return _traction_bound(fr, x, group, area.size) * area, np.full(area.size, np.nan)
+
+
+def _coulomb_values(fr: Coulomb, x: np.ndarray | None, group: str, area: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Coulomb's coefficient at each row (the slip bounds come from the normal forces)."""
+    return np.full(area.size, np.nan), np.full(area.size, float(fr.coefficient))
+
+
+#: Friction law → ``values(law, x, group, area) -> (Tresca bounds, Coulomb coefficients)`` of
+#: its rows at the nodes x (NaN where the law has none); x may be None for a bound that is a
+#: number. A new friction law is a class in problem/ and an entry here.
+NODAL_VALUES = {Tresca: _tresca_values, Coulomb: _coulomb_values}
+
+
+def _traction_bound(fr: Tresca, x: np.ndarray | None, group: str, n: int) -> np.ndarray:
+    """The Tresca traction bound g(x) at the n nodes x, checked."""
     if callable(fr.bound):
         g = evaluate(fr.bound, x, f"Tresca bound on {group!r}: bound", [(x.shape[0],), ()])
         g = np.broadcast_to(g, (x.shape[0],))
     else:
-        g = np.full(x.shape[0], float(fr.bound))
+        g = np.full(n, float(fr.bound))
     if np.any(np.isnan(g)) or np.any(g < 0):
         raise InputError(f"Tresca bound on {group!r}: the slip bound must be >= 0 (inf allowed) "
                          "at every node")

@@ -14,19 +14,15 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import InputError
-from ..problem.contact_problem import ContactProblem, Coulomb, Tresca
+from ..problem.contact_problem import ContactProblem
 from ..setup.share import RankRows
-from .friction import FrictionData
+from .friction import NODAL_VALUES, FrictionData
 
 
 def friction_key(c) -> tuple:
     """What of a condition's friction the rows' values depend on (None: frictionless)."""
     fr = getattr(c, "friction", None)
-    if fr is None:
-        return (None,)
-    if isinstance(fr, Coulomb):
-        return "coulomb", float(fr.coefficient), float(fr.rtol), int(fr.max_steps)
-    return "tresca", fr.bound if callable(fr.bound) else float(fr.bound)
+    return (None,) if fr is None else fr.key()
 
 
 def with_friction_of(data: FrictionData, old: ContactProblem, new: ContactProblem,
@@ -48,19 +44,17 @@ def with_friction_of(data: FrictionData, old: ContactProblem, new: ContactProble
     for i, (c_old, c_new) in enumerate(zip(old.contact, new.contact, strict=True)):
         fr = c_new.friction
         m = spec == i
-        if isinstance(fr, Coulomb):
-            rtol, max_steps = min(rtol, float(fr.rtol)), max(max_steps, int(fr.max_steps))
-        if friction_key(c_old) == friction_key(c_new) or not np.any(m):
+        if fr.fixed_point() is not None:
+            r, n = fr.fixed_point()
+            rtol, max_steps = min(rtol, r), max(max_steps, n)
+        old_key, new_key = friction_key(c_old), friction_key(c_new)
+        if old_key == new_key or not np.any(m):
             continue
-        if isinstance(fr, Coulomb):
-            tresca[m], coefficient[m] = np.nan, float(fr.coefficient)
-        elif isinstance(fr, Tresca):
-            if callable(fr.bound) or (isinstance(c_old.friction, Tresca)
-                                      and callable(c_old.friction.bound)):
-                raise InputError(f"update: the Tresca bound on {c_new.group!r} is a function "
-                                 "that changed; on one set-up a Tresca bound may change as a "
-                                 "number only")
-            tresca[m], coefficient[m] = float(fr.bound) * data.area[m], np.nan
+        if any(callable(v) for v in (*old_key, *new_key)):
+            raise InputError(f"update: the friction on {c_new.group!r} is given by a function "
+                             "that changed (a Tresca bound of x); on one set-up friction values "
+                             "may change as numbers only")
+        tresca[m], coefficient[m] = NODAL_VALUES[type(fr)](fr, None, c_new.group, data.area[m])
     return replace(data, tresca=tresca, coefficient=coefficient,
                    rtol=float(rtol) if np.isfinite(rtol) else data.rtol,
                    max_steps=int(max_steps) if max_steps else data.max_steps)

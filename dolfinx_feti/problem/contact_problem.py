@@ -76,6 +76,14 @@ class Tresca:
 
     bound: float | Callable[[np.ndarray], np.ndarray]
 
+    def key(self) -> tuple:
+        """What the friction rows' values depend on (a set-up's update compares it)."""
+        return "tresca", self.bound if callable(self.bound) else float(self.bound)
+
+    def fixed_point(self) -> None:
+        """Tresca is solved by one QP: no fixed point."""
+        return None
+
 
 @dataclass(frozen=True)
 @checked(coefficient=Real(ge=0), rtol=Real(gt=0, lt=1), max_steps=Integer(ge=1, le=10**6))
@@ -100,6 +108,14 @@ class Coulomb:
     coefficient: float
     rtol: float = 1e-6
     max_steps: int = 50
+
+    def key(self) -> tuple:
+        """What the friction rows' values depend on (a set-up's update compares it)."""
+        return "coulomb", float(self.coefficient), float(self.rtol), int(self.max_steps)
+
+    def fixed_point(self) -> tuple[float, int]:
+        """The fixed point's stopping residual and budget of steps."""
+        return float(self.rtol), int(self.max_steps)
 
 
 Friction = Tresca | Coulomb

@@ -292,8 +292,8 @@ def test_rigid_sphere_cube(session):
 COMMITTED_BY_GMSH = "4.8"
 STRUCTURED = {"blocks3d.msh", "membranes_16.msh", "membranes_8.msh"}
 COMMITTED = ["blocks3d.msh", "disk_on_block.msh", "disk_on_block_17.msh", "hertz2d.msh",
-             "membranes_16.msh", "membranes_8.msh", "slab_with_inclusions.msh",
-             "sphere_on_block.msh", "stacked_blocks2d.msh"]
+             "membranes_16.msh", "membranes_8.msh", "rubber_quarter_disk.msh",
+             "slab_with_inclusions.msh", "sphere_on_block.msh", "stacked_blocks2d.msh"]
 
 
 @pytest.mark.serial
