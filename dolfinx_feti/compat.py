@@ -16,6 +16,7 @@ from __future__ import annotations
 # before dolfinx and petsc4py. (Harmless on 0.5.2.)
 from mpi4py import MPI  # isort: skip
 
+import inspect
 import re
 from pathlib import Path
 
@@ -182,6 +183,32 @@ def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
     """``(dimension, local entity indices, values)`` of MeshTags."""
     return int(tags.dim), np.asarray(tags.indices, dtype=np.int64), \
         np.asarray(tags.values, dtype=np.int64)
+
+
+def tags_topology(tags):
+    """The (C++) topology the MeshTags were made on; None if this DOLFINx does not tell.
+
+    0.5.2's MeshTags keep their mesh (``tags.mesh``), 0.11's their topology.
+    """
+    top = getattr(tags, "topology", None)
+    if top is None:
+        top = getattr(getattr(tags, "mesh", None), "topology", None)
+    return getattr(top, "_cpp_object", top)
+
+
+def mesh_topology(msh: dolfinx.mesh.Mesh):
+    """The (C++) topology of a mesh, comparable with :func:`tags_topology` by ``==``."""
+    return getattr(msh.topology, "_cpp_object", msh.topology)
+
+
+def entity_vertices(topology, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(offsets, vertices)`` of the local entities of ``dim`` (owned and ghost; collective).
+
+    The number of local entities is ``offsets.size - 1``.
+    """
+    topology.create_connectivity(dim, 0)
+    c = topology.connectivity(dim, 0)
+    return np.asarray(c.offsets, dtype=np.int64), np.asarray(c.array, dtype=np.int64)
 
 
 def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
@@ -386,6 +413,19 @@ def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolf
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:
         return f.read_mesh(name=name)
+
+
+def gmsh_initialize(gmsh) -> None:
+    """``gmsh.initialize()``, keeping Python's Ctrl-C (a KeyboardInterrupt).
+
+    gmsh ≥ 4.9 sets SIGINT to its default action while it is initialized
+    (``interruptible=True``, restored only by ``finalize``): a Ctrl-C would then kill the
+    process without a word, and the command could not end with its one line.
+    """
+    if "interruptible" in inspect.signature(gmsh.initialize).parameters:
+        gmsh.initialize(interruptible=False)
+    else:
+        gmsh.initialize()
 
 
 def gmsh_model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):
