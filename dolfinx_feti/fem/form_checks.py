@@ -9,12 +9,18 @@ L: test only), their arity (linear in each argument: ufl's own check), and K = K
 
 from __future__ import annotations
 
+import functools
+import weakref
+
 import numpy as np
 import scipy.sparse as sp
 import ufl
 from ufl.algorithms.apply_algebra_lowering import apply_algebra_lowering
 from ufl.algorithms.apply_derivatives import apply_derivatives
 from ufl.algorithms.check_arities import ArityMismatch, check_form_arity
+from ufl.algorithms.remove_complex_nodes import remove_complex_nodes
+from ufl.classes import CompoundDerivative, Derivative
+from ufl.corealg.traversal import unique_pre_traversal
 
 from ..errors import InputError
 
@@ -56,7 +62,7 @@ def check_form_kinds(a, L, where: str) -> None:
             raise InputError(f"{where}: the {what} form has the arguments ({has}) instead of "
                              f"({', '.join(names[n] for n in want)}); {_HINT}")
         try:
-            check_form_arity(apply_derivatives(apply_algebra_lowering(form)), form.arguments())
+            check_form_arity(_expanded(form), form.arguments())
         # ufl 2022 raises ArityMismatch with a message it fails to format: the formatting's
         # NotImplementedError or TypeError comes out instead
         except (ArityMismatch, NotImplementedError, TypeError) as e:
@@ -100,3 +106,44 @@ def check_symmetric(K: sp.csr_matrix, where: str) -> None:
                          f"{row}, column {int(D.indices[i])}); FETI with Cholesky factors needs "
                          "a symmetric a(u, v) = a(v, u) (an advection or other first-order term, "
                          "or a swapped test and trial function in one term, breaks it)")
+
+
+def _expanded(form: ufl.Form) -> ufl.Form:
+    """The form with its algebra lowered and, only if it has any, its derivatives applied.
+
+    Grad, div and the like are left as they are (the arity check reads them); only a
+    ``derivative``/``diff`` needs ufl's derivative algorithm, which on Python 3.13.0 keeps
+    every rule object it makes alive (see :func:`_release_traversers`). The solver is real:
+    the conjugates that ``inner`` puts on the test function are removed, as DOLFINx does
+    before its own check (else ``derivative`` of a residual mixes v and conj(v)).
+    """
+    form = remove_complex_nodes(apply_algebra_lowering(form))
+    if any(isinstance(o, Derivative) and not isinstance(o, CompoundDerivative)
+           for itg in form.integrals() for o in unique_pre_traversal(itg.integrand())):
+        form = apply_derivatives(form)
+        _release_traversers()
+    return form
+
+
+def _release_traversers() -> None:
+    """Forget the bound methods Python 3.13.0's ``singledispatchmethod`` caches per object.
+
+    That cache (a weak-key dictionary whose values are closures over their keys, removed again
+    in later Pythons) keeps each of ufl's rule objects alive, and with it the expressions it
+    cached, their function spaces and meshes, and the MPI communicators the meshes hold: a few
+    hundred assemblies later MPICH has no communicator left ("Too many communicators", PETSc
+    error 98 at the next MatCreate).
+    """
+    try:
+        from ufl.corealg.dag_traverser import DAGTraverser
+    except ImportError:  # ufl < 2025 has no such rule objects
+        return
+    todo = [DAGTraverser]
+    while todo:
+        cls = todo.pop()
+        todo.extend(cls.__subclasses__())
+        for attr in vars(cls).values():
+            cache = getattr(attr, "_method_cache", None)
+            if isinstance(attr, functools.singledispatchmethod) and \
+                    isinstance(cache, weakref.WeakKeyDictionary):
+                cache.clear()
