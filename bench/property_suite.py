@@ -1,4 +1,4 @@
-"""The property-based suite (tests/test_properties.py) with many examples and a recorded seed.
+"""The property-based suite (tests/robustness/test_properties.py), many examples, a seed.
 
 The normal test suite runs it with the "ci" profile (a few derandomized examples); this runs
 the "bench" profile (``FETI_PROPERTIES=bench``: 40 examples per property, 400 per input
@@ -44,7 +44,8 @@ def main() -> int:
     import pytest
 
     t0 = time.perf_counter()
-    pytest_args = [str(ROOT / "tests" / "test_properties.py"), "-q", "-p", "no:cacheprovider",
+    pytest_args = [str(ROOT / "tests" / "robustness" / "test_properties.py"), "-q",
+                   "-p", "no:cacheprovider",
                    f"--hypothesis-seed={seed}", "--hypothesis-show-statistics"]
     if args.k:
         pytest_args += ["-k", args.k]

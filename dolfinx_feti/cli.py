@@ -151,6 +151,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _Exit as e:
         return e.code
     verbose = 2 if args.verbose else 0 if args.quiet else None
+    # a communicator of its own for the handshake after Ctrl-C (see _all_stopped)
+    handshake = comm.Dup() if comm.size > 1 else None
     try:
         with _console(1 if verbose is None else verbose), _terminate_as_interrupt():
             return _run(args, feti, verbose, comm)
@@ -158,8 +160,41 @@ def main(argv: Sequence[str] | None = None) -> int:
         # A line instead of the traceback of wherever the solve was; the staged outputs were
         # discarded on the way out (staging.staged), so no new output is left half-written.
         how = e.args[0] if e.args else "Ctrl-C"
-        _error(f"{PROG}: {args.problem}: interrupted ({how}); stopped, no new output written")
+        line = f"{PROG}: {args.problem}: interrupted ({how}); stopped, no new output written"
+        _error(line)
+        if handshake is not None and not _all_stopped(handshake):
+            if comm.rank != 0:  # rank 0 may be the one still blocked: say it here
+                print(line, file=sys.stderr, flush=True)
+            comm.Abort(EXIT_INTERRUPTED)
         return EXIT_INTERRUPTED
+    finally:
+        if handshake is not None:
+            handshake.Free()
+
+
+#: How long a rank stopped by Ctrl-C waits for the others to stop too (seconds).
+INTERRUPT_WAIT = 10.0
+
+
+def _all_stopped(handshake: MPI.Comm) -> bool:
+    """Whether every rank was stopped too (True) or some rank is still blocked (False).
+
+    The signal reaches each rank at its own moment, and Python handles it only between two
+    calls into C: a rank blocked in a collective call, waiting for a rank that has already
+    stopped, would wait forever (MPICH's mpiexec then waits for it). So the stopped ranks meet
+    in a non-blocking barrier on a communicator of its own; if some rank does not arrive
+    within :data:`INTERRUPT_WAIT`, the caller aborts the job.
+    """
+    request = handshake.Ibarrier()
+    end = time.monotonic() + INTERRUPT_WAIT
+    try:
+        while not request.Test():
+            if time.monotonic() > end:
+                return False
+            time.sleep(0.01)
+    except KeyboardInterrupt:  # Ctrl-C again: do not wait
+        return False
+    return True
 
 
 @contextmanager

@@ -18,6 +18,7 @@ from mpi4py import MPI  # isort: skip
 
 import inspect
 import re
+import sys
 from pathlib import Path
 
 import dolfinx
@@ -330,7 +331,13 @@ def garbage_cleanup(comm: MPI.Comm) -> None:
     queued for destruction (destroying it there could deadlock: not every rank collects at
     the same moment); the queue is emptied here, at a point every rank reaches together.
     Without it, every solve's vectors and matrices stay allocated.
+
+    Skipped on the way out of a Ctrl-C (a KeyboardInterrupt propagating through the ``finally``
+    that calls this): the ranks stop at their own moments, and a rank still blocked in another
+    collective call would never meet this one (the job would hang instead of ending).
     """
+    if isinstance(sys.exc_info()[1], KeyboardInterrupt):
+        return
     cleanup = getattr(PETSc, "garbage_cleanup", None)
     if cleanup is not None:
         cleanup(comm)

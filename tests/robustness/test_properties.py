@@ -1,13 +1,13 @@
 """Property-based tests (Hypothesis): generated valid problems keep their invariants, generated
 invalid input gets a named InputError (issue 26).
 
-Valid problems: two blocks of non-matching Kuhn-triangle grids (``tests/hand_meshes.py``: any
-sizes, heights, offsets), one on the other, in mortar contact or tied, with a random traction,
-decomposition and FETI method. Invariants: the KKT residuals at the tolerance; the same answer
-for every method; the same answer translated (up to 1e3 away) and in other units (u scales
-with the lengths when E and the traction scale together); zero load gives exactly zero at
-once; the mirror image of a problem has the mirror image of its answer; and under mpirun the
-same answer on one rank and on all.
+Valid problems: two blocks of non-matching Kuhn-triangle grids
+(``tests/support/hand_meshes.py``: any sizes, heights, offsets), one on the other, in mortar
+contact or tied, with a random traction, decomposition and FETI method. Invariants: the KKT
+residuals at the tolerance; the same answer for every method; the same answer translated (up
+to 1e3 away) and in other units (u scales with the lengths when E and the traction scale
+together); zero load gives exactly zero at once; the mirror image of a problem has the mirror
+image of its answer; and under mpirun the same answer on one rank and on all.
 
 Invalid input: wrong types, NaN/inf, out-of-range values of every public constructor's
 arguments and of the solver options, and meshes with non-finite coordinates or unknown group

@@ -3,14 +3,15 @@
 Run as ``python tests/support/endless_cli.py PROBLEM.toml [options]``: everything up to the QP
 solver is the real command; the solver prints a line and then does collective work forever (an
 allreduce every 10 ms, as an iterating solver does), so a test can send Ctrl-C at a known
-point.
+point. Each rank also creates the file ``iterating.<rank>`` in the working folder: mpirun
+forwards the ranks' output late under load, a file is there at once.
 """
 
 import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the checkout, not an install
 
 from mpi4py import MPI  # noqa: E402
 
@@ -19,6 +20,7 @@ from dolfinx_feti.cli import main  # noqa: E402
 
 
 def endless(*args, **kwargs):
+    Path(f"iterating.{MPI.COMM_WORLD.rank}").touch()
     # one write (print writes the text and the newline apart: mpirun may interleave ranks)
     sys.stdout.write(f"rank {MPI.COMM_WORLD.rank}: in the QP solver\n")
     sys.stdout.flush()
