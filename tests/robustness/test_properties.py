@@ -299,3 +299,53 @@ def test_broken_problems_are_refused_before_any_solve(bad):
                                    dirichlet=dirichlet, **cond))
     msg = str(info.value)
     assert all(w in msg for w in words), msg
+
+
+#: Valid values of some collective options: any two that differ, one per rank, are an error.
+PER_RANK = {
+    "rtol": st.floats(1e-12, 1e-4),
+    "max_it": st.integers(10, 10_000),
+    "method": st.sampled_from(["tfeti", "feti1", "fetidp"]),
+    "stop_test": st.sampled_from(["kkt", "dual"]),
+    "preconditioner": st.sampled_from(["none", "lumped", "dirichlet"]),
+}
+
+
+class _OtherRank:
+    """A stand-in communicator of two ranks (serially): the other rank has ``other``."""
+
+    size = 2
+
+    def __init__(self, other: df.SolverOptions) -> None:
+        self.other = other
+
+    def allgather(self, mine):
+        return [mine, {k: repr(v) for k, v in self.other.to_dict().items()}]
+
+
+@CHECKS
+@given(data=st.data())
+def test_options_that_differ_per_rank_are_named_on_every_rank(data):
+    """Two valid values of one option, rank 0 one and the other ranks the other: an InputError
+    on every rank naming it, before any work (serially against a stand-in second rank; under
+    mpirun by the solver's own check, every rank must raise: none may hang)."""
+    from dolfinx_feti.options import check_same_on_ranks
+
+    name = data.draw(st.sampled_from(sorted(PER_RANK)))
+    a, b = data.draw(st.lists(PER_RANK[name], min_size=2, max_size=2, unique=True))
+    note(f"{name}: {a!r} on rank 0, {b!r} on the others")
+    mine = df.SolverOptions.create(**{name: a if COMM.rank == 0 else b})
+    with pytest.raises(df.InputError) as info:
+        if COMM.size == 1:
+            check_same_on_ranks(mine, _OtherRank(df.SolverOptions.create(**{name: b})))
+        else:
+            df.FetiSolver(PROBLEM, options=mine)
+    msg = str(info.value)
+    assert "differ between the ranks" in msg and name in msg, msg
+    assert len(set(COMM.allgather(msg))) == 1  # the same words on every rank
+
+
+PROBLEM = df.ContactProblem(MESH, df.Elasticity(E=1.0, nu=0.3,
+                                                tractions={"upper_top": (0.0, -0.01)}),
+                            dirichlet=[df.Dirichlet("lower_bottom")],
+                            contact=[df.Mortar("upper_bottom", "lower_top")])
