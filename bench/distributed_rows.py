@@ -31,7 +31,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints import Rows, build_rows
+from dolfinx_feti.constraints import Rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask, dirichlet_rows
 from dolfinx_feti.constraints.distributed_rows import (
     dirichlet_mask_distributed,
@@ -40,10 +40,11 @@ from dolfinx_feti.constraints.distributed_rows import (
 )
 from dolfinx_feti.constraints.gluing import gluing_rows
 from dolfinx_feti.mesh.decompose import decompose
-from dolfinx_feti.setup.share import row_ranges, row_slice
+from dolfinx_feti.setup.share import row_slice
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "support"))
 from distributed_inputs import RankInputs  # noqa: E402
+from serial_setup import build_rows, row_ranges  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 

@@ -4,8 +4,9 @@ B1 (Dostál's two membranes, Poisson, node-to-node contact) on 2 × n² squares,
 In one process, back to back, ``--repeat`` times each: the set-up of ``dual_qp(...,
 method="fetidp")`` on the mesh read whole (``replicate=True``) and read with
 ``distribute=True``; timed are only the calls that make FETI-DP's data — the replicated
-``dual._fetidp_parts`` (rank 0, the global arrays; what the other ranks wait for) and the
-distributed ``fem.distributed_corners.fetidp_share`` (the largest time over the ranks). Both
+set-up's ``fetidp_parts`` (rank 0, the global arrays; what the other ranks waited for; the
+library no longer runs it: it is the tests' oracle, ``tests/support/serial_setup.py``) and
+the library's ``fem.distributed_corners.fetidp_share`` (the largest time over the ranks). Both
 give the same corners (the script checks the counts). The medians are printed.
 
     mpirun -n 2 python bench/fetidp_setup.py                  # n = 512, H = 1/8
@@ -24,11 +25,13 @@ from mpi4py import MPI
 
 ROOT = Path(__file__).resolve().parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT.parent / "tests" / "support"))
+import serial_setup  # noqa: E402
+
 import dolfinx_feti as df  # noqa: E402
 import problems as P  # noqa: E402
 from dolfinx_feti.fem import distributed_corners  # noqa: E402
 from dolfinx_feti.io import meshes  # noqa: E402
-from dolfinx_feti.setup import stages as dual  # noqa: E402
 
 COMM = MPI.COMM_WORLD
 
@@ -68,14 +71,14 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     args = ap.parse_args()
     spent: dict[str, list] = {"replicated": [], "distributed": []}
-    timed(dual, "_fetidp_parts", spent["replicated"])
+    timed(serial_setup, "fetidp_parts", spent["replicated"])
     timed(distributed_corners, "fetidp_share", spent["distributed"])
     whole, spread = problem(args.n, args.H, False), problem(args.n, args.H, True)
     infos = []
     for _ in range(args.repeat):
-        for p in (whole, spread):
+        for p, dual_qp in ((whole, serial_setup.serial_dual_qp), (spread, df.dual_qp)):
             COMM.Barrier()
-            qp = df.dual_qp(p, method="fetidp")
+            qp = dual_qp(p, method="fetidp")
             infos.append(qp.info)
             del qp
     if any(i != infos[0] for i in infos):

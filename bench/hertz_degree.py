@@ -73,6 +73,13 @@ def hertz_errors(sol, **meta) -> dict:
             "total_force": float(sol.total_contact_force[1])}
 
 
+def save_rows(comm: MPI.Comm, path: str | None, hertz: dict, rows: list[dict]) -> None:
+    """Rank 0 writes Hertz's values and the rows as JSON to ``path`` (when given)."""
+    if comm.rank == 0 and path:
+        with open(path, "w") as f:
+            json.dump({"hertz": hertz, "rows": rows}, f, indent=1)
+
+
 def print_row(r: dict) -> None:
     """One line of the table."""
     kind = "curved  " if r["curved"] else "straight"
@@ -95,9 +102,7 @@ def main() -> None:
             rows.append(run(hd, degree, curved, comm))
             if comm.rank == 0:
                 print_row(rows[-1])
-    if comm.rank == 0 and args.json:
-        with open(args.json, "w") as f:
-            json.dump({"hertz": {"a": A, "p0": P0}, "rows": rows}, f, indent=1)
+    save_rows(comm, args.json, {"a": A, "p0": P0}, rows)
 
 
 if __name__ == "__main__":

@@ -264,6 +264,18 @@ def md_table(header: list[str], rows: list[list]) -> str:
     return "\n".join(lines)
 
 
+def write_outputs(out, lines: list[str], rows: list[dict]) -> None:
+    """Write the markdown ``lines`` to ``out`` and the ``rows`` beside it as JSON; print them."""
+    import json
+    from pathlib import Path
+
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text("\n".join(lines) + "\n")
+    out.with_suffix(".json").write_text(json.dumps(rows, indent=1))
+    print("\n".join(lines))
+
+
 def machine() -> str:
     """One line about where the numbers were measured."""
     import os

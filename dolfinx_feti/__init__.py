@@ -12,10 +12,13 @@ A user describes bodies in gmsh, writes the forms in UFL, and calls :func:`solve
 
 # compat first: it loads MPI before PETSc and DOLFINx, as DOLFINx 0.11's wheel needs.
 from . import compat  # noqa: F401
+from .drivers import newton as _newton  # noqa: F401  (registers solve_by = "newton")
+from .drivers import newton_path as _newton_path  # noqa: F401  (and its load paths)
 from .drivers.load_path import solve_cases, solve_path
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
-from .mesh import ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
+from .fem.hyperelastic import Hyperelastic, NeoHookean, SaintVenantKirchhoff
+from .mesh import Auto, ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
 from .options import SolverOptions
 from .problem.contact_problem import (
                       ContactProblem,
@@ -36,9 +39,10 @@ from .results.solution import ContactData, Solution
 from .setup.stages import DualQP, dual_qp
 from .solver import FetiSolver, solve
 
-__all__ = ["ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb", "Cylinder",
-           "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "InputError", "MeshData", "Mortar",
-           "NodeToNode", "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
+__all__ = ["Auto", "ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb",
+           "Cylinder", "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "Hyperelastic",
+           "InputError", "MeshData", "Mortar", "NeoHookean", "NodeToNode", "NotConverged",
+           "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SaintVenantKirchhoff",
            "SignedDistance", "Solution", "SolveError", "SolverOptions", "Sphere", "Subdomain",
            "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx", "read_gmsh", "solve",
            "solve_cases", "solve_path"]

@@ -364,9 +364,15 @@ def assemble_matrix(a: ufl.Form) -> PETSc.Mat:
     return A
 
 
-def assemble_vector(L: ufl.Form) -> PETSc.Vec:
-    """Assemble a linear form into a PETSc vector (ghosts summed)."""
-    b = dolfinx.fem.petsc.assemble_vector(dolfinx.fem.form(L))
+def compile_form(form: ufl.Form):
+    """The DOLFINx form of a UFL form (compiled, or taken from the JIT cache)."""
+    return dolfinx.fem.form(form)
+
+
+def assemble_vector(L) -> PETSc.Vec:
+    """Assemble a linear form (UFL, or from :func:`compile_form`); ghosts summed."""
+    b = dolfinx.fem.petsc.assemble_vector(L if not isinstance(L, ufl.Form) else
+                                          dolfinx.fem.form(L))
     b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
     return b
 

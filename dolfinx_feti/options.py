@@ -77,7 +77,8 @@ FETI = OptionSet(
                      "original problem in physical units: bounded during the iterations, "
                      "checked exactly at the end, continued if one is above rtol) or 'dual' "
                      "(||g^P|| <= rtol ||b|| on the dual QP alone; b depends on the method and "
-                     "on gaps far out of reach). Friction and qp='penalty' use 'dual'"),
+                     "on gaps far out of reach). Friction uses 'dual'; with qp='penalty' a "
+                     "failed check also raises ρ (the residuals fall like 1/ρ)"),
     eq_rtol=Option(None, Maybe(_TOL), "with stop_test 'dual': stop only when also "
                    "||Gλ − e|| <= eq_rtol ||b|| / ||PFP||; "
                    "None: rtol"),

@@ -19,7 +19,7 @@ material, a tangent stiffness): each rebuilds what depends on them and keeps the
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -47,6 +47,11 @@ from .timing import Timer
 
 #: Starts :meth:`FetiSolver.solve` accepts besides a Solution or a Vec.
 COLD = "cold"
+
+#: How :func:`solve` solves a problem whose forms say ``solve_by = key`` (a nonlinear
+#: material: ``"newton"``, registered by :mod:`dolfinx_feti.drivers.newton`); forms without
+#: the attribute are solved by one FETI solve.
+SOLVE_BY: dict[str, Callable] = {}
 
 
 class FetiSolver:
@@ -181,7 +186,8 @@ class FetiSolver:
         self._new_preconditioner()
         self._mu = None  # the multiplier of another G̃
 
-    def update_stiffness(self, problem: ContactProblem | None = None) -> None:
+    def update_stiffness(self, problem: ContactProblem | None = None, *,
+                         rows=None, shift=None) -> None:
         """Reassemble and refactor the subdomains (a new material, or a new bilinear form).
 
         The decomposition, the shares and the rows are kept; K, f, every factorization, the
@@ -191,6 +197,12 @@ class FetiSolver:
         Args:
             problem: The problem with the new forms (same mesh, groups and conditions);
                 default: the current problem's forms assembled again.
+            rows: This rank's rows in the set-up's layout with the right-hand sides (and
+                coefficients) to solve with (a Newton step's: those of the increment); default:
+                the problem's (:meth:`rows_of`).
+            shift: A sparse matrix added to the assembled block-diagonal K of this rank
+                (its local layout) before the factorization (e.g. Newton's augmentation on the
+                active contact rows), or None.
         """
         self._refuse_boundary_elements("update_stiffness")
         if problem is not None:
@@ -199,8 +211,10 @@ class FetiSolver:
         self._data = assemble_subdomains(self.problem, self._shared.share, self.comm,
                                          self._timer, self._data.assemblers,
                                          keep=self._data.assemblers is not None)
-        with self._timer.phase("constraints"):
-            rows, _ = self._loads.rows(self.problem, self.comm, self._tangential)
+        if shift is not None:
+            self._data = replace(self._data, K=(self._data.K + shift).tocsr())
+        if rows is None:
+            rows = self.rows_of(self.problem)
         self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
@@ -208,6 +222,29 @@ class FetiSolver:
                          dual_operator=self.options.dual_operator)
         self._adopt(qp, rows)
         self._new_preconditioner()
+
+    def rows_of(self, problem: ContactProblem):
+        """This rank's rows with the right-hand sides of ``problem`` (collective).
+
+        Dirichlet values and obstacle gaps in the reference configuration, in the set-up's
+        layout.
+        """
+        with self._timer.phase("constraints"):
+            rows, _ = self._loads.rows(problem, self.comm, self._tangential)
+        return rows
+
+    @property
+    def data(self):
+        """The assembled subdomains of this rank (``fem.assembly.SubdomainData``)."""
+        return self._data
+
+    def assemble_rhs(self, problem: ContactProblem) -> np.ndarray:
+        """The linear forms of ``problem`` on this rank's subdomains (collective).
+
+        One vector assembly in the primal layout; nothing of the set-up changes.
+        """
+        self._refuse_boundary_elements("assemble_rhs")
+        return assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
 
     def _refuse_boundary_elements(self, what: str) -> None:
         if self._data is None:
@@ -427,13 +464,11 @@ class FetiSolver:
         """The mortar checks (rank 0 holds the surfaces), on every rank's report."""
         comm, qp = self.comm, self.qp
         c, found = sol.contact, None
-        surface = sol.surface  # a distributed mesh: the cells along the surfaces (rank 0)
-        nodal = sol.nodal_values_on_root() if self.problem.mesh.part is None else \
-            sol.surface_values()
-        if comm.rank == 0:  # the surfaces of the whole mesh, which rank 0 holds
-            mesh, node = (self.problem.mesh, c.node) if surface is None else \
-                (surface.problem.mesh, surface.local(c.node))
-            found = mortar_warnings(mesh, qp.mortar, nodal, c.spec, node, c.force)
+        surface = sol.surface  # the cells at the surfaces the rows came from (rank 0)
+        nodal = sol.surface_values()  # collective; rank 0 has the values at their points
+        if comm.rank == 0:
+            found = mortar_warnings(surface.problem.mesh, qp.mortar, nodal, c.spec,
+                                    surface.local(c.node), c.force)
         warn, report.extra["mortar"] = comm.bcast(found, root=0)
         report.warnings.extend(warn)
 
@@ -483,6 +518,12 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         InputError: For a problem that is ill-posed as described (e.g. a floating body with a
             load its constraints cannot balance).
     """
+    by = getattr(problem.forms, "solve_by", None)
+    if by is not None:
+        if by not in SOLVE_BY:
+            raise InputError(f"the forms ask to be solved by {by!r}, which is not registered "
+                             f"(known: {sorted(SOLVE_BY)})")
+        return SOLVE_BY[by](problem, comm=comm, options=options, **kwargs)
     solver = FetiSolver(problem, comm=comm, options=options, keep_meshes=False, **kwargs)
     try:
         sol = solver.solve()
@@ -495,4 +536,4 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     return sol
 
 
-__all__ = ["COLD", "FetiSolver", "solve"]
+__all__ = ["COLD", "SOLVE_BY", "FetiSolver", "solve"]

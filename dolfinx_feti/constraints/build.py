@@ -7,13 +7,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import InputError
-from ..mesh.decompose import Decomposition
 from ..problem.contact_problem import ContactProblem, Mortar, NodeToNode, RigidObstacle, Tie
 from .contact import node_to_node_rows, obstacle_rows
-from .dirichlet import dirichlet_mask, dirichlet_rows
 from .friction import with_tangential_rows
-from .gluing import gluing_rows
 from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows
 from .quadratic_triangles import needs_transform, transform_rows
 from .rows import Rows
@@ -42,12 +38,6 @@ def rows_of(kind: type):
         ROW_BUILDERS[kind] = builder
         return builder
     return register
-
-
-def surface_groups(spec) -> tuple[str, ...]:
-    """The boundary groups a condition reads: its slave and master, or its one group."""
-    pair = tuple(g for g in (getattr(spec, "slave", None), getattr(spec, "master", None)) if g)
-    return pair or (spec.group,)
 
 
 @rows_of(Mortar)
@@ -101,35 +91,12 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
                 SurfaceCondition(problem, spec, i, node_ptr, node_subs, fixed))
             if info is not None:
                 found.append(info)
-            elif needs_transform(problem.mesh, problem.dof_points):  # 6-node triangles
+            if needs_transform(problem.mesh, problem.dof_points):  # 6-node triangles
+                # mortar rows: the slave side only (its own entries), in the basis ũ
                 block = transform_rows(block, problem.mesh, problem.dof_points,
-                                       surface_groups(spec))
+                                       (spec.slave,) if info is not None else spec.groups,
+                                       own_only=info is not None)
             if getattr(spec, "friction", None) is not None:  # tangential rows beside normal
                 block = with_tangential_rows(block)
             blocks.append(block)
     return blocks
-
-
-def build_rows(problem: ContactProblem, dec: Decomposition,
-               mortar: list[MortarInfo] | None = None) -> Rows:
-    """Gluing, Dirichlet and contact rows, sorted by the subdomain that owns them.
-
-    ``mortar``, when given, receives what the contact search found for each :class:`Mortar`
-    and :class:`Tie` condition (for the report and the post-solve checks).
-
-    Rows are sorted (stably) by the smallest subdomain they touch, so the rows owned by a rank
-    are contiguous and the global order does not depend on the number of ranks. The normal and
-    tangential (friction) rows of a contact node touch the same subdomains, so they stay
-    consecutive.
-    """
-    mesh, bs = problem.mesh, problem.value_size
-    node_ptr, node_subs = dec.node_subdomains()
-    fixed, values = dirichlet_mask(problem, mesh)
-    blocks = [gluing_rows(node_ptr, node_subs, fixed, bs, mesh.gdim, problem.gluing),
-              dirichlet_rows(node_ptr, node_subs, fixed, values, bs, mesh.gdim),
-              *surface_rows(problem, node_ptr, node_subs, fixed, mortar)]
-    rows = Rows.concatenate(blocks)
-    if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
-        raise InputError("non-finite constraint data (a Dirichlet value, a gap or an obstacle "
-                         "distance is NaN or Inf)")
-    return rows.permuted(np.argsort(rows.min_subdomain(), kind="stable"))

@@ -356,6 +356,63 @@ def _triangle_integrals(x, slave, ns, master, i, j):
     return rows_, cols_, vals_, keep.size
 
 
+@dataclass
+class Search:
+    """The facet pairs of a slave and a master surface that the search kept.
+
+    Attributes:
+        slave, master: The facets (quadrilaterals in tensor order; for self-contact the
+            slave facets of the pairs only).
+        ns: The slave facets' outward unit normals.
+        i, j: The slave and master facet of each pair.
+        search_distance: The search distance used.
+        zones: As :attr:`MortarCoupling.zones`.
+    """
+
+    slave: np.ndarray
+    master: np.ndarray
+    ns: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    search_distance: float
+    zones: tuple[np.ndarray, np.ndarray] | None
+
+    def coupling(self, nodes: np.ndarray, normals: np.ndarray, D: np.ndarray,
+                 entries: tuple[np.ndarray, np.ndarray, np.ndarray], num_columns: int,
+                 pairs: int) -> MortarCoupling:
+        """The coupling from the entries (slave node, master node, value) of M."""
+        r, c, v = entries
+        M = sp.csr_matrix((v, (np.searchsorted(nodes, r), c)), shape=(nodes.size, num_columns))
+        M.sum_duplicates()
+        M.eliminate_zeros()
+        coverage = np.asarray(M.sum(axis=1)).ravel() / D
+        return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
+                              search_distance=float(self.search_distance), pairs=int(pairs),
+                              zones=self.zones)
+
+
+def search(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
+           search_distance: float | None, cell_type: str | None, self_contact: bool) -> Search:
+    """The contact search of :func:`mortar_coupling` (its arguments), for every facet kind."""
+    slave = facets_in_cell_order(cells, slave, cell_type)
+    master = facets_in_cell_order(cells, master, cell_type)
+    ns, _ = facet_normals(x, cells, slave, cell_type)
+    nm, _ = facet_normals(x, cells, master, cell_type)
+    if search_distance is None:
+        search_distance = default_search_distance(x, slave, master)
+    i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
+    zones = None
+    if self_contact:
+        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
+        # The slave side is its zones only: their nodes' normals and areas from their own
+        # facets (a node at the zone's edge would otherwise average in the facets round a
+        # corner of the body, which face elsewhere).
+        used = np.unique(i)
+        slave, ns, i = slave[used], ns[used], np.searchsorted(used, i)
+        zones = (slave, np.unique(master[j], axis=0))
+    return Search(slave, master, ns, i, j, float(search_distance), zones)
+
+
 def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
                     search_distance: float | None = None, cell_type: str | None = None,
                     self_contact: bool = False) -> MortarCoupling:
@@ -375,22 +432,8 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     Returns:
         The coupling (see :class:`MortarCoupling`).
     """
-    slave = facets_in_cell_order(cells, slave, cell_type)
-    master = facets_in_cell_order(cells, master, cell_type)
-    ns, _ = facet_normals(x, cells, slave, cell_type)
-    nm, _ = facet_normals(x, cells, master, cell_type)
-    if search_distance is None:
-        search_distance = default_search_distance(x, slave, master)
-    i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
-    zones = None
-    if self_contact:
-        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
-        # The slave side is its zones only: their nodes' normals and areas from their own
-        # facets (a node at the zone's edge would otherwise average in the facets round a
-        # corner of the body, which face elsewhere).
-        used = np.unique(i)
-        slave, ns, i = slave[used], ns[used], np.searchsorted(used, i)
-        zones = (slave, np.unique(master[j], axis=0))
+    found = search(x, cells, slave, master, search_distance, cell_type, self_contact)
+    slave, ns, master, i, j = found.slave, found.ns, found.master, found.i, found.j
     nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
     if x.shape[1] == 2:
         r, c, v, npairs = _segment_integrals(x, slave, master, i, j)
@@ -401,14 +444,7 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
         r, c, v, npairs = mortar_quad.pair_integrals(x, slave, ns, A, master, i, j)
     else:
         r, c, v, npairs = _triangle_integrals(x, slave, ns, master, i, j)
-    row = np.searchsorted(nodes, r)
-    M = sp.csr_matrix((v, (row, c)), shape=(nodes.size, x.shape[0]))
-    M.sum_duplicates()
-    M.eliminate_zeros()
-    coverage = np.asarray(M.sum(axis=1)).ravel() / D
-    return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          search_distance=float(search_distance), pairs=int(npairs),
-                          zones=zones)
+    return found.coupling(nodes, normals, D, (r, c, v), x.shape[0], npairs)
 
 
 def same_way_pairs(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,

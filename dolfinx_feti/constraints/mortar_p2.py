@@ -20,14 +20,14 @@ checks for mortar until its facets are integrated as curves.
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from ..mesh.dofpoints import DofPoints
-from ..mesh.topology import facet_normals, surface_points
+from ..mesh.topology import surface_points
 from . import mortar_p2_curved
-from .mortar import MortarCoupling, candidate_pairs, default_search_distance, segment_overlaps
+from .mortar import MortarCoupling, search, segment_overlaps
+from .mortar_p2_triangles import triangle6_coupling
+from .mortar_q2_quads import quad9_coupling
 from .segment3 import WEIGHTS, shape
-from .self_contact import one_sided_pairs
 
 # Gauss–Legendre on [0, 1], 3 points: exact for degree 5.
 _GX = 0.5 + 0.5 * np.array([-np.sqrt(0.6), 0.0, np.sqrt(0.6)])
@@ -79,6 +79,9 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
                        ) -> MortarCoupling:
     """The mortar coupling of two surfaces of 3-node segments (see :func:`.mortar_coupling`).
 
+    In 3D: of 6-node triangles (:func:`.mortar_p2_triangles.triangle6_coupling`) or 9-node
+    quadrilaterals (:func:`.mortar_q2_quads.quad9_coupling`).
+
     Args:
         x: Vertex coordinates (N, 2).
         cells: Cells (to orient the facets' outward normals).
@@ -92,17 +95,12 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
     Returns:
         The coupling over dof points: ``slave_nodes`` and the columns of ``M`` are dof points.
     """
-    ns, _ = facet_normals(x, cells, slave, cell_type)
-    nm, _ = facet_normals(x, cells, master, cell_type)
-    if search_distance is None:
-        search_distance = default_search_distance(x, slave, master)
-    i, j = candidate_pairs(x, slave, ns, master, nm, search_distance)
-    zones = None
-    if self_contact:
-        i, j, _ = one_sided_pairs(x, slave, ns, i, j)
-        used = np.unique(i)
-        slave, i = slave[used], np.searchsorted(used, i)
-        zones = (slave, np.unique(master[j], axis=0))
+    if x.shape[1] == 3:  # 6-node triangles (the transformed dual basis) or 9-node quads
+        coupling = quad9_coupling if slave.shape[1] == 4 else triangle6_coupling
+        return coupling(x, cells, slave, master, points, search_distance, cell_type,
+                        self_contact)
+    found = search(x, cells, slave, master, search_distance, cell_type, self_contact)
+    slave, master, i, j = found.slave, found.master, found.i, found.j
     sp_ = segment_points(points, slave)
     mp_ = segment_points(points, master)
     nodes, normals, D = surface_points(x, cells, slave, sp_, WEIGHTS, cell_type)
@@ -117,11 +115,4 @@ def quadratic_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, mast
         v, npairs = vals.ravel(), i.size
     else:
         r, c, v, npairs = _pair_integrals(x, slave, master, sp_, mp_, i, j)
-    M = sp.csr_matrix((v, (np.searchsorted(nodes, r), c)),
-                      shape=(nodes.size, points.num_points))
-    M.sum_duplicates()
-    M.eliminate_zeros()
-    coverage = np.asarray(M.sum(axis=1)).ravel() / D
-    return MortarCoupling(slave_nodes=nodes, normals=normals, D=D, M=M, coverage=coverage,
-                          search_distance=float(search_distance), pairs=int(npairs),
-                          zones=zones)
+    return found.coupling(nodes, normals, D, (r, c, v), points.num_points, npairs)

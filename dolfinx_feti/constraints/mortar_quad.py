@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .clipping import clip_polygons
+from .clipping import clip_polygons, fan_quadrature
 
 #: Cyclic vertex order of a quadrilateral given in tensor order.
 CYCLIC = np.array([0, 1, 3, 2])
@@ -44,7 +44,7 @@ SQUARE_W = np.outer(_GW, _GW).ravel()
 
 
 
-def _collapsed_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
+def collapsed_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
     """A rule of n² points on the reference triangle, from Gauss's on the square (Duffy).
 
     Exact for polynomials of degree 2n − 2; weights relative to the triangle's area (sum 1).
@@ -59,7 +59,7 @@ def _collapsed_gauss(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 # 25 points, exact for degree 8: ψ_j N_k (degree 4) on parallelograms, and the rational
 # integrand of trapezoidal facets to ~1e-7 relative where a vertex is moved by 0.3 h.
-TRI_X, TRI_W = _collapsed_gauss(5)
+TRI_X, TRI_W = collapsed_gauss(5)
 
 
 def shape(xi: np.ndarray) -> np.ndarray:
@@ -84,19 +84,20 @@ def area_element(P: np.ndarray, xi: np.ndarray) -> np.ndarray:
     return np.linalg.norm(np.cross(x_s, x_t), axis=-1)
 
 
-def dual_basis(P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def dual_basis(P: np.ndarray, basis=shape) -> tuple[np.ndarray, np.ndarray]:
     """Dual-basis coefficients and lumped areas of quadrilateral facets.
 
     Args:
         P: Vertices (F, 4, 3) in tensor order.
+        basis: The functions on the facet (:func:`shape`, or the 9 biquadratic ones).
 
     Returns:
-        ``(A, D)``: A (F, 4, 4) with ψ_i = Σ_l A_il N_l, and D (F, 4) = ∫ N_i dA.
+        ``(A, D)``: A (F, k, k) with ψ_i = Σ_l A_il N_l, and D (F, k) = ∫ N_i dA.
     """
     F = P.shape[0]
     xi = np.broadcast_to(SQUARE_X, (F, *SQUARE_X.shape))
     w = SQUARE_W * area_element(P, xi)  # (F, Q)
-    N = shape(SQUARE_X)  # (Q, 4)
+    N = basis(SQUARE_X)  # (Q, k)
     Me = np.einsum("fq,qi,qj->fij", w, N, N)
     D = Me.sum(axis=2)
     return D[:, :, None] * np.linalg.inv(Me), D
@@ -162,7 +163,9 @@ def plane_frame(P: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
 
 
 def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarray,
-                   master: np.ndarray, i: np.ndarray, j: np.ndarray
+                   master: np.ndarray, i: np.ndarray, j: np.ndarray, basis=shape,
+                   slave_points: np.ndarray | None = None,
+                   master_points: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """M entries of (slave facet, master facet) pairs of quadrilaterals.
 
@@ -170,10 +173,14 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
         x: Node coordinates (N, 3).
         slave: Slave facets (F_s, 4), tensor order.
         ns: The slave facets' outward unit normals (F_s, 3).
-        A: The slave facets' dual-basis coefficients (F_s, 4, 4) (:func:`dual_basis`).
+        A: The slave facets' dual-basis coefficients (F_s, k, k) (:func:`dual_basis`).
         master: Master facets (F_m, 4), tensor order.
         i: Slave facet of each candidate pair.
         j: Master facet of each candidate pair.
+        basis: The k functions on either facet (the geometry stays bilinear).
+        slave_points: The points of ``basis`` on each slave facet (F_s, k); the vertices
+            when None.
+        master_points: The same on each master facet.
 
     Returns:
         ``(rows, cols, vals, pairs)``: slave node, master node and value of each entry of M,
@@ -194,18 +201,7 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
     poly, count = clip_polygons(Mp[:, CYCLIC], np.full(i.size, 4), Sc)
     idx = np.flatnonzero(count >= 3)
     poly, count = poly[idx], count[idx]
-    # Fan triangles (centroid, vertex k, vertex k + 1) of each convex overlap polygon, listed
-    # pair after pair (a fan about a vertex has fewer triangles, but slivers: on trapezoids
-    # the rational integrand's error grows a hundredfold).
-    first = np.cumsum(count) - count
-    pair = np.repeat(np.arange(idx.size), count)
-    k = np.arange(pair.size) - first[pair]
-    v0 = (poly.sum(axis=1) / count[:, None])[pair]
-    e1 = poly[pair, k] - v0
-    e2 = poly[pair, (k + 1) % count[pair]] - v0
-    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-    q = v0[:, None] + TRI_X[None, :, 0:1] * e1[:, None] + TRI_X[None, :, 1:2] * e2[:, None]
-    w = area[:, None] * TRI_W  # (T, Q), the plane's area element
+    first, pair, q, w = fan_quadrature(poly, count, TRI_X, TRI_W)  # w: the plane's area
     on = idx[pair]  # the (slave, master) pair of each triangle
     xs = inverse_bilinear(S[on], q)
     xm = inverse_bilinear(Mp[on], q)
@@ -215,11 +211,14 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
     if warped.size:
         w[warped] *= area_element(Ps[on[warped]], xs[warped]) / \
             np.maximum(area_element(S[on[warped]], xs[warped]), 1e-300)
-    psi = shape(xs) @ np.swapaxes(A[i[on]], 1, 2)  # (T, Q, 4): ψ_l = Σ_i A_li N_i
-    vals = np.swapaxes(w[:, :, None] * psi, 1, 2) @ shape(xm)  # (T, 4, 4): Σ_q w ψ_l N_k
-    vals = np.add.reduceat(vals, first, axis=0) if pair.size else np.zeros((0, 4, 4))
+    psi = basis(xs) @ np.swapaxes(A[i[on]], 1, 2)  # (T, Q, k): ψ_l = Σ_i A_li N_i
+    vals = np.swapaxes(w[:, :, None] * psi, 1, 2) @ basis(xm)  # (T, k, k): Σ_q w ψ_l N_k
+    nk = A.shape[1]
+    vals = np.add.reduceat(vals, first, axis=0) if pair.size else np.zeros((0, nk, nk))
     keep = np.abs(vals).sum(axis=(1, 2)) > 0.0
     si, mj = i[idx[keep]], j[idx[keep]]
-    rows = np.repeat(slave[si], 4, axis=1).ravel()
-    cols = np.tile(master[mj], (1, 4)).ravel()
+    sp_ = slave if slave_points is None else slave_points
+    mp_ = master if master_points is None else master_points
+    rows = np.repeat(sp_[si], nk, axis=1).ravel()
+    cols = np.tile(mp_[mj], (1, nk)).ravel()
     return rows, cols, vals[keep].ravel(), int(keep.sum())

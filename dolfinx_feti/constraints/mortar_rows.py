@@ -34,6 +34,7 @@ from .mortar import (
     open_rim,
     same_way_pairs,
 )
+from .mortar_normals import with_normals
 from .mortar_p2 import quadratic_coupling
 from .rows import Kind, Rows
 
@@ -121,7 +122,8 @@ def _point_x(mesh: MeshData, points: DofPoints | None) -> np.ndarray:
 
 
 def _pair_checks(mesh: MeshData, name: str, slave: str, master: str,
-                 coupling: MortarCoupling, gap: np.ndarray, tie: bool) -> list[str]:
+                 coupling: MortarCoupling, gap: np.ndarray, tie: bool,
+                 px: np.ndarray) -> list[str]:
     """Rows that bridge a gap much wider than the facets: warned, or refused within a body.
 
     Args:
@@ -133,6 +135,7 @@ def _pair_checks(mesh: MeshData, name: str, slave: str, master: str,
         gap: Per coupled slave node, the distance its row bridges (ties: to the weighted
             master point; contact: along the normal, signed).
         tie: Whether the rows are a tie's.
+        px: The coordinates the coupling's slave nodes index (the dof points of degree 2).
     """
     S, M = mesh.facets(slave), mesh.facets(master)
     h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
@@ -143,7 +146,7 @@ def _pair_checks(mesh: MeshData, name: str, slave: str, master: str,
                 "other's reach), so the condition does nothing"]
     k = int(np.argmax(np.abs(gap)))
     worst = float(abs(gap[k]))
-    where = np.round(mesh.x[slave_nodes[k]], 6).tolist()
+    where = np.round(px[slave_nodes[k]], 6).tolist()
     what = (f"{name}: its rows bridge gaps up to {worst:.3g} between the surfaces "
             f"({worst / h:.1f} times their mean facet size {h:.3g}; e.g. at the slave node at "
             f"{where})")
@@ -236,13 +239,15 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
         raise InputError(f"{name}: both surfaces belong to body "
                          f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
     coupling = _coupling(mesh, name, spec.slave, spec.master, spec.search_distance, points)
+    coupling = with_normals(mesh, spec.slave, spec.master, coupling, spec.normals, points)
     keep = coupling.coupled
     n = -coupling.normals[keep]  # toward the slave: the master's outward direction
     first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
     nodes = np.unique(np.concatenate([mesh.facets(spec.slave).ravel(),
                                       mesh.facets(spec.master).ravel()]))
     gap = snap_roundoff(coupling.weighted_gap(_point_x(mesh, points)), mesh.x[nodes])
-    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, gap, tie=False)
+    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, gap, tie=False,
+                            px=_point_x(mesh, points))
     if bs > 1:
         dirs = -n  # the row is s·n·(Σ w u_m − u_s): slave direction −n
     else:
@@ -280,7 +285,8 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
     keep = np.flatnonzero(coupling.coupled)
     px = _point_x(mesh, points)
     bridged = np.linalg.norm(coupling.weights() @ px - px[coupling.slave_nodes[keep]], axis=1)
-    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, bridged, tie=True)
+    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, bridged, tie=True,
+                            px=px)
     first = node_subs[node_ptr[:-1]]
     blocks = []
     slave = coupling.slave_nodes[coupling.coupled]

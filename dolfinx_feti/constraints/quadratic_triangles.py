@@ -48,7 +48,8 @@ def edge_vertices(mesh: MeshData, points: DofPoints, groups) -> tuple[np.ndarray
     return e, ab[first]
 
 
-def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups) -> Rows:
+def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups,
+                   own_only: bool = False) -> Rows:
     """The rows written for the transformed coefficients ũ (see the module's text).
 
     Args:
@@ -56,12 +57,17 @@ def transform_rows(rows: Rows, mesh: MeshData, points: DofPoints, groups) -> Row
         mesh: The mesh.
         points: Its dof points (degree 2).
         groups: The boundary groups the rows' nodes lie on (slave and master).
+        own_only: Transform only each row's entries at its own node (mortar rows: the slave
+            side is in ũ, the master side keeps the plain basis; :mod:`.mortar_p2_triangles`).
     """
     e, ab = edge_vertices(mesh, points, groups)
     if e.size == 0:
         return rows
     pos = np.minimum(np.searchsorted(e, rows.e_node), e.size - 1)
-    k = np.flatnonzero(e[pos] == rows.e_node)
+    hit = e[pos] == rows.e_node
+    if own_only:
+        hit &= rows.e_node == rows.node[rows.e_row]
+    k = np.flatnonzero(hit)
     c = rows.e_coef[k] / (1.0 - 2.0 * ALPHA)
     coef = rows.e_coef.copy()
     coef[k] = c

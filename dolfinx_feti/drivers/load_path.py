@@ -30,8 +30,13 @@ from ..results.solution import Solution
 from ..solver import COLD, FetiSolver
 from .path_output import History, TimeSeries, setup_seconds
 
+#: How :func:`solve_path` steps a problem whose forms say ``solve_by = key`` (a nonlinear
+#: material: ``"newton"``, registered by :mod:`dolfinx_feti.drivers.newton`).
+PATH_BY: dict[str, Callable] = {}
 
-def _times(times: Sequence[float]) -> np.ndarray:
+
+def check_times(times: Sequence[float]) -> np.ndarray:
+    """The pseudo-times as an array, refused unless finite and strictly increasing."""
     t = np.asarray(times, dtype=float)
     if t.ndim != 1 or t.size == 0:
         raise InputError("solve_path: times must be a non-empty sequence of numbers")
@@ -42,7 +47,8 @@ def _times(times: Sequence[float]) -> np.ndarray:
     return t
 
 
-def _problem(problem_at: Callable[[float], ContactProblem], t: float) -> ContactProblem:
+def problem_at_time(problem_at: Callable[[float], ContactProblem], t: float) -> ContactProblem:
+    """``problem_at(t)``, refused unless a ContactProblem."""
     p = problem_at(float(t))
     if not isinstance(p, ContactProblem):
         raise InputError(f"solve_path: problem_at({t:g}) returned {type(p).__name__}, not a "
@@ -85,16 +91,30 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
         InputError: For bad times, or a ``problem_at(t)`` whose set-up differs (named).
         NotConverged: With ``error_if_not_converged``, at the first step that does not.
     """
-    t = _times(times)
+    t = check_times(times)
+    first = None
+    with collective(comm):  # user code: a failure on one rank stops every rank
+        first = problem_at_time(problem_at, t[0])
+    by = getattr(first.forms, "solve_by", None)
+    if by is not None:
+        if by not in PATH_BY:
+            raise InputError(f"solve_path: the forms ask to be solved by {by!r}, which is not "
+                             f"registered (known: {sorted(PATH_BY)})")
+        if xdmf is not None or history is not None:
+            raise InputError("solve_path: xdmf and history files are not written for "
+                             f"{by!r} paths yet; write each Solution's fields instead")
+        return PATH_BY[by](problem_at, t, first, comm=comm, options=options,
+                           progress=progress, **kwargs)
     line = Progress(comm, 1 if progress else 0)
     series = TimeSeries(xdmf, comm) if xdmf is not None else None
     log = History(history, comm) if history is not None else None
     solver, sols = None, []
     try:
         for k, tk in enumerate(t):
-            problem = None
-            with collective(comm):  # user code: a failure on one rank stops every rank
-                problem = _problem(problem_at, tk)
+            problem = first if k == 0 else None
+            if k:
+                with collective(comm):  # user code: a failure on one rank stops every rank
+                    problem = problem_at_time(problem_at, tk)
             if solver is None:
                 if series is not None:
                     series.check(problem)
@@ -180,4 +200,4 @@ def solve_cases(problems: Sequence[ContactProblem], *, comm: MPI.Comm = MPI.COMM
     return sols
 
 
-__all__ = ["solve_cases", "solve_path"]
+__all__ = ["PATH_BY", "check_times", "problem_at_time", "solve_cases", "solve_path"]

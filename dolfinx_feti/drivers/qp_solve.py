@@ -70,6 +70,11 @@ class QPSolve:
     G_lambda: np.ndarray
 
 
+#: ``qp="penalty"`` under the KKT test: after a failed check ρ grows by twice the largest
+#: residual over rtol (the residuals fall like 1/ρ), within these factors.
+PENALTY_GROWTH = (10.0, 1e4)
+
+
 def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              progress: Progress | None = None, timer: Timer | None = None,
              friction: FrictionSolve | None = None, preconditioner=None,
@@ -118,7 +123,9 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     else:
         x0.copy(x)
     mults0 = feti.hessian_mults
-    kkt_test = opts.stop_test == "kkt" and friction is None and opts.qp != "penalty"
+    kkt_test = opts.stop_test == "kkt" and friction is None
+    penalty = opts.qp == "penalty"
+    rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
     stop = KKTStop(qp, opts.rtol) if kkt_test else None
     runs: list[QPResult] = []
     check_mults = kplus = 0
@@ -126,10 +133,11 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     while True:
         used = sum(r.iterations for r in runs)
         with timer.phase("iterations"):
-            def run_qp(mu=multiplier0, used=used):
+            def run_qp(mu=multiplier0, used=used, rho_factor=rho_factor):
                 return _run_qp(opts, report, progress, qp, x, n_ineq, precond, friction, mu,
                                max_it=opts.max_it - used,
-                               test=None if stop is None else stop.make_test())
+                               test=None if stop is None else stop.make_test(),
+                               rho_factor=rho_factor)
             res = run_qp() if friction is None else friction.run(run_qp, x, qp.lam_hat, ineq,
                                                                  progress)
         runs.append(res)
@@ -156,6 +164,11 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
                     f"the KKT residuals did not all reach rtol {opts.rtol:.0e}: the largest is "
                     f"{worst:.1e} ({why})")
             break
+        if penalty:
+            # the penalty leaves ‖G̃x‖ = O(1/ρ), and with it the balance of the floating
+            # subdomains and the gluing: the residuals fall like 1/ρ, not with the gradient
+            rho_factor *= min(PENALTY_GROWTH[1], max(PENALTY_GROWTH[0],
+                                                     2.0 * max(kkt.values()) / opts.rtol))
         check_mults += feti.hessian_mults - m0
         progress.info(f"stopping test: KKT residuals above rtol ({max(kkt.values()):.1e}); "
                       "continuing")
@@ -249,12 +262,13 @@ def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = Fals
 
 
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None,
-            multiplier0=None, max_it=None, test=None):
+            multiplier0=None, max_it=None, test=None, rho_factor=1.0):
     """Build the QP of this solve (bounds, friction) and run the solver it needs.
 
     With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
     ``max_it`` is what is left of the budget of iterations (default ``opts.max_it``), ``test``
-    the stopping test that replaces the solver's relative one (:class:`.kkt_stop.KKTStop`).
+    the stopping test that replaces the solver's relative one (:class:`.kkt_stop.KKTStop`),
+    ``rho_factor`` a factor on the dual penalty's ρ (``qp="penalty"``).
     """
     if max_it is not None:
         opts = opts.replace(max_it=max(int(max_it), 1))
@@ -274,12 +288,13 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
         report.solver = f"{solver.name} (dual penalty)"
-        rho = opts.of(PENALTY)["rho"] * norm_A
+        rho = opts.of(PENALTY)["rho"] * norm_A * rho_factor
         Arho = projected_operator(feti.F, ocon, rho=rho)
         if precond is not None:
             precond = ProjectedPreconditioner(precond, ocon, rho)
         res = solver.solve(QP.create(Arho, dual.b, lb=lb, ub=ub, discs=discs,
-                                     norm_A=max(norm_A, rho), preconditioner=precond), x)
+                                     norm_A=max(norm_A, rho), preconditioner=precond), x,
+                           test=test)
         Arho.destroy()  # a shell holds its context until destroyed
         res.Dx_norm = float(np.linalg.norm(ocon.mult(x)))
         return res

@@ -43,7 +43,8 @@ POISSON = {"source": _SCALAR, "flux": MappingOf(Text(), _SCALAR), "k": _NUMBER,
 Scalar = float | Mapping[str, float]
 
 
-def _per_body(value, mesh, what: str) -> dict[str, float]:
+def per_body_values(value, mesh, what: str) -> dict[str, float]:
+    """One number per body of ``mesh`` from a number or a body name → number mapping."""
     if isinstance(value, Mapping):
         unknown = set(value) - set(mesh.body_names)
         if unknown:
@@ -56,11 +57,26 @@ def _per_body(value, mesh, what: str) -> dict[str, float]:
     return dict.fromkeys(mesh.body_names, float(value))
 
 
-def _scaled(L, factor: float, V):
+def scaled_form(L, factor: float, V):
     """``factor · L`` with the factor a runtime constant (None for no linear form)."""
     if not isinstance(L, ufl.Form):
         return None if L is None or L == 0 else L
     return L if L.empty() else compat.constant(compat.space_mesh(V), factor) * L
+
+
+def _load_key(kind: str, terms: list) -> tuple | None:
+    """The shape of a subdomain's loads: where each acts; None if one is a function of x.
+
+    A function of x may read state that changes between load cases: its form is built again.
+    """
+    if any(callable(v) for _, v in terms):
+        return None
+    return kind, tuple(where for where, _ in terms)
+
+
+def _load_values(terms: list, load_factor: float) -> list:
+    """The runtime constants' values in the order the forms make them, the load factor last."""
+    return [np.asarray(v, dtype=float) for _, v in terms] + [load_factor]
 
 
 def _frozen(value):
@@ -68,14 +84,15 @@ def _frozen(value):
     return tuple(sorted(value.items())) if isinstance(value, Mapping) else value
 
 
-def _check_groups(groups: Mapping, mesh, what: str) -> None:
+def check_groups(groups: Mapping, mesh, what: str) -> None:
+    """Refuse unknown boundary groups and non-finite constant values on them."""
     for name, v in groups.items():
         mesh.facets(name)
         if not callable(v) and not np.all(np.isfinite(np.asarray(v, dtype=float))):
             raise InputError(f"{what} on {name!r} is not finite: {v}")
 
 
-def _check_magnitude(what: str, values, given: str) -> None:
+def check_magnitude(what: str, values, given: str) -> None:
     """Refuse material constants whose products in the solver overflow or underflow."""
     if any(not 1.0 / SAFE_MAGNITUDE <= abs(v) <= SAFE_MAGNITUDE for v in values):
         raise InputError(f"{what} lie outside [{1 / SAFE_MAGNITUDE:.0e}, {SAFE_MAGNITUDE:.0e}] "
@@ -119,10 +136,23 @@ class Elasticity:
         """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
         return "Elasticity", _frozen(self.E), _frozen(self.nu), self.degree
 
+    def _loads(self, sub) -> list:
+        """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""
+        terms = [] if self.body_force is None else [("dx", self.body_force)]
+        return terms + [(name, t) for name, t in self.tractions.items() if sub.has_facets(name)]
+
+    def load_key(self, sub) -> tuple | None:
+        """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
+        return _load_key("Elasticity", self._loads(sub))
+
+    def load_values(self, sub) -> list:
+        """The values of the loads' runtime constants on ``sub``, in the order they are made."""
+        return _load_values(self._loads(sub), self.load_factor)
+
     def check(self, mesh) -> None:
         """Validate the material data and the named groups against ``mesh``."""
-        self._E = _per_body(self.E, mesh, "Young's modulus E")
-        self._nu = _per_body(self.nu, mesh, "Poisson's ratio nu")
+        self._E = per_body_values(self.E, mesh, "Young's modulus E")
+        self._nu = per_body_values(self.nu, mesh, "Poisson's ratio nu")
         for body, E in self._E.items():
             if not np.isfinite(E) or E <= 0:
                 raise InputError(f"Young's modulus of body {body!r} must be positive and "
@@ -133,9 +163,9 @@ class Elasticity:
                                  f"nu = {nu}" + (" (incompressible)" if nu == 0.5 else ""))
             E = self._E[body]
             lame = (E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu)))
-            _check_magnitude(f"the Lamé constants (mu, lambda) of body {body!r}",
+            check_magnitude(f"the Lamé constants (mu, lambda) of body {body!r}",
                              [v for v in (*lame, E) if v != 0], f"E = {E}, nu = {nu}")
-        _check_groups(self.tractions, mesh, "traction")
+        check_groups(self.tractions, mesh, "traction")
         for name, t in self.tractions.items():
             if not callable(t) and np.asarray(t, dtype=float).size != mesh.gdim:
                 raise InputError(f"traction on {name!r} has {np.asarray(t).size} components; "
@@ -164,18 +194,12 @@ class Elasticity:
 
         a = ufl.inner(sigma(u), eps(v)) * sub.dx()
         L = 0
-        if self.body_force is not None:
-            x = ufl.SpatialCoordinate(V.mesh)
-            b = self.body_force(x) if callable(self.body_force) else compat.constant(
-                compat.space_mesh(V), [float(c) for c in self.body_force])
-            L += ufl.inner(b, v) * sub.dx()
-        for name, t in self.tractions.items():
-            if sub.has_facets(name):
-                x = ufl.SpatialCoordinate(V.mesh)
-                tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
-                                                              [float(c) for c in t])
-                L += ufl.inner(tv, v) * sub.ds(name)
-        return a, _scaled(L, self.load_factor, V)
+        x = ufl.SpatialCoordinate(V.mesh)
+        for where, t in self._loads(sub):
+            tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
+                                                          [float(c) for c in t])
+            L += ufl.inner(tv, v) * (sub.dx() if where == "dx" else sub.ds(where))
+        return a, scaled_form(L, self.load_factor, V)
 
 
 class Poisson:
@@ -206,14 +230,27 @@ class Poisson:
         """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
         return "Poisson", _frozen(self.k), self.degree
 
+    def _loads(self, sub) -> list:
+        """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""
+        terms = [] if self.source == 0 and not callable(self.source) else [("dx", self.source)]
+        return terms + [(name, g) for name, g in self.flux.items() if sub.has_facets(name)]
+
+    def load_key(self, sub) -> tuple | None:
+        """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
+        return _load_key("Poisson", self._loads(sub))
+
+    def load_values(self, sub) -> list:
+        """The values of the loads' runtime constants on ``sub``, in the order they are made."""
+        return _load_values(self._loads(sub), self.load_factor)
+
     def check(self, mesh) -> None:
         """Validate the data and the named groups against ``mesh``."""
-        self._k = _per_body(self.k, mesh, "conductivity k")
+        self._k = per_body_values(self.k, mesh, "conductivity k")
         for body, k in self._k.items():
             if not np.isfinite(k) or k <= 0:
                 raise InputError(f"conductivity of body {body!r} must be positive, got {k}")
-            _check_magnitude(f"the conductivity of body {body!r}", [k], f"k = {k}")
-        _check_groups(self.flux, mesh, "flux")
+            check_magnitude(f"the conductivity of body {body!r}", [k], f"k = {k}")
+        check_groups(self.flux, mesh, "flux")
         if not callable(self.source) and not np.isfinite(self.source):
             raise InputError(f"source is not finite: {self.source}")
 
@@ -229,4 +266,4 @@ class Poisson:
         for name, g in self.flux.items():
             if sub.has_facets(name):
                 L += (g(x) if callable(g) else compat.constant(msh, g)) * v * sub.ds(name)
-        return a, _scaled(L, self.load_factor, V)
+        return a, scaled_form(L, self.load_factor, V)

@@ -23,6 +23,7 @@ from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import row_keys
 from .dofmap import cell_dof_points
 from .form_checks import check_form_kinds, check_magnitudes, check_symmetric
+from .load_form import LoadForm
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
 
@@ -199,6 +200,15 @@ class Subdomain:
         q.x.array[dofs] = table[body_of_cell]
         return q
 
+    @property
+    def dof_permutation(self) -> np.ndarray:
+        """The DOLFINx dof of each canonical dof of the space the forms were given.
+
+        Set before the first call of the forms: ``w.x.array[perm] = values`` puts canonical
+        values into a Function ``w`` of that space.
+        """
+        return self._perm
+
     def _canonical_points(self, V) -> np.ndarray:
         """For each (blocked) dof of V, its index in the canonical order of the dof points."""
         block = self._cell_block[:, None]
@@ -247,6 +257,7 @@ class Subdomain:
         space and the dof permutation are kept for :meth:`assemble_load`.
         """
         a, L = self._forms(forms, value_size)
+        self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
         A = compat.assemble_matrix(a)
         indptr, indices, data = A.getValuesCSR()
         K = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
@@ -258,15 +269,23 @@ class Subdomain:
         if not np.all(np.isfinite(K.data)):
             raise InputError(f"{self._where}: the assembled stiffness matrix has non-finite "
                              "entries (NaN/Inf in the data)")
-        f = self._load(L, K.shape[0])
+        f = self._load(L, K.shape[0], self._kept_load)
         check_magnitudes(K, f, self._where)
         check_symmetric(K, self._where)  # before K K⁺ K = K, which would blame the null space
         return K, f
 
     def assemble_load(self, forms, value_size: int) -> np.ndarray:
-        """Assemble only the linear form of ``forms`` (a new load case on the same space)."""
+        """Assemble only the linear form of ``forms`` (a new load case on the same space).
+
+        A load of the shape of the last one (see :mod:`~dolfinx_feti.fem.load_form`) sets the
+        kept compiled form's constants; any other is built and compiled again.
+        """
+        kept = getattr(self, "_kept_load", None)
+        if kept is not None and kept.matches(forms, self):
+            return self._load(None, self._perm.size, kept, forms)
         _, L = self._forms(forms, value_size)
-        return self._load(L, self._perm.size)
+        self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
+        return self._load(L, self._perm.size, self._kept_load)
 
     @property
     def _where(self) -> str:
@@ -297,13 +316,22 @@ class Subdomain:
                                    f"the {what} form")
         return a, L
 
-    def _load(self, L, n: int) -> np.ndarray:
-        """The assembled linear form in the canonical order (zeros for no form)."""
-        if _is_zero(L):  # no load on this subdomain
+    def _load(self, L, n: int, kept: LoadForm | None = None, forms=None) -> np.ndarray:
+        """The assembled linear form in the canonical order (zeros for no form).
+
+        With ``kept`` the vector comes from the kept compiled form, its constants set to the
+        values of ``forms`` (by default: those ``L`` was built with).
+        """
+        if kept is not None:
+            f = kept.assemble(None if forms is None else forms.load_values(self))
+            if f is None:  # no load on this subdomain
+                return np.zeros(n)
+        elif _is_zero(L):
             return np.zeros(n)
-        b = compat.assemble_vector(L)
-        f = b.array.copy()
-        b.destroy()
+        else:
+            b = compat.assemble_vector(L)
+            f = b.array.copy()
+            b.destroy()
         f = f[self._perm]
         if not np.all(np.isfinite(f)):
             raise InputError(f"{self._where}: the assembled load has non-finite entries "

@@ -246,9 +246,14 @@ class EliminateCorners:
 
     # --- the coarse problem ----------------------------------------------------------------
     def _colours(self) -> list[np.ndarray]:
-        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks."""
+        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks.
+
+        Also sets ``_owner``: per block and colour, the corner unknown of that colour in the
+        block (-1: none).
+        """
         ci = np.flatnonzero(self.is_corner)
         self._blocks_of = {}
+        self._owner = np.full((len(self.parent.kernels), 0), -1, dtype=np.int64)
         if ci.size == 0:
             return []
         pairs = np.unique(np.stack([self.coarse[ci], self._block[ci]], axis=1), axis=0)
@@ -265,7 +270,36 @@ class EliminateCorners:
             for b in blocks:
                 colour_of_block.setdefault(int(b), set()).add(k)
         self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
-        return [cols[colour == k] for k in range(int(colour.max(initial=-1)) + 1)]
+        ncolour = int(colour.max(initial=-1)) + 1
+        self._owner = np.full((len(self.parent.kernels), ncolour), -1, dtype=np.int64)
+        self._owner[pairs[:, 1], colour[np.searchsorted(cols, pairs[:, 0])]] = pairs[:, 0]
+        return [cols[colour == k] for k in range(ncolour)]
+
+    def _psi_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Ψ's CSR pattern: a row of block b holds b's corner unknowns, sorted (none at corners).
+
+        Returns:
+            ``(indptr, indices, slot)``; ``slot[b, colour]`` is the position, within a row of
+            block b, of b's unknown of that colour (-1: none). Built once from ``_owner``, so
+            the entries of each batch of solves are placed without a sort.
+        """
+        own = self._owner
+        big = np.iinfo(np.int64).max
+        order = np.argsort(np.where(own >= 0, own, big), axis=1, kind="stable")
+        slot = np.empty_like(own)
+        np.put_along_axis(slot, order, np.arange(own.shape[1])[None, :].repeat(own.shape[0], 0),
+                          axis=1)
+        slot[own < 0] = -1
+        per_block = (own >= 0).sum(axis=1)
+        count = np.where(self.is_corner, 0, per_block[self._block])
+        indptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
+        sorted_cols = np.take_along_axis(own, order, axis=1)
+        rows = np.bincount(self._block[~self.is_corner], minlength=own.shape[0])
+        # rows are block by block: block b's rows repeat its sorted columns (a loop over the
+        # rank's subdomains, not its dofs)
+        indices = _cat([np.tile(sorted_cols[b, :per_block[b]], rows[b])
+                        for b in range(own.shape[0])], np.int64)
+        return indptr, indices, slot
 
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
@@ -277,24 +311,27 @@ class EliminateCorners:
         with collective(comm, site):
             self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
             n = self._n_local
-            rows, cols, vals = [], [], []
             groups = self._colours()
+            indptr, indices, slot = self._psi_pattern()
+            data = np.zeros(indices.size)
+            # the sum of the columns of each colour: one sparse product, not a column
+            # slice of K_rc per colour (which cost as much as the solves on 3D meshes)
+            member = sp.csc_matrix((np.ones(sum(g.size for g in groups)),
+                                    (_cat(groups, np.int64),
+                                     np.repeat(np.arange(len(groups)),
+                                               [g.size for g in groups]))),
+                                   shape=(nc, len(groups)))
+            colour_sums = (self.K_rc @ member).tocsc()
             for first in range(0, len(groups), _BATCH):
                 batch = groups[first:first + _BATCH]
-                rhs = np.column_stack([np.asarray(self.K_rc[:, g].sum(axis=1)).ravel()
-                                       for g in batch])
+                rhs = colour_sums[:, first:first + len(batch)].toarray()
                 Y = self.Krr_plus.solve_matrix(rhs)
-                for group, y in zip(batch, Y.T, strict=True):
-                    owner = np.full(len(parent.kernels), -1, dtype=np.int64)
-                    for j in group:
-                        owner[self._blocks_of[int(j)]] = j
-                    col = owner[self._block]
-                    sel = np.flatnonzero((col >= 0) & (y != 0.0))
-                    rows.append(sel)
-                    cols.append(col[sel])
-                    vals.append(y[sel])
-            self.Psi = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
-                                                           _cat(cols, np.int64))), shape=(n, nc))
+                # each entry of Y goes to its row's slot of its block's unknown of the colour
+                at = slot[self._block, first:first + len(batch)]
+                r, k = np.nonzero((at >= 0) & ~self.is_corner[:, None])
+                data[indptr[r] + at[r, k]] = Y[r, k]
+            self.Psi = sp.csr_matrix((data, indices, indptr), shape=(n, nc))
+            self.Psi.eliminate_zeros()
             S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()
         parts = comm.allgather((S_loc.row, S_loc.col, S_loc.data))
         S = sp.csr_matrix((np.concatenate([p[2] for p in parts]),

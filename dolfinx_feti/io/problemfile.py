@@ -47,6 +47,7 @@ from mpi4py import MPI
 
 from ..errors import InputError, SolveError, collective
 from ..fem import Elasticity, Poisson
+from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
 from ..mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
 from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
@@ -73,7 +74,11 @@ TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
 TIE_KEYS = ("slave", "master", "search_distance")
 #: ``[model]`` keys by model type.
 MODEL_KEYS = {"elasticity": ("type", "E", "nu", "tractions", "body_force"),
+              "neo-hookean": ("type", "E", "nu", "tractions", "body_force"),
+              "svk": ("type", "E", "nu", "tractions", "body_force"),
               "poisson": ("type", "source", "k", "flux", "source_boxes")}
+#: The solid models of ``[model] type``: small strain, and hyperelastic (solved by Newton).
+SOLIDS = {"elasticity": Elasticity, "neo-hookean": NeoHookean, "svk": SaintVenantKirchhoff}
 #: Keys of an affine traction ``model.tractions.<group> = {value, gradient}``.
 AFFINE_KEYS = ("value", "gradient")
 #: ``[[model.source_boxes]]`` keys.
@@ -81,7 +86,7 @@ BOX_KEYS = ("min", "max", "value")
 #: ``[[dirichlet]]`` keys.
 DIRICHLET_KEYS = ("group", "value", "components")
 #: ``[[contact]]`` keys by contact type.
-CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance"),
+CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance", "normals"),
                 "node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
                 "obstacle": ("type", "group", "plane", "sphere", "cylinder", "friction")}
 #: ``contact[i].friction`` keys by friction law.
@@ -445,7 +450,7 @@ class ProblemFile:
     Attributes:
         path: The problem file.
         title: Its title (the file name when none is given).
-        model: ``"elasticity"`` or ``"poisson"``.
+        model: ``"elasticity"``, ``"neo-hookean"``, ``"svk"`` or ``"poisson"``.
         mesh: The mesh, on every rank.
         mesh_source: The mesh file, or the generator call that built the mesh.
         problem: The :class:`~dolfinx_feti.ContactProblem`.
@@ -621,7 +626,7 @@ class _Reader:
         mesh_source = self._mesh()
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \
-            (self.mesh.gdim if model == "elasticity" else 1)
+            (self.mesh.gdim if model in SOLIDS else 1)
         dirichlet = self._dirichlet(value_size)
         contact = self._contact(model)
         ties = self._ties()
@@ -753,12 +758,12 @@ class _Reader:
         if kind is None:
             return None, None
         m = c.table(m, "model", MODEL_KEYS[kind],
-                    required=("E", "nu") if kind == "elasticity" else ())
+                    required=("E", "nu") if kind in SOLIDS else ())
         if m is None:
             return None, None
         self.model = kind
         gdim = None if mesh is None else mesh.gdim
-        if kind == "elasticity":
+        if kind in SOLIDS:
             E = c.per_body(m.get("E"), "model.E", mesh, "a number > 0", lambda v: v > 0) \
                 if "E" in m else None
             nu = c.per_body(m.get("nu"), "model.nu", mesh, "a number in (-1, 0.5)",
@@ -780,7 +785,7 @@ class _Reader:
                 body_force = c.vector(m["body_force"], "model.body_force", gdim)
             if E is None or nu is None:
                 return kind, None
-            return kind, Elasticity(E, nu, tractions=tractions, body_force=body_force)
+            return kind, SOLIDS[kind](E, nu, tractions=tractions, body_force=body_force)
         source = c.per_body(m.get("source", 0.0), "model.source", mesh, "a number",
                             None, complete=False)
         k = c.per_body(m.get("k", 1.0), "model.k", mesh, "a number > 0", lambda v: v > 0)
@@ -905,6 +910,9 @@ class _Reader:
                                                "a number > 0", lambda v: v > 0)
                 if "search_distance" in t:
                     kw["search_distance"] = self._search_distance(t, key)
+                if "normals" in t and kind == "mortar":
+                    kw["normals"] = c.string(t["normals"], _key(key, "normals"),
+                                             ("slave", "flatter"))
                 cls = NodeToNode if kind == "node_to_node" else Mortar
                 if "friction" in t:
                     kw["friction"] = self._friction(t["friction"], _key(key, "friction"), cls,
@@ -1062,22 +1070,16 @@ class _Reader:
 
     def _dry_run_contact(self, problem: ContactProblem) -> None:
         """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
-        from ..constraints.contact import node_to_node_rows, obstacle_rows
-        from ..constraints.mortar_rows import mortar_contact_rows
+        from ..constraints.build import ROW_BUILDERS, SurfaceCondition
 
-        mesh, points = problem.mesh, problem.dof_points
+        points = problem.dof_points
         node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
         node_subs = np.zeros(points.num_points, dtype=np.int32)
+        fixed = np.zeros((points.num_points, problem.value_size), dtype=bool)
         for i, spec in enumerate(problem.contact):
-            try:
-                if isinstance(spec, NodeToNode):
-                    node_to_node_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
-                                      points)
-                elif isinstance(spec, Mortar):
-                    mortar_contact_rows(mesh, spec, i, node_ptr, node_subs, problem.value_size,
-                                        points)
-                else:
-                    obstacle_rows(mesh, spec, i, node_ptr, node_subs, points)
+            try:  # the condition's own row builder, on one subdomain
+                ROW_BUILDERS[type(spec)](SurfaceCondition(problem, spec, i, node_ptr, node_subs,
+                                                          fixed))
             except InputError as e:
                 self.c.fault(_key("contact", i), str(e))
             except Exception:  # noqa: BLE001 - internals changed: the solve checks it again

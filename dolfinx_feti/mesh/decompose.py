@@ -16,7 +16,9 @@ from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
 from ..errors import InputError, collective
-from ..validation import Choice, Function, Integer, checked, per_body
+from ..validation import Choice, Flag, Function, Integer, checked, per_body
+from .auto_parts import BALANCE, Auto, auto_parts
+from .connected_parts import merge_fragments
 from .data import MeshData
 from .dofpoints import DofPoints
 from .topology import cell_volumes, facet_neighbours
@@ -32,7 +34,7 @@ class ByTags:
 
 @dataclass(frozen=True)
 @checked(n=per_body(Integer(ge=1, le=MAX_PARTS)), method=Choice("rcb", "ptscotch"),
-         balance=Choice("cells", "volume"))
+         balance=Choice("cells", "volume"), merge=Flag())
 class Parts:
     """Split every body into parts of (nearly) equal size.
 
@@ -48,11 +50,16 @@ class Parts:
             counts give many small subdomains (and pieces that fall apart) where the contact
             is; equal volumes give compact subdomains with the fine cells inside them, and far
             fewer F-multiplications (docs/benchmarks.md § 5).
+        merge: Whether the pieces a cut leaves apart (a part in pieces that share no facet)
+            are merged into their neighbouring parts, so that every body gives about ``n``
+            connected subdomains (the default; :mod:`.connected_parts`), or kept as
+            subdomains of their own (``False``: one subdomain per piece).
     """
 
     n: int | Mapping[str, int]
     method: str = "rcb"
     balance: str = "cells"
+    merge: bool = True
 
 
 @dataclass(frozen=True)
@@ -143,11 +150,16 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
 
     Args:
         mesh: The mesh.
-        how: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
+        how: :class:`ByTags`, :class:`Parts`, :class:`ByFunction` or
+            :class:`~.auto_parts.Auto` (Parts by the mesh's size and the ranks).
         comm: The communicator, or just its size (for planning without MPI).
         points: The dof points that number the primal dofs (default: the vertices, degree 1).
     """
     comm_size = comm if isinstance(comm, int) else comm.size
+    if isinstance(how, Auto):
+        how = Parts(auto_parts(how, np.bincount(mesh.cell_body,
+                                                minlength=len(mesh.body_names)),
+                               mesh.body_names, mesh.cell_type, comm_size), balance=BALANCE)
     midpoints = midpoints_of(mesh.x, mesh.cells) if not isinstance(how, ByTags) else None
     if isinstance(how, ByTags):
         label = mesh.cell_body.astype(np.int64)
@@ -190,9 +202,11 @@ def decompose(mesh: MeshData, how, comm: MPI.Comm | int,
             raise InputError("ByFunction: the function must return one integer label per cell "
                              f"(shape ({mesh.cells.shape[0]},)), got {label.dtype} {label.shape}")
     else:
-        raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
+        raise InputError(f"unknown decomposition {how!r}: use Auto(), ByTags(), Parts(n) or "
                          "ByFunction(fn)")
     cell_sub = _split_components(mesh.cells, label, mesh.cell_type)
+    if isinstance(how, Parts) and how.merge:
+        cell_sub = merge_fragments(mesh.cells, cell_sub, label, mesh.cell_body, mesh.cell_type)
     cell_points = mesh.cells if points is None else points.cell_points
     num_points = mesh.num_nodes if points is None else points.num_points
     return _build(mesh, cell_sub, comm_size, cell_points, num_points)

@@ -149,12 +149,31 @@ def compact_blocks(points: np.ndarray, size: int) -> np.ndarray:
     scale = np.where(hi > lo, (2**bits - 1) / np.where(hi > lo, hi - lo, 1.0), 0.0)
     q = ((points - lo) * scale).astype(np.uint64)
     code = np.zeros(n, dtype=np.uint64)
-    for b in range(bits):
-        for d in range(dim):
-            code |= ((q[:, d] >> np.uint64(b)) & np.uint64(1)) << np.uint64(b * dim + d)
+    for d in range(dim):
+        code |= _spread(q[:, d], dim) << np.uint64(d)
     rank = np.empty(n, dtype=np.int64)
     rank[np.argsort(code, kind="stable")] = np.arange(n, dtype=np.int64) * size // n
     return rank
+
+
+#: The bits of a 21-bit number spread to every 2nd / 3rd bit: (shift, mask) steps.
+_SPREAD = {2: ((16, 0x0000FFFF0000FFFF), (8, 0x00FF00FF00FF00FF), (4, 0x0F0F0F0F0F0F0F0F),
+               (2, 0x3333333333333333), (1, 0x5555555555555555)),
+           3: ((32, 0x001F00000000FFFF), (16, 0x001F0000FF0000FF), (8, 0x100F00F00F00F00F),
+               (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249))}
+
+
+def _spread(q: np.ndarray, dim: int) -> np.ndarray:
+    """Bit b of each 21-bit ``q`` moved to bit b · dim (a few shifts and masks per array)."""
+    if dim not in _SPREAD:
+        out = np.zeros_like(q)
+        for b in range(21):
+            out |= ((q >> np.uint64(b)) & np.uint64(1)) << np.uint64(b * dim)
+        return out
+    q = q.copy()
+    for shift, mask in _SPREAD[dim]:
+        q = (q | (q << np.uint64(shift))) & np.uint64(mask)
+    return q
 
 
 def scatter_mesh(mesh: MeshData | None, comm: MPI.Comm) -> MeshData:
@@ -167,10 +186,52 @@ def scatter_mesh(mesh: MeshData | None, comm: MPI.Comm) -> MeshData:
     Returns:
         This rank's part: a :class:`MeshData` of its cells, with ``part`` set.
     """
+    return _blocks(mesh, comm, verdicts, replicated=False)[0]
+
+
+def block_of(mesh: MeshData, comm: MPI.Comm, cell_arrays: dict | None = None,
+             midpoints: np.ndarray | None = None) -> tuple[MeshData, dict]:
+    """This rank's block of a whole mesh a problem was checked on (collective).
+
+    The input of the one set-up pipeline (:mod:`.setup.share_distributed`) for a mesh every
+    rank holds (each cuts its own block: no communication) or rank 0 alone holds
+    (``root_only``: rank 0 hands the blocks out). The problem's checks have seen the whole
+    mesh, so the verdicts keep only what the shares carry (the boundary groups' fitness for
+    boundary integrals).
+
+    Args:
+        mesh: The whole mesh (on a root-only mesh, its arrays on rank 0 only).
+        comm: The ranks.
+        cell_arrays: Name → an array with one row per cell of the whole mesh (rank 0's), of
+            which each rank gets its block's rows.
+        midpoints: The cells' midpoints, if the caller has them (where the whole mesh is).
+
+    Returns:
+        This rank's part (``part`` set) and its rows of ``cell_arrays``.
+    """
+    def found(whole):
+        return Verdicts(boundary_group_verdicts(whole), {}, None)
+
+    return _blocks(mesh if mesh.holds_arrays else None, comm, found,
+                   replicated=mesh.root_only is None, cell_arrays=cell_arrays,
+                   midpoints=midpoints)
+
+
+def _blocks(mesh: MeshData | None, comm: MPI.Comm, checks, replicated: bool,
+            cell_arrays: dict | None = None, midpoints: np.ndarray | None = None
+            ) -> tuple[MeshData, dict]:
+    """The blocks of :func:`scatter_mesh` and :func:`block_of`.
+
+    Planned on rank 0 (on every rank if ``replicated``), cut locally (``replicated``) or
+    handed out; ``checks(mesh)`` gives rank 0's verdicts.
+    """
     common = make = None
+    cell_arrays = cell_arrays or {}
     with collective(comm, "mesh"):
-        if comm.rank == 0:
-            owner = compact_blocks(midpoints_of(mesh.x, mesh.cells), comm.size)
+        if comm.rank == 0 or replicated:
+            owner = np.zeros(mesh.num_cells, dtype=np.int64) if comm.size == 1 else \
+                compact_blocks(midpoints_of(mesh.x, mesh.cells) if midpoints is None
+                               else midpoints, comm.size)
             order = np.argsort(owner, kind="stable")  # by rank, then by cell number
             start = np.searchsorted(owner[order], np.arange(comm.size + 1))
             facet_rank, orphans = {}, {}
@@ -180,34 +241,38 @@ def scatter_mesh(mesh: MeshData | None, comm: MPI.Comm) -> MeshData:
                 if np.any(cell < 0):
                     orphans[name] = (f"boundary group {name!r} has facets that are no facet "
                                      "of any cell of the mesh")
-            found = verdicts(mesh)
+            index = np.empty(mesh.num_nodes, dtype=np.int64)
+            used = np.zeros(mesh.num_nodes, dtype=bool)
+
+            def make(r):
+                cells = order[start[r]:start[r + 1]]
+                used[:] = False
+                used[mesh.cells[cells]] = True
+                ids = np.flatnonzero(used)
+                index[ids] = np.arange(ids.size)
+                return {"x": mesh.x[ids], "cells": index[mesh.cells[cells]],
+                        "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids],
+                        "facets": {n: index[f[facet_rank[n] == r]]
+                                   for n, f in mesh.facet_groups.items()},
+                        "vertex_ids": ids, "cell_ids": cells,
+                        "facet_index": {n: np.flatnonzero(facet_rank[n] == r)
+                                        for n in mesh.facet_groups},
+                        "arrays": {k: a[cells] for k, a in cell_arrays.items()}}
+
+        if comm.rank == 0:
+            found = checks(mesh)
             found.orphans = orphans
             common = {"names": mesh.names_only(), "verdicts": found,
                       "sizes": {n: int(f.shape[0]) for n, f in mesh.facet_groups.items()}}
-            index = np.empty(mesh.num_nodes, dtype=np.int64)
     common = comm.bcast(common, root=0)
-    if comm.rank == 0:
-
-        def make(r):
-            cells = order[start[r]:start[r + 1]]
-            ids = np.unique(mesh.cells[cells])
-            index[ids] = np.arange(ids.size)
-            return {"x": mesh.x[ids], "cells": index[mesh.cells[cells]],
-                    "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids],
-                    "facets": {n: index[f[facet_rank[n] == r]]
-                               for n, f in mesh.facet_groups.items()},
-                    "vertex_ids": ids, "cell_ids": cells,
-                    "facet_index": {n: np.flatnonzero(facet_rank[n] == r)
-                                    for n in mesh.facet_groups}}
-
-    p = hand_out(comm, make, "handing out the mesh")
+    p = make(comm.rank) if replicated else hand_out(comm, make, "handing out the mesh")
     names = common["names"]
     part = MeshPart(comm=comm, vertex_ids=p["vertex_ids"], cell_ids=p["cell_ids"],
                     group_sizes=common["sizes"], verdicts=common["verdicts"],
                     facet_index=p["facet_index"])
     return replace(names, x=p["x"], cells=p["cells"], cell_body=p["cell_body"],
                    node_tags=p["node_tags"], facet_groups=p["facets"], part=part,
-                   counts=dict(names.counts))
+                   counts=dict(names.counts)), p["arrays"]
 
 
-__all__ = ["MeshPart", "Verdicts", "compact_blocks", "scatter_mesh", "verdicts"]
+__all__ = ["MeshPart", "Verdicts", "block_of", "compact_blocks", "scatter_mesh", "verdicts"]

@@ -33,8 +33,10 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import InputError, collective
 from ..parallel.distributed_graph import component_minima
 from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
+from .auto_parts import BALANCE, Auto, auto_parts
+from .connected_parts import merge_fragments_distributed, rank_facets
 from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
-from .topology import cell_facets, cell_volumes, reference, row_keys
+from .topology import cell_volumes, reference, row_keys
 
 #: The number of sample points that all ranks together propose per selection round (bounds
 #: the data of a round; each work item gets at most 64 per rank).
@@ -363,14 +365,9 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
         the facet directory holds its link.
     """
     nc = cells.shape[0]
-    ref = reference(cells, cell_type)
-    nf, nvf = len(ref.facets), len(ref.facets[0])
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
-    facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
-    keys = row_keys(facets, nv)
-    order = np.argsort(keys, kind="stable")
-    same = keys[order][1:] == keys[order][:-1]
-    pairs = np.stack([order[:-1][same] // nf, order[1:][same] // nf], axis=1)
+    facets, pairs, single = rank_facets(cells, cell_type, nv)
+    nf, nvf = len(reference(cells, cell_type).facets), facets.shape[1]
     pairs = pairs[label[pairs[:, 0]] == label[pairs[:, 1]]]
     graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(nc, nc))
     npiece, piece = connected_components(graph, directed=False) if nc else (0, np.zeros(0, int))
@@ -380,8 +377,6 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
     # facets of one local cell: the other cell, if any, is on another rank; meet at the rank
     # that keeps the sum of their vertices modulo nv in a directory (their smallest vertex
     # would send most facets to the first ranks: the least of a few numbers is small)
-    single = np.ones(nc * nf, dtype=bool)
-    single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
     c = f // nf
     rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
@@ -425,6 +420,10 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     cell_body = np.asarray(cell_body)
     nc, nvc, gdim = cell_x.shape
     midpoints = cell_x.mean(axis=1)
+    if isinstance(how, Auto):  # Parts by the cells of each body over all ranks
+        count = np.bincount(cell_body, minlength=len(body_names)).astype(np.int64)
+        comm.Allreduce(MPI.IN_PLACE, count, op=MPI.SUM)
+        how = Parts(auto_parts(how, count, body_names, cell_type, comm.size), balance=BALANCE)
     if isinstance(how, ByTags):
         label = cell_body.astype(np.int64)
     elif isinstance(how, Parts):
@@ -460,11 +459,14 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
         label = np.zeros(0, dtype=np.int64)
         with collective(comm, "decomposition"):
             if nc:  # a rank without cells does not call the labeller
-                label = _labels_of(how, midpoints)
+                label = labels_of(how, midpoints)
     else:
-        raise InputError(f"unknown decomposition {how!r}: use ByTags(), Parts(n) or "
+        raise InputError(f"unknown decomposition {how!r}: use Auto(), ByTags(), Parts(n) or "
                          "ByFunction(fn)")
     cell_sub, first = _split(cells, cell_ids, label, cell_type, comm, num_cells)
+    if isinstance(how, Parts) and how.merge:  # first: each cell's group's first cell is a first
+        cell_sub = merge_fragments_distributed(cells, cell_ids, cell_sub, label, cell_body,
+                                               cell_type, comm)
     nsub = np.array([cell_sub.max() + 1 if nc else 0], dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, nsub, op=MPI.MAX)
     sub_body = np.full(int(nsub[0]), -1, dtype=np.int64)
@@ -474,7 +476,7 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     return cell_sub, sub_body.astype(cell_body.dtype)
 
 
-def _labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
+def labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     """The user's labels of the midpoints, checked as the serial decomposition checks them."""
     try:
         label = np.asarray(how.fn(midpoints))
@@ -486,4 +488,4 @@ def _labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     return label
 
 
-__all__ = ["decompose_distributed", "rcb_distributed", "split_components_distributed"]
+__all__ = ["decompose_distributed", "labels_of", "rcb_distributed", "split_components_distributed"]

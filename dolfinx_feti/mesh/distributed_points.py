@@ -269,6 +269,8 @@ def migrate(dest: np.ndarray, *arrays: np.ndarray, comm: MPI.Comm,
     received, _, _, _ = exchange(comm, dest, *arrays, *extra)
     if key is None:
         return tuple(received)
+    if np.all(received[-1][1:] > received[-1][:-1]):  # e.g. no cell moved: no copies
+        return tuple(received[:-1])
     order = np.argsort(received[-1], kind="stable")
     return tuple(a[order] for a in received[:-1])
 

@@ -9,29 +9,16 @@ differ — not whether a condition has friction (that makes the tangential rows)
 
 from __future__ import annotations
 
-from dataclasses import is_dataclass, replace
-
 import numpy as np
 from mpi4py import MPI
 
 from ..errors import InputError, collective
 from ..mesh.decompose import ByFunction
-from .contact_problem import ContactProblem, Dirichlet, RigidObstacle
+from .contact_problem import ContactProblem, Dirichlet
 
 
 def _dirichlet_key(bc: Dirichlet) -> tuple:
     return bc.group, None if bc.components is None else tuple(int(c) for c in bc.components)
-
-
-def _contact_key(c) -> tuple:
-    """The parts of a contact condition the set-up depends on.
-
-    Not an obstacle's position, nor the friction values: only whether there is friction.
-    """
-    fr = getattr(c, "friction", None) is not None
-    if isinstance(c, RigidObstacle):
-        return type(c).__name__, c.group, type(c.obstacle).__name__, fr
-    return type(c).__name__, replace(c, friction=None) if fr and is_dataclass(c) else c, fr
 
 
 def stiffness_key(forms):
@@ -102,8 +89,8 @@ def check_same_structure(old: ContactProblem, new: ContactProblem, *,
         ("dirichlet", [_dirichlet_key(b) for b in new.dirichlet]
          == [_dirichlet_key(b) for b in old.dirichlet],
          "other Dirichlet groups or components (their values may change)"),
-        ("contact", [_contact_key(c) for c in new.contact]
-         == [_contact_key(c) for c in old.contact],
+        ("contact", [c.structure_key() for c in new.contact]
+         == [c.structure_key() for c in old.contact],
          "other contact conditions, groups, or friction where there was none or none where "
          "there was (a rigid obstacle's position and the friction values may change)"),
     ]

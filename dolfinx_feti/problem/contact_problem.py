@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Protocol
 
 import numpy as np
 
 from ..errors import InputError, collective
+from ..mesh.auto_parts import Auto
 from ..mesh.checks import (
     check_boundary_group,
     check_conforming,
@@ -133,14 +134,38 @@ class NodeToNode:
     match_tol: float = 1e-4
     friction: Friction | None = None
 
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = False
+    #: Two surfaces of different bodies (one group with itself is refused: :meth:`check`).
+    self_contact = False
+
     @property
     def group(self) -> str:
         """The surface whose nodes carry the rows (the slave)."""
         return self.slave
 
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        problem.mesh.facets(self.slave)
+        problem.mesh.facets(self.master)
+        if self.slave == self.master:
+            raise InputError(f"contact pair {self.slave!r} with itself")
+        if self.gap is not None and not np.isfinite(self.gap):
+            raise InputError(f"contact pair {self.slave!r}/{self.master!r}: gap is not finite")
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
+        return _structure_key(self)
+
 
 @dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION)
+@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION,
+         normals=Choice("slave", "flatter"))
 class Mortar:
     """Contact of two surfaces of different bodies with independent (non-matching) meshes.
 
@@ -151,7 +176,10 @@ class Mortar:
     (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
     its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
     triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
-    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points).
+    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points) and
+    on first-order tetrahedra (6-node triangles, the slave side in the transformed basis of
+    positive weights of Popp, Wohlmuth, Gee and Wall 2012) and hexahedra (9-node
+    quadrilaterals, whose functions have positive weights already).
 
     The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
     of facets are searched automatically; slave nodes with no master facet within
@@ -177,17 +205,45 @@ class Mortar:
         search_distance: How far apart two facets may be (along the slave normal, either
             side) and still be coupled; by default twice the larger mean facet size of the
             two surfaces, and at least 5 % of the slave surface's extent.
+        normals: The direction of each row: ``"slave"`` (the slave's averaged normal, the
+            usual choice) or ``"flatter"`` (per slave node the normal of whichever surface
+            bends less there, :mod:`dolfinx_feti.constraints.mortar_normals`): use it where
+            the slave has kinks or fillets in the contact zone and the master is flat (a
+            filleted punch as slave on a block), so that the normal forces carry no
+            tangential load and the friction forces sum to the applied shear.
     """
 
     slave: str
     master: str
     friction: Friction | None = None
     search_distance: float | None = None
+    normals: str = "slave"
+
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = True
 
     @property
     def group(self) -> str:
         """The surface whose nodes carry the rows (the slave)."""
         return self.slave
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    @property
+    def self_contact(self) -> bool:
+        """Whether a body touches itself (one group on both sides)."""
+        return self.slave == self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        _check_pair(problem.mesh, "mortar contact", self)
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
+        return _structure_key(self)
 
 
 @dataclass(frozen=True)
@@ -208,6 +264,29 @@ class Tie:
     slave: str
     master: str
     search_distance: float | None = None
+
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = True
+    #: A tie glues two surfaces: it has no friction.
+    friction = None
+    #: One group with itself is refused (:meth:`check`).
+    self_contact = False
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return self.slave, self.master
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        if self.slave == self.master:
+            problem.mesh.facets(self.slave)
+            raise InputError(f"tie {self.slave!r} with itself")
+        _check_pair(problem.mesh, "tie", self)
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`): the condition itself."""
+        return _structure_key(self)
 
 
 class Obstacle(Protocol):
@@ -307,6 +386,31 @@ class RigidObstacle:
     obstacle: Obstacle
     friction: Friction | None = None
 
+    #: Whether the rows come from the mortar search (and the report checks them after).
+    mortar = False
+    #: A body against an obstacle, not against itself.
+    self_contact = False
+
+    @property
+    def groups(self) -> tuple[str, ...]:
+        """The boundary groups the condition reads."""
+        return (self.group,)
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
+        problem.mesh.facets(self.group)
+        if problem.value_size == 1:
+            raise InputError("rigid obstacles need a vector (elasticity) problem")
+
+    def structure_key(self) -> tuple:
+        """What a set-up depends on (:mod:`.changes`).
+
+        Not the obstacle's position, nor the friction values: only the obstacle's kind and
+        whether there is friction.
+        """
+        return (type(self).__name__, self.group, type(self.obstacle).__name__,
+                self.friction is not None)
+
 
 #: The contact conditions; each has ``group``, the surface whose nodes carry its rows.
 Contact = NodeToNode | Mortar | RigidObstacle
@@ -318,8 +422,9 @@ Contact = NodeToNode | Mortar | RigidObstacle
          forms=Function("a function forms(V, sub) -> (a, L)"),
          value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
          contact=SequenceOf(Instance(object, what="a contact condition")),
-         decomposition=Instance(ByTags, Parts, ByFunction,
-                                what="a decomposition: ByTags(), Parts(n) or ByFunction(fn)"),
+         decomposition=Instance(Auto, ByTags, Parts, ByFunction,
+                                what="a decomposition: Auto(), ByTags(), Parts(n) or "
+                                "ByFunction(fn)"),
          gluing=Choice("orthonormal", "redundant", "nonredundant"),
          ties=SequenceOf(Instance(Tie)), degree=Maybe(Integer(ge=1, le=2)))
 class ContactProblem:
@@ -337,7 +442,9 @@ class ContactProblem:
         dirichlet: Dirichlet conditions.
         contact: Contact conditions (:class:`Mortar`, :class:`NodeToNode`,
             :class:`RigidObstacle`).
-        decomposition: :class:`ByTags`, :class:`Parts` or :class:`ByFunction`.
+        decomposition: :class:`Auto` (the default: Parts by the mesh's size and the
+            number of ranks, docs/solvers.md), :class:`ByTags`, :class:`Parts` or
+            :class:`ByFunction`.
         gluing: ``"orthonormal"`` (default: at a node shared by k subdomains, k − 1
             orthonormal rows), ``"redundant"`` (all pairs) or ``"nonredundant"`` (a chain).
         degree: Degree of the Lagrange space ``V`` given to ``forms`` (1 or 2); taken from
@@ -351,7 +458,7 @@ class ContactProblem:
     value_size: int | None = None
     dirichlet: Sequence[Dirichlet] = field(default_factory=list)
     contact: Sequence[Contact] = field(default_factory=list)
-    decomposition: ByTags | Parts | ByFunction = field(default_factory=ByTags)
+    decomposition: Auto | ByTags | Parts | ByFunction = field(default_factory=Auto)
     gluing: str = "orthonormal"
     ties: Sequence[Tie] = field(default_factory=list)
     degree: int | None = None
@@ -383,31 +490,18 @@ class ContactProblem:
         for t in self.ties:
             if not isinstance(t, Tie):
                 raise InputError(f"ties must be df.Tie conditions, got {t!r}")
-            _check_pair(self.mesh, "tie", t)
+            t.check(self)
         for c in self.contact:
-            if isinstance(c, Mortar):
-                _check_pair(self.mesh, "mortar contact", c)
-            elif isinstance(c, NodeToNode):
-                self.mesh.facets(c.slave)
-                self.mesh.facets(c.master)
-                if c.slave == c.master:
-                    raise InputError(f"contact pair {c.slave!r} with itself")
-                if c.gap is not None and not np.isfinite(c.gap):
-                    raise InputError(f"contact pair {c.slave!r}/{c.master!r}: gap is not finite")
-            elif isinstance(c, RigidObstacle):
-                self.mesh.facets(c.group)
-                if self.value_size == 1:
-                    raise InputError("rigid obstacles need a vector (elasticity) problem")
-            else:
+            if isinstance(c, Tie) or not callable(getattr(c, "check", None)):
                 raise InputError(f"unknown contact condition {c!r}")
+            c.check(self)
             fr = c.friction
             if fr is not None and not isinstance(fr, (Tresca, Coulomb)):
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
         check_dimensions(self)
-        contact_groups = [g for c in [*self.contact, *self.ties] for g in
-                          ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))]
+        contact_groups = [g for c in [*self.contact, *self.ties] for g in c.groups]
         if self.mesh.part is not None:  # rank 0 checked the whole mesh at input
             _check_verdicts(self.mesh.part.verdicts, self, contact_groups)
         elif self.mesh.root_only is None:
@@ -423,18 +517,12 @@ class ContactProblem:
             points = comm.bcast(points, root=0)
             if not self.mesh.holds_arrays:
                 self.mesh.counts[f"points{self.degree}"] = points
-        mortar = [c for c in [*self.contact, *self.ties] if isinstance(c, (Mortar, Tie))]
-        if mortar and self.degree != 1 and self.mesh.gdim != 2:
+        mortar = [c for c in [*self.contact, *self.ties] if c.mortar]
+        if mortar and self.mesh.gdim == 3 and self.mesh.geometry_degree != 1:
             raise InputError(
-                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) are "
-                f"implemented for degree 1 (any cell type) and for degree 2 in 2D, not for "
-                f"degree {self.degree} on {self.mesh.cell_type} cells: the dual multiplier "
-                "basis of quadratic surface facets needs a basis transformation to keep "
-                "positive weights (Popp, Wohlmuth, Gee and Wall 2012); "
-                + ("use NodeToNode (matching meshes) or RigidObstacle there, or degree 1"
-                   if np.all(facet_weights(self.mesh.cell_type, self.degree) > 0) else
-                   f"use NodeToNode or RigidObstacle on degree-2 {self.mesh.cell_type} "
-                   "cells (their rows use a basis of positive weights), or degree 1"))
+                f"mortar contact and ties ({mortar[0].slave!r}/{mortar[0].master!r}) in 3D are "
+                "implemented on first-order (straight-sided) meshes, for degree 1 and 2: the "
+                "facets of this second-order mesh are curved; use a first-order mesh")
         if contact_groups and np.any(facet_weights(self.mesh.cell_type, self.degree) <= 0):
             raise InputError(
                 f"contact on a Lagrange space of degree {self.degree} on {self.mesh.cell_type} "
@@ -467,6 +555,15 @@ def _degree(degree, forms, default: int) -> int:
     return int(degree)
 
 
+def _structure_key(c) -> tuple:
+    """A pair condition's part of the set-up's structure.
+
+    Itself without its friction values (whether there is friction counts).
+    """
+    fr = getattr(c, "friction", None) is not None
+    return type(c).__name__, replace(c, friction=None) if fr else c, fr
+
+
 def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     """The groups of a mortar condition exist, the search distance is sane.
 
@@ -474,8 +571,6 @@ def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     """
     mesh.facets(c.slave)
     mesh.facets(c.master)
-    if c.slave == c.master and isinstance(c, Tie):
-        raise InputError(f"{what} {c.slave!r} with itself")
     if mesh.tdim != mesh.gdim:
         raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")
     d = c.search_distance
@@ -491,10 +586,10 @@ def _check_distinct_surfaces(mesh: MeshData, pairs) -> None:
     "top"); a pair of them is no interface, and each later check would name another cause.
     """
     for c in pairs:
-        if isinstance(c, RigidObstacle) or c.slave == c.master:  # one surface: self-contact
+        if len(c.groups) != 2 or c.groups[0] == c.groups[1]:  # an obstacle; self-contact
             continue
-        a = np.unique(np.sort(mesh.facets(c.slave), axis=1), axis=0)
-        b = np.unique(np.sort(mesh.facets(c.master), axis=1), axis=0)
+        a = np.unique(np.sort(mesh.facets(c.groups[0]), axis=1), axis=0)
+        b = np.unique(np.sort(mesh.facets(c.groups[1]), axis=1), axis=0)
         if a.shape == b.shape and np.array_equal(a, b):
             kind = "tie" if isinstance(c, Tie) else "contact pair"
             raise InputError(f"{kind} {c.slave!r} (slave) / {c.master!r} (master): the two "

@@ -16,7 +16,7 @@ from ..constraints.mortar_rows import self_contact_areas
 from ..constraints.rows import Kind
 from ..drivers.kkt_stop import kkt_residuals
 from ..feti.system import BlockSystem
-from ..problem.contact_problem import ContactProblem, Mortar, RigidObstacle
+from ..problem.contact_problem import ContactProblem, RigidObstacle
 from ..setup.share import RankShare
 from .report import Report
 
@@ -139,7 +139,7 @@ class Solution:
                 problem, at = self.surface.problem, self.surface.local(node)
             area = np.ones(node.size)
             for i, c in enumerate(problem.contact):
-                if isinstance(c, Mortar) and c.slave == c.master:  # self-contact: its zones
+                if c.self_contact:  # its zones
                     nodes, a = self_contact_areas(problem.mesh, c, problem.dof_points)
                 else:
                     nodes, _, a = surface(problem.mesh, c.group, problem.dof_points)

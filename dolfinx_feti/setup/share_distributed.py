@@ -43,7 +43,6 @@ from ..mesh.distributed_points import (
 from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import REFERENCE, locate_few_facets
 from ..parallel.exchange import answer, exchange
-from ..problem.contact_problem import RigidObstacle
 from ..timing import Timer
 from .share import LocalDecomposition, RankRows, RankShare, local_entities, row_subset
 
@@ -63,7 +62,7 @@ class NodeDirectory:
     fixed: np.ndarray
 
 
-def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
+def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None, whole=None
                      ) -> tuple[RankShare, Surface | None, list]:
     """This rank's share of ``problem``, whose mesh is distributed (collective).
 
@@ -72,6 +71,9 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
         comm: The mesh's ranks.
         timer: Records the phases ``decomposition``, ``distribution`` (dof points, the node
             directory, the cells moved to their owners) and ``constraints`` (rows).
+        whole: For the blocks of a curved mesh held whole, its dof points
+            (:class:`.whole_mesh.WholePoints`: the geometry nodes of edges and faces); None
+            otherwise.
 
     Returns:
         ``(share, surface, mortar)``: the share; with contact or ties, the cells along the
@@ -104,7 +106,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
             dest, cells, cell_x, mesh.cell_body, part.cell_ids, cell_sub, cell_points,
             mesh.node_tags[mesh.cells], comm=comm, key=part.cell_ids)
         local_mesh, points, pids, vids = _local_mesh(
-            mesh, cells, cell_x, cell_body, tags, cell_points, first, problem.degree)
+            mesh, cells, cell_x, cell_body, tags, cell_points, first, problem.degree, whole)
         local_points = points.cell_points
         subs = np.flatnonzero(sub_rank == comm.rank)
         keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
@@ -139,7 +141,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None
             on = np.isin(f_group, [names.index(g) for g in _contact_groups(problem)])
             surface, extra, mortar = gather_surface(
                 problem, (f_vert[on], f_group[on], f_index[on], local_f[on]), names, local_mesh,
-                cell_ids, cell_points, local_points, pids, nodes, comm)
+                cell_ids, cell_points, local_points, pids, nodes, comm, whole)
         own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
                                     problem.gluing, sub_rank, comm, extra=extra)
         cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
@@ -174,8 +176,10 @@ def _move_facets(mesh, dest: np.ndarray, cell_sub: np.ndarray, comm: MPI.Comm):
     return vertices[order], group[order], sub[order], index[order]
 
 
-def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree):
+def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree, whole):
     """The rank's cells as a mesh and their dof points, numbered in the global order.
+
+    The points of a curved mesh's edges and faces are its geometry nodes (``whole``).
 
     Returns:
         ``(local mesh, local dof points, global number of each point, of each vertex)``.
@@ -190,6 +194,8 @@ def _local_mesh(mesh, cells, cell_x, cell_body, tags, cell_points, first, degree
     else:
         pids, point_x = point_coordinates(cell_points, cells, cell_x, mesh.cell_type, degree)
         local_points = np.searchsorted(pids, cell_points)
+    if whole is not None:
+        point_x = whole.of(pids)
     local_mesh = replace(mesh.names_only(), x=x, cells=local_cells, cell_body=cell_body,
                          node_tags=node_tags, counts={}, part=None)
     local_first = {d: int(np.searchsorted(pids, f)) for d, f in first.items()}
@@ -218,8 +224,7 @@ def _compact(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _contact_groups(problem) -> list[str]:
     """The boundary groups of the problem's contact conditions and ties."""
-    return sorted({g for c in [*problem.contact, *problem.ties]
-                   for g in ((c.group,) if isinstance(c, RigidObstacle) else (c.slave, c.master))})
+    return sorted({g for c in [*problem.contact, *problem.ties] for g in c.groups})
 
 
 def _contact_rows(own: Rows, start: int, extra: Rows, comm: MPI.Comm) -> dict:
@@ -259,10 +264,10 @@ class Surface:
 
 
 def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, local_points,
-                   pids, nodes, comm):
+                   pids, nodes, comm, whole=None):
     """The contact and tie rows of a distributed mesh, from its contact surfaces (collective).
 
-    Every rank sends rank 0 the cells of its subdomains that bound a facet of a contact group,
+    Every rank sends rank 0 the cells of its subdomains at a node of a contact group's facet,
     with their points' subdomain lists and Dirichlet flags; rank 0 builds the rows on that
     one layer of cells with the serial builders (:func:`.constraints.build.surface_rows`) and
     maps its points back to the global ones (a monotone map: every order by point survives).
@@ -280,17 +285,21 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
         nodes: The subdomains and the Dirichlet mask of the local points
             (:class:`NodeDirectory`).
         comm: The ranks.
+        whole: A curved mesh's :class:`.whole_mesh.WholePoints`, or None.
 
     Returns:
         ``(surface, rows, mortar)``: the :class:`Surface` (rank 0; None elsewhere), the rows
         (every rank) in global points, what the mortar search found (every rank).
     """
     f_vert, f_group, f_index, local_f = facets
-    cells, _ = locate_few_facets(local_mesh.cells, local_f, local_mesh.cell_type)
-    sc = np.unique(cells)
+    # every cell at a surface node: the boundary around the surfaces is then the whole mesh's
+    # (the open-rim check of a mortar surface reads the facets next to its rim)
+    on = np.unique(np.concatenate(comm.allgather(np.unique(f_vert))))
+    nv = local_mesh.x.shape[0]
+    sc = np.flatnonzero(np.isin(pids[:nv][local_mesh.cells], on).any(axis=1))
     sp = np.unique(local_points[sc])
     counts = np.diff(nodes.ptr)[sp]
-    piece = {"ids": cell_ids[sc], "vertices": pids[:local_mesh.x.shape[0]][local_mesh.cells[sc]],
+    piece = {"ids": cell_ids[sc], "vertices": pids[:nv][local_mesh.cells[sc]],
              "x": local_mesh.x[local_mesh.cells[sc]], "body": local_mesh.cell_body[sc],
              "tags": local_mesh.node_tags[local_mesh.cells[sc]], "cp": cell_points[sc],
              "f_vert": f_vert, "f_group": f_group, "f_index": f_index,
@@ -300,7 +309,8 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
     surface = out = None
     with collective(comm, "constraints"):
         if comm.rank == 0:
-            mesh, gmap, node_ptr, node_subs, fixed_s = _surface_mesh(problem, pieces, names)
+            mesh, gmap, node_ptr, node_subs, fixed_s = _surface_mesh(problem, pieces, names,
+                                                                      whole)
             surf = copy.copy(problem)
             object.__setattr__(surf, "mesh", mesh)  # the same conditions on the layer of cells
             if dof_points(mesh, problem.degree).num_points != gmap.size:
@@ -334,8 +344,11 @@ def surface_friction(surface: Surface, rows: RankRows):
     return replace(found, rows=index[found.rows], normal_row=index[found.normal_row])
 
 
-def _surface_mesh(problem, pieces: list[dict], names: list[str]):
-    """Rank 0: the gathered cells as a mesh, its points' global numbers and directory."""
+def _surface_mesh(problem, pieces: list[dict], names: list[str], whole=None):
+    """Rank 0: the gathered cells as a mesh, its points' global numbers and directory.
+
+    On a curved mesh held whole (``whole``) the gathered cells keep their geometry nodes.
+    """
     def cat(key):
         return np.concatenate([p[key] for p in pieces])
 
@@ -343,10 +356,10 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     vertices = cat("vertices")[order]
     vids, cells = np.unique(vertices, return_inverse=True)
     cells = cells.reshape(vertices.shape)
-    whole = problem.mesh
-    x = np.zeros((vids.size, whole.gdim))
-    x[cells.ravel()] = cat("x")[order].reshape(-1, whole.gdim)
-    tags = np.zeros(vids.size, dtype=whole.node_tags.dtype)
+    names_of = problem.mesh
+    x = np.zeros((vids.size, names_of.gdim))
+    x[cells.ravel()] = cat("x")[order].reshape(-1, names_of.gdim)
+    tags = np.zeros(vids.size, dtype=names_of.node_tags.dtype)
     tags[cells.ravel()] = cat("tags")[order].ravel()
     f_vert, f_group, f_index = cat("f_vert"), cat("f_group"), cat("f_index")
     groups = {}
@@ -354,8 +367,9 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
         sel = np.flatnonzero(f_group == g)
         sel = sel[np.argsort(f_index[sel], kind="stable")]  # the file's order
         groups[name] = np.searchsorted(vids, f_vert[sel])
-    mesh = replace(whole.names_only(), x=x, cells=cells, cell_body=cat("body")[order],
-                   node_tags=tags, facet_groups=groups, counts={}, part=None)
+    mesh = replace(names_of.names_only(), x=x, cells=cells, cell_body=cat("body")[order],
+                   node_tags=tags, facet_groups=groups, counts={}, part=None,
+                   high_order=None if whole is None else _restricted(whole.mesh.high_order, vids))
     pts = dof_points(mesh, problem.degree)
     gmap = np.empty(pts.num_points, dtype=np.int64)
     gmap[pts.cell_points] = cat("cp")[order]
@@ -366,6 +380,18 @@ def _surface_mesh(problem, pieces: list[dict], names: list[str]):
     node_ptr = np.r_[0, np.cumsum(counts[at])].astype(np.int64)
     node_subs = subs[index_ranges(first_sub[at], counts[at])]
     return mesh, gmap, node_ptr, node_subs.astype(np.int32), fixed[at]
+
+
+def _restricted(high_order: dict, vids: np.ndarray) -> dict:
+    """The geometry nodes of the entities whose vertices are all among ``vids`` (ascending).
+
+    Their vertices are numbered by their position in ``vids``.
+    """
+    out = {}
+    for dim, (ent, pos) in high_order.items():
+        keep = np.all(np.isin(ent, vids), axis=1)
+        out[dim] = (np.searchsorted(vids, ent[keep]), pos[keep])
+    return out
 
 
 def _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids) -> list:

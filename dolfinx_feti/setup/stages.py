@@ -30,20 +30,17 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from ..constraints import Kind, build_rows
-from ..constraints.dirichlet import dirichlet_mask
-from ..constraints.friction import friction_data
+from ..constraints import Kind
 from ..errors import InputError, collective
 from ..fem.assembly import assemble_subdomains
-from ..fem.corners import choose_corners, floating_motions, primal_components
 from ..feti.chain import DualQP, chain_qp
 from ..feti.corners import EliminateCorners
 from ..feti.system import BlockSystem
 from ..feti.transforms import EliminateDirichlet
-from ..mesh.decompose import decompose
 from ..problem.contact_problem import ContactProblem
 from ..timing import Timer
-from .share import share_out
+from .method_rule import method_by_time
+from .whole_mesh import as_blocks
 
 #: FETI-DP: whether nodes of contact (and other non-gluing) rows may be vertices (corners).
 CORNERS_ON_CONTACT = True
@@ -124,34 +121,10 @@ def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: T
     if held is not None and MPI.Comm.Compare(held, comm) not in (MPI.IDENT, MPI.CONGRUENT):
         raise InputError("the mesh's arrays are held by rank 0 of its communicator only "
                          "(read_gmsh(..., replicate=False)): solve on that communicator")
-    if problem.mesh.part is not None:
-        return _share_distributed(problem, comm, timer, method)
-    dec = rows = extra = common = None
-    # Rank 0 (the rank that read the mesh) decomposes and builds the rows from the global
-    # arrays; every rank then keeps only its share (:mod:`.share`).
-    with timer.phase("decomposition"), collective(comm, "decomposition"):
-        if comm.rank == 0:
-            dec = decompose(problem.mesh, problem.decomposition, comm.size, problem.dof_points)
-    with timer.phase("constraints"):
-        with collective(comm, "constraints"):
-            if comm.rank == 0:
-                mortar: list = []
-                rows = build_rows(problem, dec, mortar)
-                if method == "auto":
-                    method = choose_method(problem, dec, rows)
-                if method == "fetidp":
-                    extra = _fetidp_parts(problem, dec, rows, comm.size)
-                common = (method, mortar)
-        fdata = None
-        with collective(comm, "friction"):
-            if comm.rank == 0:
-                fdata = friction_data(problem, rows)
-        method, mortar = comm.bcast(common, root=0)
-        fdata = comm.bcast(fdata, root=0)
-    with timer.phase("distribution"):
-        share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
-                          rows, problem.value_size, comm, extra)
-    return SharedProblem(share, method, mortar, fdata, comm=comm)
+    whole = None
+    if problem.mesh.part is None:  # a whole mesh: its blocks are the input of the pipeline
+        problem, whole = as_blocks(problem, comm, timer)
+    return _share_distributed(problem, comm, timer, method, whole)
 
 
 def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
@@ -198,25 +171,17 @@ def method_steps(total: BlockSystem, shared: SharedProblem) -> list:
     return steps
 
 
-def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, method: str
-                       ) -> SharedProblem:
-    """:func:`share_problem` on a distributed mesh: every rank builds its own share."""
-    from ..fem.distributed_corners import fetidp_share
+def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, method: str,
+                       whole=None) -> SharedProblem:
+    """:func:`share_problem` on blocks of the mesh: every rank builds its own share."""
     from .share_distributed import share_from_parts, surface_friction
 
     if method in ("fetidp", "auto") and not CORNERS_ON_CONTACT:
-        raise InputError("FETI-DP on a distributed mesh takes the corners on contact nodes "
-                         "too (dual.CORNERS_ON_CONTACT); read the mesh with distribute=False")
-    share, surface, mortar = share_from_parts(problem, comm, timer)
+        raise InputError("FETI-DP takes the corners on contact nodes too "
+                         "(CORNERS_ON_CONTACT)")
+    share, surface, mortar = share_from_parts(problem, comm, timer, whole)
     with timer.phase("constraints"):
-        auto = method == "auto"
-        if auto:  # choose_method's rule, its first branch here
-            glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
-            method = "fetidp" if glued else "feti1"
-        if method == "fetidp":  # the rule's last branch: "tfeti" if a primal component floats
-            method, share.extra = fetidp_share(
-                share, problem.value_size, problem.mesh.body_names, comm, auto=auto,
-                edges=CORNER_EDGES and problem.mesh.gdim == 3)
+        method = choose_method(problem, share, comm, method)
     fdata = None
     if any(getattr(c, "friction", None) is not None for c in problem.contact):
         with collective(comm, "friction"):
@@ -226,57 +191,25 @@ def _share_distributed(problem: ContactProblem, comm: MPI.Comm, timer: Timer, me
     return SharedProblem(share, method, mortar, fdata, surface, comm)
 
 
-def _fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
-    """FETI-DP's corners and floating motions, for the dofs of each rank (on rank 0)."""
-    mesh, bs = problem.mesh, problem.value_size
-    fixed, _ = dirichlet_mask(problem, mesh)
-    avoid = None if CORNERS_ON_CONTACT else np.unique(np.r_[
-        rows.e_node[~np.isin(rows.kind[rows.e_row], (Kind.GLUE, Kind.DIRICHLET))]])
-    x = problem.dof_points.x
-    corners = choose_corners(mesh, dec, fixed, bs, avoid, x,
-                             edges=CORNER_EDGES and mesh.gdim == 3)
-    dofs = []
-    for r in range(size):
-        pairs = dec.rank_pairs(r)
-        node = np.repeat(dec.pair_node[pairs], bs)
-        dofs.append((node, np.tile(np.arange(bs), node.size // bs),
-                     np.repeat(dec.pair_sub[pairs], bs)))
-    modes, bodies = floating_motions(mesh, dec, rows, fixed, bs, dofs, x,
-                                     primal_components(mesh, dec))
-    info = {"corner_nodes": int(corners.nodes.size), "vertices": corners.vertices,
-            "corner_dofs": corners.count}
-    return [{"corners": corners.local(node, comp), "count": corners.count, "modes": Z,
-             "bodies": bodies, "info": info} for (node, comp, _), Z in zip(dofs, modes,
-                                                                          strict=True)]
+def choose_method(problem: ContactProblem, share, comm: MPI.Comm, method: str) -> str:
+    """The method, ``"auto"`` resolved by the rule of docs/solvers.md (collective).
 
-
-def choose_method(problem: ContactProblem, dec, rows) -> str:
-    """The method ``method="auto"`` picks (the rule of docs/solvers.md).
-
-    Derived from ``bench/method_choice.py`` (F-multiplications of every method on problems with
-    and without floating bodies, 2D and 3D, few and many subdomains):
-
-    - every subdomain a whole body (no gluing rows): ``"feti1"``. FETI-DP would find no
-      corners, and FETI-1's dual lacks TFETI's Dirichlet rows: 1.2–3× fewer F-mults;
-    - no body floats (every body's rigid motions stopped by its Dirichlet conditions; a body
-      held only through a mortar tie floats, as it does in K̃): ``"fetidp"``. K̃ is
-      definite, the contact problem is bound-constrained and MPRGP runs alone: 3–5× fewer
-      F-mults on held B1 and the 3D rigid sphere; the one measured exception, B4 (a block
-      sheared by its prescribed top), takes 1.6–2.5× more than TFETI;
-    - else ``"tfeti"``: the fewest F-mults or within 30 % on the measured floating cases (B1,
-      3D blocks), the one exception 2D Hertz (FETI-DP 20–45 % fewer).
-
-    Reads the global decomposition and rows (on the rank that holds them).
+    For FETI-DP (asked for, or chosen) the share gets its corners and floating motions
+    (``share.extra``, :func:`~.fem.distributed_corners.fetidp_share`). The rule is
+    :func:`.method_rule.method_by_time` (measured wall time): FETI-1 without gluing rows or
+    with few subdomains per body, FETI-DP with many.
     """
-    if not np.any(rows.kind == Kind.GLUE):
-        return "feti1"
-    fixed, _ = dirichlet_mask(problem, problem.mesh)
-    none = np.zeros(0, dtype=np.int64)
-    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size,
-                               [(none, none, none)], problem.dof_points.x,
-                               primal_components(problem.mesh, dec))
-    return "tfeti" if free else "fetidp"
+    from ..fem.distributed_corners import fetidp_share
+
+    if method == "auto":
+        glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
+        method = method_by_time(glued, share.dec.num_subdomains, len(problem.mesh.body_names))
+    if method == "fetidp":
+        method, share.extra = fetidp_share(
+            share, problem.value_size, problem.mesh.body_names, comm,
+            edges=CORNER_EDGES and problem.mesh.gdim == 3)
+    return method
 
 
-__all__ = ["METHODS", "DualQP", "SharedProblem", "chain_qp", "dual_qp", "qp_of_share",
-           "share_problem"]
+__all__ = ["METHODS", "DualQP", "SharedProblem", "chain_qp", "choose_method", "dual_qp",
+           "qp_of_share", "share_problem"]

@@ -11,9 +11,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 from mpi4py import MPI
+from serial_setup import build_rows
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints import Kind, Rows, build_rows
+from dolfinx_feti.constraints import Kind, Rows
 from dolfinx_feti.mesh.decompose import decompose
 
 MESHES = Path(__file__).resolve().parents[2] / "meshes"

@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 from distributed_inputs import RankInputs
 from mpi4py import MPI
+from serial_setup import build_rows, row_ranges
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints import Rows, build_rows
+from dolfinx_feti.constraints import Rows
 from dolfinx_feti.constraints.build import surface_rows
 from dolfinx_feti.constraints.dirichlet import dirichlet_mask
 from dolfinx_feti.constraints.distributed_rows import (
@@ -27,7 +28,7 @@ from dolfinx_feti.constraints.distributed_rows import (
 )
 from dolfinx_feti.io import meshes
 from dolfinx_feti.mesh.decompose import decompose
-from dolfinx_feti.setup.share import row_ranges, row_slice
+from dolfinx_feti.setup.share import row_slice
 
 COMM = MPI.COMM_WORLD
 SCHEMES = ["orthonormal", "redundant", "nonredundant"]

@@ -150,14 +150,6 @@ def test_p2_mortar_equals_node_to_node_on_matching_meshes():
                        atol=1e-10)
 
 
-def test_3d_is_refused_by_name():
-    mesh3 = occ_mesh(stacked_blocks, 3, 0.5, 0.6)
-    with pytest.raises(df.InputError, match="degree 2 in 2D"):
-        df.ContactProblem(mesh3, df.Elasticity(E, NU, degree=2),
-                          dirichlet=[df.Dirichlet("bottom")],
-                          contact=[df.Mortar("upper_bottom", "lower_top")])
-
-
 # -- curved segments (a second-order mesh) ------------------------------------------------------
 
 def _brute_force_curved(X_s: np.ndarray, X_m: np.ndarray, sp_, mp_, num_points: int,

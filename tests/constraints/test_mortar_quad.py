@@ -9,6 +9,7 @@ tetrahedral mortar result).
 
 from __future__ import annotations
 
+import gmsh
 import numpy as np
 import pytest
 from test_mortar import check_contact_patch, check_tie_patch, occ_mesh, patch_problem
@@ -152,10 +153,18 @@ def test_mortar_equals_node_to_node_on_matching_hexahedra():
         assert np.allclose(a.total_contact_force, b.total_contact_force, rtol=1e-8)
 
 
-def test_degree_2_mortar_is_refused_with_the_reason():
-    # 3D: degree 2 in 2D (3-node segments) is built (tests/test_mortar_p2.py).
-    mesh = occ_mesh(stacked_blocks, 3, *SIZES[3], recombine=True)
-    with pytest.raises(InputError, match="degree 1.*not for degree 2.*basis transformation"):
+def test_mortar_on_a_curved_3d_mesh_is_refused_with_the_reason():
+    # Degree 2 on first-order hexahedra and tetrahedra is built (test_mortar_p2_3d.py).
+    gmsh.initialize()
+    gmsh.option.setNumber("General.Terminal", 0)
+    try:
+        stacked_blocks(3, *SIZES[3])
+        gmsh.model.mesh.setOrder(2)
+        mesh = df.read_gmsh(None)
+    finally:
+        gmsh.finalize()
+    assert mesh.geometry_degree == 2
+    with pytest.raises(InputError, match="first-order .*curved"):
         df.ContactProblem(mesh, df.Elasticity(100.0, 0.3, degree=2),
                           dirichlet=[df.Dirichlet("bottom")],
                           contact=[df.Mortar("upper_bottom", "lower_top")])

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from c_strip import c_strip
+from extruded import extrude
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import candidate_pairs, mortar_coupling
@@ -160,6 +161,31 @@ def test_self_contact_p2_equals_two_bodies():
     assert np.abs(s.nodal_values() - u).max() < 1e-7 * np.abs(u).max()
     assert np.allclose(s.contact.pressure, t.contact.pressure, rtol=1e-6, atol=1e-8)
     assert (s.contact.force > 0).sum() >= 3
+
+
+def test_self_contact_p2_tetrahedra_equals_two_bodies():
+    """3D, degree 2: the strip extruded into tetrahedra (6-node triangles: the transformed
+    dual basis, the slave's own entries in ũ only — the master entries of one surface with
+    itself are not transformed), non-matching ends; the caps held in z."""
+    load = {"load_upper": (0.0, -LOAD, 0.0), "load_lower": (0.0, LOAD, 0.0)}
+
+    def p2(mesh, contact):
+        return df.ContactProblem(mesh, df.Elasticity(E, NU, tractions=load, degree=2),
+                                 dirichlet=[df.Dirichlet("back"),
+                                            df.Dirichlet("caps", components=[2])],
+                                 contact=[contact], decomposition=df.Parts(4))
+
+    one = extrude(c_strip(h=0.06, h_lower=0.045), 0.1, 2, with_caps=("skin",))
+    two = extrude(c_strip(h=0.06, h_lower=0.045, two_bodies=True), 0.1, 2, with_caps=("skin",))
+    s = df.solve(p2(one, df.Mortar("skin", "skin")), rtol=1e-10)
+    assert s.report.converged and not s.report.warnings, s.report.warnings
+    slave = _slave_end(s)
+    other = "end_lower" if slave == "end_upper" else "end_upper"
+    t = df.solve(p2(two, df.Mortar(slave, other)), rtol=1e-10)
+    u = t.nodal_values()
+    assert np.abs(s.nodal_values() - u).max() < 1e-7 * np.abs(u).max()
+    assert np.allclose(s.contact.pressure, t.contact.pressure, rtol=1e-6, atol=1e-8)
+    assert (s.contact.force > 0).sum() >= 3 and np.any(s.contact.node >= one.num_nodes)
 
 
 def test_report_warns_when_the_search_misses_the_contact():

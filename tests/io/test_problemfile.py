@@ -391,3 +391,16 @@ def test_self_contact_in_a_problem_file(folder):
     with pytest.raises(pfile.ProblemFileError) as info:
         pfile.load(write_text(folder / "self" / "tie.toml", tie))
     assert any("with itself" in f.message for f in info.value.faults)
+
+
+def test_mortar_normals_in_a_problem_file(folder):
+    """contact.normals = "flatter" reaches df.Mortar; another word is a fault naming the key."""
+    base = edit(('type = "node_to_node"\nslave = "disk_contact"\nmaster = "block_contact"',
+                 'type = "mortar"\nslave = "disk_contact"\nmaster = "block_contact"\n'
+                 'normals = "flatter"'))
+    pf = pfile.load(write_text(folder / "normals" / "ok.toml", base))
+    assert pf.problem.contact == [df.Mortar("disk_contact", "block_contact", normals="flatter")]
+    with pytest.raises(pfile.ProblemFileError) as info:
+        pfile.load(write_text(folder / "normals" / "bad.toml",
+                              base.replace('"flatter"', '"flat"')))
+    assert any("normals" in f.key and "flatter" in f.message for f in info.value.faults)

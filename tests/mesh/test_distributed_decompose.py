@@ -353,6 +353,7 @@ HOWS = {
     "parts16": Parts(16),
     "volume3": Parts(3, balance="volume"),
     "volume7": Parts(7, balance="volume"),
+    "pieces7": Parts(7, merge=False),
     "stripes": ByFunction(_stripes),
 }
 
@@ -367,7 +368,8 @@ def test_decompose_distributed_is_the_serial_one(name, how, split):
 def test_cases_exercise_pieces():
     """The U-shape falls apart under rcb and the stripes under ByFunction (more subdomains than
     labels), so that the tests above join pieces across ranks."""
-    assert decompose(_mesh("u_shape"), Parts(3), 1).num_subdomains > 3
+    assert decompose(_mesh("u_shape"), Parts(3, merge=False), 1).num_subdomains > 3
+    assert decompose(_mesh("u_shape"), Parts(3), 1).num_subdomains == 3
     assert decompose(_mesh("triangles"), ByFunction(_stripes), 1).num_subdomains > 2
     assert decompose(_mesh("quads_two_bodies"), Parts({"a": 3, "b": 2}), 1).num_subdomains == 5
 

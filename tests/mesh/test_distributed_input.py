@@ -8,8 +8,6 @@ columns — and so the same solution, on 1, 2 and 3 ranks; no rank may hold the 
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 import element_models as em
 import numpy as np
 import pytest
@@ -17,10 +15,10 @@ import reference as ref
 import stress_cases as sc
 import ufl
 from mpi4py import MPI
+from serial_setup import assert_same_shares, serial_dual_qp
 from test_share import hexahedra_q2
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints import Rows
 from dolfinx_feti.io.meshes_occ import stacked_blocks
 
 COMM = MPI.COMM_WORLD
@@ -81,42 +79,12 @@ def pair(root, request):
     """The problem read whole (rank 0 builds the shares) and distributed, and their QPs."""
     make = CASES[request.param]
     whole, spread = make(root, False), make(root, True)
-    return whole, spread, df.dual_qp(whole, method="tfeti"), df.dual_qp(spread, method="tfeti")
-
-
-def _same(a, b, what):
-    a, b = np.asarray(a), np.asarray(b)
-    nan = a.dtype.kind == "f"  # NaN marks "none" in some fields (e.g. friction coefficients)
-    assert a.shape == b.shape and np.array_equal(a, b, equal_nan=nan), what
+    return whole, spread, serial_dual_qp(whole, method="tfeti"), df.dual_qp(spread, method="tfeti")
 
 
 def test_the_shares_are_those_rank_0_hands_out(pair):
     *_, qw, qs = pair
-    a, b = qw.share, qs.share
-    for name in ("cell_ids", "point_ids", "num_points", "num_cells"):
-        _same(getattr(a, name), getattr(b, name), name)
-    for name in ("cells", "cell_body", "node_tags", "x"):
-        _same(getattr(a.mesh, name), getattr(b.mesh, name), f"mesh.{name}")
-    _same(a.points.cell_points, b.points.cell_points, "cell_points")
-    _same(a.points.x, b.points.x, "points.x")
-    for f in fields(a.dec):
-        _same(getattr(a.dec, f.name), getattr(b.dec, f.name), f"dec.{f.name}")
-    assert a.facets.keys() == b.facets.keys()
-    for s in a.facets:
-        assert a.facets[s].keys() == b.facets[s].keys()
-        for g in a.facets[s]:
-            _same(a.facets[s][g], b.facets[s][g], f"facets[{s}][{g}]")
-    assert a.group_errors == b.group_errors
-    for name in ("cols", "start", "size", "contact_index"):
-        _same(getattr(a.rows, name), getattr(b.rows, name), f"rows.{name}")
-    assert (qw.friction is None) == (qs.friction is None)
-    if qw.friction is not None:
-        for f in fields(qw.friction):
-            _same(getattr(qw.friction, f.name), getattr(qs.friction, f.name), f"friction.{f.name}")
-    for f in fields(Rows):
-        _same(getattr(a.rows.own, f.name), getattr(b.rows.own, f.name), f"own.{f.name}")
-        _same(getattr(a.rows.contact, f.name), getattr(b.rows.contact, f.name),
-              f"contact.{f.name}")
+    assert_same_shares(qw, qs)
 
 
 def test_no_rank_holds_the_whole_mesh(pair):
@@ -142,7 +110,7 @@ def test_the_solution_is_the_same(pair):
     na, nb = a.nodal_values_on_root(), b.nodal_values_on_root()
     if COMM.rank == 0:
         assert ref.rel_max_diff(na, nb) <= 1e-12
-    _same(a.contact.node, b.contact.node, "contact nodes")
+    assert np.array_equal(a.contact.node, b.contact.node), "contact nodes"
     assert np.allclose(a.contact.pressure, b.contact.pressure, rtol=1e-10, atol=1e-12)
     assert np.allclose(a.contact.x, b.contact.x, rtol=0, atol=1e-14)
     ma, mb = a.report.extra.get("mortar") or [], b.report.extra.get("mortar") or []

@@ -219,18 +219,6 @@ def test_one_surface_under_two_names_is_not_an_interface():
                "'glue'", "'lower_top'", "the same 4 facets", "one surface under two names")
 
 
-def test_p2_mortar_on_tetrahedra_advises_what_works(root):
-    mesh = df.read_gmsh(root / "meshes" / "blocks3d.msh")
-    msg = raises(lambda: df.ContactProblem(
-        mesh, df.Elasticity(E=1.0, nu=0.3, degree=2), dirichlet=[df.Dirichlet("bottom")],
-        contact=[df.Mortar("contact_upper", "contact_lower")]), "degree 1")
-    assert "use NodeToNode" in msg
-    # the advice holds: node-to-node rows on P2 tetrahedra (positive transformed weights)
-    df.ContactProblem(mesh, df.Elasticity(E=1.0, nu=0.3, degree=2),
-                      dirichlet=[df.Dirichlet("bottom")],
-                      contact=[df.NodeToNode("contact_upper", "contact_lower")])
-
-
 def test_an_empty_or_folder_mesh_path(tmp_path):
     raises(lambda: df.read_gmsh(""), "the mesh path is empty")
     folder = tmp_path if COMM.size == 1 else None

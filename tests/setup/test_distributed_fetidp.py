@@ -1,7 +1,8 @@
 """FETI-DP on a distributed mesh: the corners and floating motions built in parallel
 (dolfinx_feti.fem.distributed_corners) are those rank 0 computes from the whole mesh.
 
-The replicated set-up (dual._fetidp_parts on the global arrays) is the specification: the same
+The replicated set-up (the oracle ``serial_setup.fetidp_parts`` on the global arrays) is the
+specification: the same
 corner unknown for every (subdomain, point, component), the same counts, the same span of
 floating motions and bodies; hence the same FETI-DP solution and the same choice of
 ``method="auto"``, on 1, 2 and 3 ranks.
@@ -16,7 +17,9 @@ import numpy as np
 import pytest
 import reference as ref
 import scipy.linalg
+import serial_setup
 from mpi4py import MPI
+from serial_setup import serial_dual_qp
 from test_distributed_input import CASES as INPUT_CASES
 
 import dolfinx_feti as df
@@ -52,7 +55,7 @@ def case(root, request):
     """The problem read whole and distributed, and their FETI-DP QPs."""
     make = CASES[request.param]
     whole, spread = make(root, False), make(root, True)
-    return (request.param, whole, spread, df.dual_qp(whole, method="fetidp"),
+    return (request.param, whole, spread, serial_dual_qp(whole, method="fetidp"),
             df.dual_qp(spread, method="fetidp"))
 
 
@@ -117,13 +120,19 @@ def membranes_by_tags(root, distribute):
     return replace(INPUT_CASES["membranes_P1"](root, distribute), decomposition=df.ByTags())
 
 
+def membranes_many(root, distribute):
+    """B1 in 32 parts per membrane: more than setup.method_rule.MANY_PER_BODY."""
+    return replace(INPUT_CASES["membranes_P1"](root, distribute), decomposition=df.Parts(32))
+
+
 @pytest.mark.parametrize("name, expected", [
-    ("membranes_P1", "tfeti"), ("hexahedra_P2", "fetidp"), ("island", "fetidp"),
-    ("membranes_by_tags", "feti1")])
+    ("membranes_P1", "feti1"), ("hexahedra_P2", "feti1"), ("island", "feti1"),
+    ("membranes_by_tags", "feti1"), ("membranes_many", "fetidp")])
 def test_auto_chooses_as_on_the_whole_mesh(root, name, expected):
-    """No gluing → feti1; floating bodies → tfeti; every body held → fetidp (the full rule of
-    choose_method)."""
-    make = membranes_by_tags if name == "membranes_by_tags" else CASES[name]
+    """No gluing or few subdomains per body → feti1; many → fetidp, floating bodies too (the
+    rule of choose_method, setup/method_rule.py)."""
+    make = {"membranes_by_tags": membranes_by_tags,
+            "membranes_many": membranes_many}.get(name) or CASES[name]
     chosen = [df.dual_qp(make(root, d), method="auto").method for d in (False, True)]
     assert chosen == [expected, expected]
 
@@ -152,9 +161,9 @@ def test_each_fixed_point_counts_once_in_the_gram_matrices(root, name, monkeypat
     dec = decompose(whole.mesh, whole.decomposition, 1, whole.dof_points)
     fixed, _ = dirichlet_mask(whole, whole.mesh)
     none = np.zeros(0, dtype=np.int64)
-    corners.floating_motions(whole.mesh, dec, None, fixed, whole.value_size,
-                             [(none, none, none)], whole.dof_points.x,
-                             corners.primal_components(whole.mesh, dec))
+    serial_setup.floating_motions(whole.mesh, dec, None, fixed, whole.value_size,
+                                  [(none, none, none)], whole.dof_points.x,
+                                  serial_setup.primal_components(whole.mesh, dec))
     monkeypatch.setattr(corners, "_free_motions", free_motions)  # (the pairs use it too)
     df.dual_qp(spread, method="fetidp")
     if COMM.rank == 0:  # rank 0 reduces them

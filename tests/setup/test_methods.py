@@ -295,16 +295,18 @@ def test_method_in_problem_file_and_command_line(root, tmp_path):
 
 
 @pytest.mark.parametrize("case,expected", [
-    ("b1_grid", "tfeti"),  # the left membrane floats
+    ("b1_grid", "feti1"),  # 4 subdomains per body
     ("b1_tags", "feti1"),  # one subdomain per body: no gluing rows
-    ("tresca2d", "fetidp"),  # both bodies held
-    ("blocks3d_constrained", "tfeti"),  # the upper block floats in z
+    ("tresca2d", "feti1"),  # both bodies held, 4 subdomains each
+    ("blocks3d_constrained", "feti1"),  # the upper block floats in z
+    ("b1_many", "fetidp"),  # 64 subdomains per body, the left membrane floating
 ])
 def test_auto(root, case, expected):
     """``method="auto"``: the rule of docs/solvers.md, and the solution of the chosen method."""
     membranes = df.read_gmsh(root / "meshes/membranes_8.msh")
     problem = {
         "b1_grid": lambda: b1.problem(membranes, b1.grid(0.5)),
+        "b1_many": lambda: b1.problem(membranes, b1.grid(0.125)),
         "b1_tags": lambda: b1.problem(membranes, df.ByTags()),
         "tresca2d": lambda: fr.b4(df.build_mesh(meshes.tresca2d, n=4), df.Tresca(fr.G),
                                   df.Parts(4)),

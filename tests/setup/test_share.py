@@ -13,13 +13,13 @@ import numpy as np
 import pytest
 import reference as ref
 from mpi4py import MPI
+from serial_setup import build_rows, share_out
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints import Rows, build_rows
+from dolfinx_feti.constraints import Rows
 from dolfinx_feti.mesh.decompose import decompose
 from dolfinx_feti.mesh.dofpoints import degree2_entities
 from dolfinx_feti.mesh.topology import row_keys
-from dolfinx_feti.setup.share import share_out
 
 COMM = MPI.COMM_WORLD
 
@@ -215,20 +215,26 @@ def test_a_mesh_only_rank_0_holds_needs_its_communicator(root):
         df.solve(problem, comm=MPI.COMM_SELF)
 
 
-def test_a_failure_while_handing_out_ends_every_rank(case, monkeypatch):
-    """Rank 0 makes the pieces one by one; if one fails, every rank raises the same error."""
-    from dolfinx_feti.setup import share
+def test_a_failure_while_handing_out_ends_every_rank(root, monkeypatch):
+    """Rank 0 makes the blocks of a mesh only it holds one by one; if one fails, every rank
+    raises the same error."""
+    from dolfinx_feti.mesh import distributed
 
-    problem, _ = case
-    made = share._piece
+    if COMM.size == 1:
+        pytest.skip("on one rank a mesh is whole there: nothing is handed out")
 
-    def broken(*args):
-        if args[7] == COMM.size - 1:  # the last rank's piece
-            raise MemoryError("no room for this piece")
-        return made(*args)
+    real = distributed.hand_out
 
-    monkeypatch.setattr(share, "_piece", broken)
-    with pytest.raises(df.SolveError, match="handing out the shares failed on rank 0 "
+    def failing(comm, make, what):
+        def broken(r):
+            if r == comm.size - 1:  # the last rank's block
+                raise MemoryError("no room for this piece")
+            return make(r)
+        return real(comm, None if make is None else broken, what)
+
+    monkeypatch.setattr(distributed, "hand_out", failing)
+    problem = membranes(df.read_gmsh(root / "meshes/membranes_8.msh", replicate=False), 1)
+    with pytest.raises(df.SolveError, match="handing out the mesh failed on rank 0 "
                        r"\(MemoryError: no room for this piece\)") as info:
         df.dual_qp(problem)
     assert COMM.allgather(str(info.value)) == [str(info.value)] * COMM.size

@@ -149,3 +149,34 @@ def box_with_hole(hexes: bool = False, h: float = 0.35, order: int = 2, n: int =
     gmsh.model.mesh.generate(3)
     gmsh.model.mesh.setOrder(order)
     return physical_groups()
+
+
+def stacked_blocks(n: int = 6, lx: float = 2.0):
+    """Two blocks [0, lx] × [0, 1] ("lower") and [0, lx] × [1, 2] ("upper"), meshed apart with
+    the same structured triangles: matching nodes on their common side, each its own.
+
+    Groups: "lower", "upper"; "bottom" (y = 0), "top" (y = 2), "left" (x = 0, both blocks),
+    "lower_top", "upper_bottom".
+    """
+    a = gmsh.model.occ.addRectangle(0, 0, 0, lx, 1)
+    b = gmsh.model.occ.addRectangle(0, 1, 0, lx, 1)
+    gmsh.model.occ.synchronize()
+    _group(2, [a], 1, "lower")
+    _group(2, [b], 2, "upper")
+    eps = 1e-6
+    lines = {"bottom": [], "top": [], "left": [], "lower_top": [], "upper_bottom": []}
+    for surf, (y0, y1) in ((a, (0, 1)), (b, (1, 2))):
+        for _, c in gmsh.model.getBoundary([(2, surf)], oriented=False):
+            x, y, _ = gmsh.model.occ.getCenterOfMass(1, c)
+            gmsh.model.mesh.setTransfiniteCurve(c, 2 * n + 1 if abs(x - lx / 2) < eps else n + 1)
+            if abs(x) < eps:
+                lines["left"].append(c)
+            elif abs(y - y0) < eps:
+                lines["bottom" if surf == a else "upper_bottom"].append(c)
+            elif abs(y - y1) < eps:
+                lines["lower_top" if surf == a else "top"].append(c)
+        gmsh.model.mesh.setTransfiniteSurface(surf)
+    for k, (name, ents) in enumerate(lines.items()):
+        _group(1, ents, 11 + k, name)
+    gmsh.model.mesh.generate(2)
+    return physical_groups()

@@ -1,0 +1,405 @@
+"""Large-deformation contact by Newton: each step an exact-constraint FETI contact QP.
+
+At the iterate u_k (total displacement from the reference configuration) the increment Δu
+solves the contact QP of the linearization
+
+    min ½ Δuᵀ K_t(u_k) Δu − Δuᵀ r(u_k)   s.t.   B_E Δu = c_E − B_E u_k,
+                                                 B_I Δu <= g(u_k)
+
+with r = f_ext − f_int the residual of the hyperelastic forms (:mod:`.fem.hyperelastic`) and
+g(u_k) the gaps of the current configuration. Its multipliers are the total constraint forces
+λ_{k+1} (at Δu = 0 the QP's KKT conditions are those of the nonlinear problem). One
+:class:`~dolfinx_feti.FetiSolver` serves every step: ``update_stiffness`` with the tangent,
+the residual and the rows' new right-hand sides refactors the subdomains and keeps the
+decomposition, the shares and the rows' layout; each QP starts from the last multipliers.
+
+The choices:
+
+- **Method.** The tangent of a stressed floating subdomain has the translations in its
+  kernel but not the rotations (its internal forces, balanced by interface forces, turn with
+  it), and may be indefinite. So Newton runs FETI-DP by default (``method="fetidp"``, corners
+  assembled, Dirichlet conditions eliminated): K̃_t is the tangent of whole bodies held by
+  their Dirichlet conditions, definite wherever the equilibrium is stable. A body with no
+  Dirichlet condition (held by contact only) leaves K̃_t singular with a kernel that is not
+  the rigid motions: it is refused by name, as is a subdomain FETI-DP's corners leave free
+  to turn. An augmentation κ Σ b_r b_rᵀ on the active obstacle rows keeps the QP convex where
+  a compressed free surface makes the bare tangent indefinite (docs/large_deformation.md).
+  TFETI (``method="tfeti"``) may be asked for: the
+  set-up's check K K⁺ K = K on the reference kernels then refuses a prestressed floating
+  subdomain whose rotations left the kernel.
+- **Gaps.** Every obstacle row takes the gap and the normal of its node's current position
+  (for a plane exactly c − B u_k), with the obstacle's curvature term in the tangent near the
+  solution; node-to-node pairs the normal of the deformed master surface and the gap of the
+  current positions. Mortar contact (the search and the integrals on the deformed surfaces),
+  ties and friction are refused by name.
+- **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
+  the violation of the equality rows and the penetration of the inequality rows (physical
+  lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
+  cell turned inside out: J <= 0) is halved.
+- **Stop** when the KKT residuals of the nonlinear problem in physical units
+  (:func:`.kkt_stop.kkt_residuals`, equilibrium r(u) − Bᵀλ against max(‖r at the start of
+  the step‖, ‖Bᵀλ‖)) and the last increment (‖Δu‖∞ against ‖u‖∞) are all below
+  ``newton_rtol`` (the increment against its square root: converging quadratically, the next
+  one would be of the order of its square). The Newton history (residuals, steps, QP
+  iterations, F-multiplications, seconds) is the report's ``extra["newton"]``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..errors import InputError, NotConverged, SolveError
+from ..fem.hyperelastic import NewtonState
+from ..options import SolverOptions
+from ..problem.contact_problem import ContactProblem, NodeToNode, RigidObstacle
+from ..results.solution import Solution
+from ..solver import COLD, SOLVE_BY, FetiSolver
+from .current_rows import CurrentRows, rows_with_rhs
+from .kkt_stop import kkt_residuals
+
+#: The obstacles' curvature term enters the tangent once the relative residual is below this.
+CURVATURE_FROM = 1e-3
+
+
+class StepFailed(SolveError):
+    """A Newton step that cannot go on (a tangent that cannot be factored): cut back."""
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Options of the Newton loop (keyword arguments ``newton_rtol``, ``newton_max_it``, ...).
+
+    Attributes:
+        rtol: Bound on every KKT residual of the nonlinear problem and on ‖Δu‖∞/‖u‖∞.
+        max_it: Newton iterations per load step.
+        max_backtracks: Halvings of the step in the line search.
+    """
+
+    rtol: float = 1e-9
+    max_it: int = 25
+    max_backtracks: int = 12
+
+    @classmethod
+    def pop(cls, kwargs: dict) -> NewtonOptions:
+        """Take ``newton_<field>`` out of ``kwargs``."""
+        vals = {k: kwargs.pop(f"newton_{k}") for k in ("rtol", "max_it", "max_backtracks")
+                if f"newton_{k}" in kwargs}
+        opts = cls(**vals)
+        if not (0 < opts.rtol < 1) or opts.max_it < 1 or opts.max_backtracks < 0:
+            raise InputError(f"Newton options out of range: {opts}")
+        return opts
+
+
+def check_newton_problem(problem: ContactProblem) -> None:
+    """Refuse by name what the Newton driver does not handle."""
+    for c in problem.contact:
+        if not isinstance(c, RigidObstacle | NodeToNode):
+            raise InputError(
+                f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
+                "driver yet (rigid obstacles and node-to-node contact only: mortar contact "
+                "needs the search and the integrals on the deformed surfaces)")
+        if isinstance(c, NodeToNode) and (c.gap is not None or problem.value_size == 1):
+            raise InputError("large-deformation contact: node-to-node contact takes its gap "
+                             "from the geometry (no gap override, a vector problem)")
+    if problem.contact and any(isinstance(c, NodeToNode) for c in problem.contact) and \
+            problem.degree != 1:
+        raise InputError("large-deformation contact: node-to-node contact of degree-1 "
+                         "meshes only")
+    for c in problem.contact:
+        if c.friction is not None:
+            raise InputError("large-deformation contact: friction is not supported by the "
+                             "Newton driver yet")
+    if problem.ties:
+        raise InputError("large-deformation contact: mortar ties are not supported by the "
+                         "Newton driver yet")
+    if not problem.dirichlet:
+        raise InputError("large-deformation contact: every body needs a Dirichlet condition "
+                         "(a body held by contact only leaves the tangent singular with a "
+                         "kernel that is not its rigid motions)")
+
+
+class _Nonlinear:
+    """The system kkt_residuals reads: B, c = c0, and the equilibrium of the forms."""
+
+    def __init__(self, B: PETSc.Mat, c: PETSc.Vec, r: np.ndarray, scale: float,
+                 comm: MPI.Comm) -> None:
+        self.B, self.c, self.comm, self._r, self._scale = B, c, comm, r, scale
+
+    def residuals(self, u: PETSc.Vec, lam: PETSc.Vec) -> dict[str, float]:
+        w = self.B.createVecRight()
+        self.B.multTranspose(lam, w)
+        res = math.sqrt(self.comm.allreduce(float(np.sum((self._r - w.array_r) ** 2)),
+                                            op=MPI.SUM))
+        ref = max(self._scale, w.norm(), 1e-300)
+        w.destroy()
+        return {"equilibrium": res / ref}
+
+
+class NewtonSolver:
+    """Newton over one FETI set-up for a hyperelastic contact problem (collective).
+
+    Args:
+        problem: The first problem (its forms a :class:`~dolfinx_feti.Hyperelastic`).
+        comm: The ranks.
+        options: Solver options of the QPs (as for :func:`dolfinx_feti.solve`).
+        newton: The Newton options.
+        **kwargs: Fields of :class:`~dolfinx_feti.SolverOptions`; ``method`` defaults to
+            ``"fetidp"`` (module docstring).
+    """
+
+    def __init__(self, problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+                 options: SolverOptions | Sequence[str] | None = None,
+                 newton: NewtonOptions | None = None, **kwargs) -> None:
+        check_newton_problem(problem)
+        named = isinstance(options, SolverOptions) or (
+            options is not None and any(str(a).startswith("-feti_method") for a in options))
+        if not named:
+            kwargs.setdefault("method", "fetidp")
+        self.comm, self.newton = comm, newton or NewtonOptions()
+        self.state = NewtonState()
+        self.solver = FetiSolver(self._at_state(problem), comm=comm, options=options,
+                                 keep_meshes=True, **kwargs)
+        if self.solver.qp.method == "fetidp" and int(self.solver.qp.feti.coarse_size) > 0:
+            self.solver.destroy()
+            raise InputError("large-deformation contact: a body floats in FETI-DP's K̃ (no "
+                             "Dirichlet condition stops some of its rigid motions); the tangent "
+                             "of a stressed floating body has no known kernel: hold every "
+                             "body by a Dirichlet condition")
+        steps = self.solver.qp.steps
+        free = [int(self.solver.data.local_subs[i]) for i, R in
+                enumerate(getattr(steps[-1], "kernels_rr", []) if steps else []) if R.shape[1]]
+        free = sorted(set().union(*comm.allgather(free)))
+        if free:
+            self.solver.destroy()
+            raise InputError(
+                f"large-deformation contact: subdomains {free} are held by too few corners in "
+                "FETI-DP (they may turn about them): the kernel of a prestressed tangent is not "
+                "a rigid motion. Decompose so that every subdomain has at least two corners "
+                "(gdim of them in 3D) or a Dirichlet condition of its own (e.g. more parts), "
+                "or one subdomain per body (ByTags)")
+        B = self.solver.qp.system.B
+        self.u = B.createVecRight()
+        self.u.zeroEntries()
+        self._fresh = True  # the set-up's tangent and rows are those of u = 0
+        self._cold = False
+        self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
+        data = self.solver.data
+        self._kappa = comm.allreduce(
+            float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
+        self.rows = CurrentRows(self.solver, comm, self._kappa)
+
+    def _at_state(self, problem: ContactProblem) -> ContactProblem:
+        forms = problem.forms
+        if getattr(forms, "with_state", None) is None:
+            raise InputError("the Newton driver needs forms with a state (a df.Hyperelastic)")
+        return replace(problem, forms=forms.with_state(self.state))
+
+    def destroy(self) -> None:
+        """Free the set-up."""
+        self.solver.destroy()
+        self.u.destroy()
+
+    # --- pieces ------------------------------------------------------------------------------
+    def _residual(self, problem: ContactProblem, u: np.ndarray) -> np.ndarray:
+        """r(u) = f_ext − f_int(u) on this rank (one vector assembly)."""
+        self.state.set(self.solver.data, u)
+        return self.solver.assemble_rhs(problem)
+
+    def _factor(self, problem, rows, lam, curved: bool, k: int) -> None:
+        """The tangent at the current iterate with the augmentation, refactored."""
+        try:
+            self.solver.update_stiffness(problem, rows=rows,
+                                         shift=self.rows.augmentation(lam, curved))
+        except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
+            raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
+                             f"factored ({e}): a singular or indefinite tangent") from e
+
+    def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
+               ) -> tuple[float, np.ndarray]:
+        try:
+            r = self._residual(problem, u.array_r)
+        except InputError:  # non-finite: a cell turned inside out (J <= 0) at this trial
+            return math.inf, None
+        v = self.rows.violation(self.rows.at(problem, rows0, c0, u)[0], rows0.own)
+        s = float(np.sum((r - BTlam) ** 2)) + self._kappa ** 2 * float(np.sum(v ** 2))
+        s = self.comm.allreduce(s, op=MPI.SUM)
+        return (math.sqrt(s) if np.isfinite(s) else math.inf), r
+
+    # --- one load step ------------------------------------------------------------------------
+    def step(self, problem: ContactProblem) -> tuple[Solution, bool]:
+        """Newton from the current state to the equilibrium of ``problem`` (collective).
+
+        Returns:
+            The solution at the last iterate (total displacement, constraint forces, the
+            Newton history in ``report.extra["newton"]``) and whether Newton converged. On
+            failure the state is left where the failure happened (see :meth:`reset`).
+        """
+        comm, opts, solver = self.comm, self.newton, self.solver
+        check_newton_problem(problem)
+        current = self._at_state(problem)
+        rows0 = solver.rows_of(current)
+        own0 = rows0.own
+        c0 = own0.rhs.copy()
+        r = self._residual(current, self.u.array_r)
+        r_scale = math.sqrt(comm.allreduce(float(r @ r), op=MPI.SUM))
+        history: list[dict] = []
+        sol = None
+        converged = False
+        lam = None
+        for k in range(opts.max_it):
+            t0 = time.perf_counter()
+            self.state.set(solver.data, self.u.array_r)
+            rhs, coef, normal = self.rows.at(current, rows0, c0, self.u, keep=True)
+            rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
+            if self._fresh and k == 0 and np.allclose(rows.own.rhs, solver.qp.rows.own.rhs,
+                                                      rtol=0, atol=0):
+                pass  # the set-up is the linearization at u = 0 with these rows
+            else:
+                active = lam if lam is not None else self._lam
+                # the obstacles' curvature term (−λ ∂n/∂y) near the solution only: far from
+                # it an overshooting λ would make the tangent indefinite
+                curved = bool(history) and history[-1]["residual"] < CURVATURE_FROM
+                self._factor(current, rows, active, curved, k)
+            self._fresh = False
+            qp = solver.solve(COLD if self._cold else None)
+            self._cold = False
+            if qp.report.reason == "unbounded" and curved:  # once more without the term
+                self._factor(current, rows, active, False, k)
+                qp = solver.solve(COLD)
+            du, lam = qp.u_vec, qp.lam
+            self._lam = lam
+            if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
+                history.append(self._record(k, math.nan, 0.0, qp, t0, {}))
+                c_now = self.rows.c_at(current, rows0, c0, self.u)
+                sol = self._solution(problem, qp, c_now, r, r_scale, history, False)
+                sol.report.reason = "indefinite tangent"
+                sol.report.warnings.append(
+                    f"Newton iteration {k}: the tangent stiffness K̃_t is indefinite (the QP is "
+                    "unbounded): an instability of the structure, or of subdomains joined only "
+                    "at corners under compression; take smaller load steps (solve_path) or "
+                    "fewer subdomains")
+                return sol, False
+            w = solver.qp.system.B.createVecRight()
+            solver.qp.system.B.multTranspose(lam, w)
+            BTlam = w.array_r.copy()
+            w.destroy()
+            phi0, r_k = self._merit(current, self.u, BTlam, rows0, c0)
+            # below this the merit is round-off (of the forces and of K u)
+            floor = 1e3 * np.finfo(float).eps * (math.sqrt(comm.allreduce(
+                float(BTlam @ BTlam), op=MPI.SUM)) + self._kappa * self.u.norm() + r_scale)
+            alpha, trial = 1.0, self.u.duplicate()
+            for _ in range(opts.max_backtracks + 1):
+                trial.waxpy(alpha, du, self.u)
+                phi, r = self._merit(current, trial, BTlam, rows0, c0)
+                if phi <= max((1 - 1e-4 * alpha) * phi0, floor):
+                    break
+                alpha *= 0.5
+            else:
+                trial.destroy()
+                history.append(self._record(k, math.nan, alpha, qp, t0, {}))
+                c_now = self.rows.c_at(current, rows0, c0, self.u)
+                return self._solution(problem, qp, c_now, r_k, r_scale, history, False), False
+            self.u.axpy(alpha, du)
+            trial.destroy()
+            self.state.set(solver.data, self.u.array_r)
+            du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
+                self.u.norm(PETSc.NormType.INFINITY), 1e-300)
+            c_now = self.rows.c_at(current, rows0, c0, self.u)
+            kkt = self._kkt(c_now, r, r_scale, lam, own0)
+            history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
+            # quadratic convergence: the next increment would be of the order du_rel²
+            if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
+                    qp.report.converged and self.rows.dropped <= opts.rtol:
+                converged = True
+                break
+        sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
+        return sol, converged
+
+    def _kkt(self, c0, r, r_scale, lam, own) -> dict[str, float]:
+        system = self.solver.qp.system
+        c = system.B.createVecLeft()
+        c.array[:] = c0
+        kkt, _ = kkt_residuals(_Nonlinear(system.B, c, r, r_scale, self.comm), own.scale,
+                               own.kind, own.inequality, self.u, lam)
+        c.destroy()
+        return kkt
+
+    def _record(self, k, du_rel, alpha, qp, t0, kkt) -> dict:
+        return {"iteration": k, "step": float(alpha), "du_rel": float(du_rel),
+                "residual": float(kkt.get("equilibrium", math.nan)),
+                "kkt": {key: float(v) for key, v in kkt.items()},
+                "normal_dropped": float(self.rows.dropped),
+                "qp_converged": bool(qp.report.converged), "qp_reason": qp.report.reason,
+                "hessian_mults": int(qp.report.hessian_mults),
+                "seconds": self.comm.allreduce(time.perf_counter() - t0, op=MPI.MAX)}
+
+    def _solution(self, problem, qp: Solution, c0, r, r_scale, history, converged
+                  ) -> Solution:
+        """The Solution of the iterate.
+
+        u the total displacement, λ the constraint forces, the contact data of the current
+        configuration.
+        """
+        solver = self.solver
+        system = solver.qp.system.with_rhs(r, c0)
+        report = qp.report
+        report.converged = bool(converged)
+        report.reason = "newton converged" if converged else "newton did not converge"
+        report.extra["newton"] = history
+        report.extra["newton_iterations"] = len(history)
+        report.hessian_mults = int(sum(h["hessian_mults"] for h in history))
+        u, lam = self.u.copy(), qp.lam.copy()
+        sol = Solution(problem, system, solver.qp.share, u, lam, qp.alpha, report, self.comm)
+        report.kkt, report.max_penetration = kkt_residuals(
+            _Nonlinear(system.B, system.c, r, r_scale, self.comm), solver.qp.rows.own.scale,
+            solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam)
+        return sol
+
+    def save(self) -> np.ndarray:
+        """The current displacement (local), for :meth:`reset`."""
+        return self.u.array_r.copy()
+
+    def reset(self, u: np.ndarray) -> None:
+        """Go back to a saved displacement (a load step's cut-back)."""
+        self.u.array[:] = u
+        self.state.set(self.solver.data, self.u.array_r)
+        self._cold = True  # the failed iterate's multipliers are no start
+        self._lam = None
+
+
+def solve_newton(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
+                 options: SolverOptions | Sequence[str] | None = None, **kwargs) -> Solution:
+    """Solve a hyperelastic contact problem by Newton from the unloaded state (collective).
+
+    What :func:`dolfinx_feti.solve` runs for forms with ``solve_by = "newton"``. Keyword
+    arguments ``newton_rtol``, ``newton_max_it``, ``newton_max_backtracks``
+    (:class:`NewtonOptions`); the rest are :class:`~dolfinx_feti.SolverOptions` of the QPs.
+
+    Raises:
+        NotConverged: With ``error_if_not_converged``, when Newton did not converge.
+    """
+    newton = NewtonOptions.pop(kwargs)
+    raise_if = bool(kwargs.get("error_if_not_converged", False))
+    run = NewtonSolver(problem, comm=comm, options=options, newton=newton, **kwargs)
+    try:
+        sol, ok = run.step(problem)
+    finally:
+        run.destroy()
+    sol.dual = None
+    if raise_if and not ok:
+        raise NotConverged("Newton did not converge; see error.solution.report.extra['newton']",
+                           sol)
+    return sol
+
+
+SOLVE_BY["newton"] = solve_newton
+
+__all__ = ["CURVATURE_FROM", "NewtonOptions", "NewtonSolver", "StepFailed", "rows_with_rhs",
+           "solve_newton"]
