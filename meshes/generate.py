@@ -11,7 +11,7 @@ from pathlib import Path
 
 import gmsh
 
-from dolfinx_feti.io import meshes, meshes_occ
+from dolfinx_feti.io import meshes, meshes_occ, meshes_rubber
 
 #: file name → function that builds the model in the current gmsh session.
 MESHES: dict[str, Callable[[], object]] = {
@@ -24,6 +24,7 @@ MESHES: dict[str, Callable[[], object]] = {
     "disk_on_block_17.msh": lambda: meshes_occ.disk_on_block(0.1, 0.17),
     "sphere_on_block.msh": lambda: meshes_occ.sphere_on_block(0.2, 0.34),
     "slab_with_inclusions.msh": meshes_occ.slab_with_inclusions,
+    "rubber_quarter_disk.msh": lambda: meshes_rubber.quarter_disk(1.0, 0.03, 0.15),
 }
 
 

@@ -105,7 +105,7 @@ class FrictionData:
             Coulomb rows.
         coefficient: Coulomb coefficient per row; NaN on Tresca rows.
         area: Lumped area (length in 2D) of the contact node on its surface, per row.
-        rtol: Relative change of the slip bounds that ends the Coulomb fixed point.
+        rtol: The Coulomb residual max|g − 𝓕λ_N| / max λ_N that ends the Coulomb fixed point.
         max_steps: Budget of Coulomb fixed-point steps.
     """
 

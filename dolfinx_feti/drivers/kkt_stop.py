@@ -147,10 +147,27 @@ class KKTStop:
         self.test: MaxGradientTest | None = None
         self.history: list[dict] = []
 
-    def make_test(self) -> MaxGradientTest:
-        """The bound for the next run of the QP solver."""
-        self.test = MaxGradientTest(self.weight, self.tol_g, self.comm, self.tol_e)
+    def make_test(self, loosen: float = 1.0) -> MaxGradientTest:
+        """The bound for the next run of the QP solver, ``loosen`` times the current one.
+
+        ``loosen > 1`` asks for less accuracy (Coulomb's early fixed-point steps).
+        """
+        self.test = MaxGradientTest(self.weight, self.tol_g * loosen, self.comm,
+                                    self.tol_e * loosen)
         return self.test
+
+    def rescale(self, u: PETSc.Vec, lam_qp: PETSc.Vec) -> None:
+        """Take the scales U and Λ of an intermediate solution (collective).
+
+        Before the first check U is ``max_i |b_i| / scale_i``, which the gaps of rows far out
+        of reach can make much larger than the displacements; a loosened bound (Coulomb's
+        early steps) would then be no bound at all.
+        """
+        U = u.norm(PETSc.NormType.INFINITY)
+        if U > 0:
+            self.U, self.Lam = U, lam_qp.norm()
+            self.tol_g = min(self.tol_g, self.rtol * U)
+            self.tol_e = min(self.tol_e, self.rtol * self.Lam, self.tol_g / self.eq_unit)
 
     def accept(self, kkt: dict[str, float], u: PETSc.Vec, lam_qp: PETSc.Vec,
                Dx_norm: float | None) -> bool:

@@ -123,23 +123,40 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     else:
         x0.copy(x)
     mults0 = feti.hessian_mults
-    kkt_test = opts.stop_test == "kkt" and friction is None
+    kkt_test = opts.stop_test == "kkt"
     penalty = opts.qp == "penalty"
     rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
     stop = KKTStop(qp, opts.rtol) if kkt_test else None
     runs: list[QPResult] = []
     check_mults = kplus = 0
     done = False
+
+    def rescale(res: QPResult) -> None:
+        # the scales of the KKT test from the first friction step's solution (one recovery)
+        nonlocal kplus
+        if stop is None or stop.checks or kplus:
+            return
+        u1, lam1, _, _ = _recover(qp, res, x, friction)
+        friction.relabel(qp_row)
+        lam_qp1 = qp.multipliers(x)
+        stop.rescale(u1, lam_qp1)
+        kplus += 1
+        for v in (u1, lam1, lam_qp1):
+            v.destroy()
+
     while True:
         used = sum(r.iterations for r in runs)
         with timer.phase("iterations"):
-            def run_qp(mu=multiplier0, used=used, rho_factor=rho_factor):
-                return _run_qp(opts, report, progress, qp, x, n_ineq, precond, friction, mu,
+            def run_qp(mu=multiplier0, used=used, loosen=1.0, rho_factor=rho_factor):
+                # loosen: Coulomb's early fixed-point steps are solved to loosen·rtol
+                o = opts if loosen == 1.0 or stop is not None else \
+                    opts.replace(rtol=opts.rtol * loosen)
+                return _run_qp(o, report, progress, qp, x, n_ineq, precond, friction, mu,
                                max_it=opts.max_it - used,
-                               test=None if stop is None else stop.make_test(),
+                               test=None if stop is None else stop.make_test(loosen),
                                rho_factor=rho_factor)
-            res = run_qp() if friction is None else friction.run(run_qp, x, qp.lam_hat, ineq,
-                                                                 progress)
+            res = run_qp() if friction is None else friction.run(
+                run_qp, x, qp.lam_hat, ineq, progress, opts.rtol, rescale)
         runs.append(res)
         m0 = feti.hessian_mults
         with timer.phase("recovery"):
@@ -149,7 +166,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
             break
         with timer.phase("stopping test"):
             scale, kind, ineq_all = row_data(qp)
-            kkt, _ = kkt_residuals(qp.system, scale, kind, ineq_all, u, lam_all)
+            kkt, _ = kkt_residuals(qp.system, scale, kind, ineq_all, u, lam_all,
+                                   friction=friction)
             lam_qp = qp.multipliers(x)
             done = stop.accept(kkt, u, lam_qp, res.Dx_norm)
             lam_qp.destroy()
@@ -175,6 +193,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
         u.destroy()
         lam_all.destroy()
         multiplier0 = res.multiplier
+        if friction is not None:  # back to the QP's rows (the recovery left the problem's)
+            friction.relabel(qp_row)
     res = _merge(runs)
     report.hessian_mults = m0 - mults0  # the iterations and the checks before the last
     report.stopping = {"test": "kkt" if stop is not None else "dual",

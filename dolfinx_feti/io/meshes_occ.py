@@ -366,4 +366,78 @@ def slab_with_inclusions(h_matrix: float = 0.05, h_inclusion: float = 0.03,
     return physical_groups()
 
 
-__all__ = ["disk_on_block", "slab_with_inclusions", "sphere_on_block", "stacked_blocks"]
+
+
+def punch_on_block(h_punch: float = 0.15, h_block: float = 0.25, R: float = 1.0,
+                   height: float = 1.0, fillet: float = 0.25, width: float = 4.0,
+                   depth: float = 1.5, half: bool = False) -> dict:
+    """A cylinder (axis z) with a filleted bottom edge on the top z = 0 of a block.
+
+    The punch is the cylinder of radius R over [0, height] whose bottom edge is rounded with
+    radius ``fillet`` (its flat bottom, of radius R − fillet, touches the block); the block is
+    [−width/2, width/2]² × [−depth, 0]. With ``half`` both are cut to y >= 0: the half model
+    with the symmetry plane y = 0 through the contact zone (a lateral load along x keeps that
+    symmetry). Each body is meshed on its own with size h_punch or h_block.
+
+    Physical groups: bodies "punch" (3, 1), "block" (3, 2); "punch_contact" (2, 11) = the
+    punch's flat bottom and fillet, "block_contact" (2, 12) = the block's top, "load" (2, 13)
+    = the punch's top z = height, "bottom" (2, 14) = z = −depth, with ``half`` "symmetry"
+    (2, 15) = the faces y = 0 of both bodies.
+    """
+    if not (0 < fillet < R and min(h_punch, h_block, height, depth) > 0 and width > 2 * R):
+        raise ValueError(f"punch_on_block: need 0 < fillet < R, positive sizes and width > 2R "
+                         f"(R={R}, fillet={fillet}, width={width})")
+    gmsh.model.add("punch_on_block")
+    set_output_options()
+    occ = gmsh.model.occ
+    cyl = occ.addCylinder(0.0, 0.0, 0.0, 0.0, 0.0, height, R)
+    occ.synchronize()
+    curves = [abs(t) for _, t in gmsh.model.getBoundary([(3, cyl)], combined=False,
+                                                         oriented=False, recursive=False)]
+    edges = {abs(t) for _, t in gmsh.model.getBoundary([(2, f) for f in curves],
+                                                        combined=False, oriented=False)}
+    bottom_edge = [e for e in edges if abs(occ.getCenterOfMass(1, e)[2]) < 1e-9
+                   and occ.getMass(1, e) > 1e-9]
+    punch = occ.fillet([cyl], bottom_edge, [fillet])[0][1]
+    block = occ.addBox(-width / 2, -width / 2, -depth, width, width, depth)
+    if half:
+        # one cut per body: a boolean on both at once would make them share the contact face
+        def halved(body: int) -> int:
+            cut = occ.addBox(-width, -2 * width, -2 * depth, 2 * width, 2 * width,
+                             2 * (depth + height))
+            return occ.cut([(3, body)], [(3, cut)])[0][0][1]
+
+        punch, block = halved(punch), halved(block)
+    occ.synchronize()
+    tol = 1e-6 * max(R, width, height, depth)
+
+    def faces(body: int) -> list[int]:
+        return [abs(t) for _, t in gmsh.model.getBoundary([(3, body)], oriented=False)]
+
+    def bbox(f: int) -> tuple[float, ...]:
+        return gmsh.model.getBoundingBox(2, f)
+
+    sym = [f for b in (punch, block) for f in faces(b) if half and abs(bbox(f)[1]) < tol
+           and abs(bbox(f)[4]) < tol]
+    load = [f for f in faces(punch) if abs(bbox(f)[2] - height) < tol]
+    contact = [f for f in faces(punch) if f not in sym + load and bbox(f)[5] < fillet + tol]
+    top = [f for f in faces(block) if abs(bbox(f)[5]) < tol and abs(bbox(f)[2]) < tol]
+    bottom = [f for f in faces(block) if abs(bbox(f)[2] + depth) < tol
+              and abs(bbox(f)[5] + depth) < tol]
+    _sizes_from_points()
+    _size_in([(3, punch)], h_punch)
+    _size_in([(3, block)], h_block)
+    add_group(3, [punch], 1, "punch")
+    add_group(3, [block], 2, "block")
+    add_group(2, contact, 11, "punch_contact")
+    add_group(2, top, 12, "block_contact")
+    add_group(2, load, 13, "load")
+    add_group(2, bottom, 14, "bottom")
+    if half:
+        add_group(2, sym, 15, "symmetry")
+    gmsh.model.mesh.generate(3)
+    return physical_groups()
+
+
+__all__ = ["disk_on_block", "punch_on_block", "slab_with_inclusions", "sphere_on_block",
+           "stacked_blocks"]

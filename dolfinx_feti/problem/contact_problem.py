@@ -85,13 +85,15 @@ class Coulomb:
     The slip bound of each contact node is 𝓕 times its normal nodal force: g_i = 𝓕 λ_N,i.
     Each fixed-point step solves a Tresca problem (warm-started from the previous step) with
     the bound taken from the previous normal forces; the first step uses g = ∞ (no slip). The
-    iteration stops when ||g_new − g|| <= rtol ||g_new|| (2-norms over all Coulomb nodes) or
-    after ``max_steps`` steps (then the report says not converged). With several Coulomb
-    pairs the smallest ``rtol`` and the largest ``max_steps`` apply.
+    iteration stops when max_i |g_i − 𝓕 λ_N,i| <= rtol max_i λ_N,i over all Coulomb nodes
+    (the Coulomb residual of the iterate, in physical units; the inner solves' accuracy
+    follows it, docs/friction.md) or after ``max_steps`` steps (then the report says not
+    converged). With several Coulomb pairs the smallest ``rtol`` and the largest
+    ``max_steps`` apply.
 
     Args:
         coefficient: The friction coefficient 𝓕 >= 0.
-        rtol: Relative change of the slip bounds that ends the fixed point.
+        rtol: The Coulomb residual max|g − 𝓕 λ_N| / max λ_N that ends the fixed point.
         max_steps: Budget of fixed-point steps (Tresca solves).
     """
 

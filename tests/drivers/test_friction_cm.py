@@ -81,7 +81,7 @@ def test_stick_zone_cattaneo_mindlin(case):
     slip = pressed & ~stick
     ft = c.tangential_force[:, 0]
     # |q| = 𝓕 p to the fixed point's own test: the slip bound of the last Tresca solve is
-    # 𝓕 p of the previous one, and the steps stop when ||g_k − g_{k−1}|| <= 1e-6 ||g_k||.
+    # 𝓕 p of the previous one, and the steps stop when max|g_k − 𝓕 p_k| <= 1e-6 max p_k.
     err = np.linalg.norm(np.abs(ft[slip]) - F * c.force[slip])
     assert err <= 1e-6 * np.linalg.norm(F * c.force[pressed])
     assert np.all(ft[slip] < 0) and np.all(c.slip[slip, 0] >= 0)

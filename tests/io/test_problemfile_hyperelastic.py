@@ -56,3 +56,24 @@ def test_hyperelastic_model_in_a_problem_file(tmp_path, kind):
         a, _ = neo_hookean_exact(0.3)
         X, U = nodal(sol)
         assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.3 * X[:, 1]]).max() < 1e-9
+
+
+@pytest.mark.serial
+def test_shipped_rubber_cylinder_matches_the_python_api(root, tmp_path):
+    """problems/rubber_cylinder.toml through the command equals the same problem in Python."""
+    from dolfinx_feti.cli import main
+
+    assert main([str(root / "problems/rubber_cylinder.toml"), "-o", str(tmp_path), "-q"]) == 0
+    data = np.load(tmp_path / "rubber_cylinder_nodal.npz")
+    mesh = df.read_gmsh(root / "meshes/rubber_quarter_disk.msh")
+    problem = df.ContactProblem(
+        mesh, df.NeoHookean(1.0, 0.3),
+        dirichlet=[df.Dirichlet("top", -0.1, components=[1]),
+                   df.Dirichlet("axis", 0.0, components=[0])],
+        contact=[df.RigidObstacle("arc", df.Plane((0.0, -1.0), (0.0, 1.0)))],
+        decomposition=df.Parts(2))
+    sol = df.solve(problem, method="fetidp", rtol=1e-8)
+    assert sol.report.converged
+    u = sol.nodal_values()
+    assert np.abs(data["u"] - u).max() <= 1e-8 * np.abs(u).max()
+    assert np.abs(u[:, 1]).max() > 0.09  # the centre line moved down by 0.1

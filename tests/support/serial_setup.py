@@ -45,6 +45,7 @@ from dolfinx_feti.mesh.dofpoints import DofPoints
 from dolfinx_feti.mesh.topology import REFERENCE, facet_neighbours, locate_facets
 from dolfinx_feti.parallel.exchange import hand_out
 from dolfinx_feti.problem.contact_problem import ContactProblem
+from dolfinx_feti.setup.method_rule import method_by_time
 from dolfinx_feti.setup.share import (
     LocalDecomposition,
     RankRows,
@@ -250,18 +251,12 @@ def fetidp_parts(problem: ContactProblem, dec, rows, size: int) -> list[dict]:
 
 def choose_method(problem: ContactProblem, dec, rows) -> str:
     """The method ``method="auto"`` picks, by the rule of
-    :func:`dolfinx_feti.setup.stages.choose_method`, on the global arrays.
+    :func:`dolfinx_feti.setup.method_rule.method_by_time`, on the global arrays.
 
     Reads the global decomposition and rows (on the rank that holds them).
     """
-    if not np.any(rows.kind == Kind.GLUE):
-        return "feti1"
-    fixed, _ = dirichlet_mask(problem, problem.mesh)
-    none = np.zeros(0, dtype=np.int64)
-    _, free = floating_motions(problem.mesh, dec, rows, fixed, problem.value_size,
-                               [(none, none, none)], problem.dof_points.x,
-                               primal_components(problem.mesh, dec))
-    return "tfeti" if free else "fetidp"
+    return method_by_time(bool(np.any(rows.kind == Kind.GLUE)), dec.num_subdomains,
+                          len(problem.mesh.body_names))
 
 
 def serial_share_problem(problem: ContactProblem, comm: MPI.Comm, method: str = "tfeti"):
