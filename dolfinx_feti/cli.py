@@ -14,13 +14,15 @@ the solve, the files are staged beside their targets and moved into place togeth
 Exit status: 0 solved; 1 the solve failed (an ill-posed problem found during the solve, outputs
 that could not be written: then none is); 2 the command line, the problem file or the output
 folder is wrong (nothing written); 3 the solver did not converge (only the JSON report is
-written).
+written); 130 interrupted by Ctrl-C (SIGINT, or SIGTERM as mpirun passes Ctrl-C on: one
+line on stderr, no new output written).
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 import time
 from collections.abc import Sequence
@@ -38,6 +40,8 @@ from .results import postprocess
 
 PROG = "dolfinx-feti"
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_NOT_CONVERGED = 0, 1, 2, 3
+#: Stopped by Ctrl-C (SIGINT): the shells' 128 + signal number.
+EXIT_INTERRUPTED = 130
 
 
 class _Exit(Exception):
@@ -147,8 +151,74 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _Exit as e:
         return e.code
     verbose = 2 if args.verbose else 0 if args.quiet else None
-    with _console(1 if verbose is None else verbose):
-        return _run(args, feti, verbose, comm)
+    # a communicator of its own for the handshake after Ctrl-C (see _all_stopped)
+    handshake = comm.Dup() if comm.size > 1 else None
+    try:
+        with _console(1 if verbose is None else verbose), _terminate_as_interrupt():
+            return _run(args, feti, verbose, comm)
+    except KeyboardInterrupt as e:
+        # A line instead of the traceback of wherever the solve was; the staged outputs were
+        # discarded on the way out (staging.staged), so no new output is left half-written.
+        how = e.args[0] if e.args else "Ctrl-C"
+        line = f"{PROG}: {args.problem}: interrupted ({how}); stopped, no new output written"
+        _error(line)
+        if handshake is not None and not _all_stopped(handshake):
+            if comm.rank != 0:  # rank 0 may be the one still blocked: say it here
+                print(line, file=sys.stderr, flush=True)
+            comm.Abort(EXIT_INTERRUPTED)
+        return EXIT_INTERRUPTED
+    finally:
+        if handshake is not None:
+            handshake.Free()
+
+
+#: How long a rank stopped by Ctrl-C waits for the others to stop too (seconds).
+INTERRUPT_WAIT = 10.0
+
+
+def _all_stopped(handshake: MPI.Comm) -> bool:
+    """Whether every rank was stopped too (True) or some rank is still blocked (False).
+
+    The signal reaches each rank at its own moment, and Python handles it only between two
+    calls into C: a rank blocked in a collective call, waiting for a rank that has already
+    stopped, would wait forever (MPICH's mpiexec then waits for it). So the stopped ranks meet
+    in a non-blocking barrier on a communicator of its own; if some rank does not arrive
+    within :data:`INTERRUPT_WAIT`, the caller aborts the job.
+    """
+    request = handshake.Ibarrier()
+    end = time.monotonic() + INTERRUPT_WAIT
+    try:
+        while not request.Test():
+            if time.monotonic() > end:
+                return False
+            time.sleep(0.01)
+    except KeyboardInterrupt:  # Ctrl-C again: do not wait
+        return False
+    return True
+
+
+@contextmanager
+def _terminate_as_interrupt():
+    """Take SIGTERM as Ctrl-C while the command runs.
+
+    Under mpirun, Ctrl-C reaches the ranks as SIGTERM (Open MPI forwards SIGINT that way),
+    which would end them without a word. A handler the caller installed is left alone.
+    """
+    def handler(signum, frame):
+        raise KeyboardInterrupt("Ctrl-C or SIGTERM")
+
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+        ours = previous == signal.SIG_DFL
+        if ours:
+            signal.signal(signal.SIGTERM, handler)
+    except ValueError:  # not the main thread: signals cannot be handled here
+        ours = False
+    try:
+        yield
+    finally:
+        if ours:
+            signal.signal(signal.SIGTERM, previous)
 
 
 def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:

@@ -16,7 +16,9 @@ from __future__ import annotations
 # before dolfinx and petsc4py. (Harmless on 0.5.2.)
 from mpi4py import MPI  # isort: skip
 
+import inspect
 import re
+import sys
 from pathlib import Path
 
 import dolfinx
@@ -184,6 +186,32 @@ def tags_data(tags) -> tuple[int, np.ndarray, np.ndarray]:
         np.asarray(tags.values, dtype=np.int64)
 
 
+def tags_topology(tags):
+    """The (C++) topology the MeshTags were made on; None if this DOLFINx does not tell.
+
+    0.5.2's MeshTags keep their mesh (``tags.mesh``), 0.11's their topology.
+    """
+    top = getattr(tags, "topology", None)
+    if top is None:
+        top = getattr(getattr(tags, "mesh", None), "topology", None)
+    return getattr(top, "_cpp_object", top)
+
+
+def mesh_topology(msh: dolfinx.mesh.Mesh):
+    """The (C++) topology of a mesh, comparable with :func:`tags_topology` by ``==``."""
+    return getattr(msh.topology, "_cpp_object", msh.topology)
+
+
+def entity_vertices(topology, dim: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(offsets, vertices)`` of the local entities of ``dim`` (owned and ghost; collective).
+
+    The number of local entities is ``offsets.size - 1``.
+    """
+    topology.create_connectivity(dim, 0)
+    c = topology.connectivity(dim, 0)
+    return np.asarray(c.offsets, dtype=np.int64), np.asarray(c.array, dtype=np.int64)
+
+
 def cell_tags(msh: dolfinx.mesh.Mesh, cells: np.ndarray, values: np.ndarray):
     """Cell MeshTags from local cell indices."""
     order = np.argsort(cells)
@@ -303,7 +331,13 @@ def garbage_cleanup(comm: MPI.Comm) -> None:
     queued for destruction (destroying it there could deadlock: not every rank collects at
     the same moment); the queue is emptied here, at a point every rank reaches together.
     Without it, every solve's vectors and matrices stay allocated.
+
+    Skipped on the way out of a Ctrl-C (a KeyboardInterrupt propagating through the ``finally``
+    that calls this): the ranks stop at their own moments, and a rank still blocked in another
+    collective call would never meet this one (the job would hang instead of ending).
     """
+    if isinstance(sys.exc_info()[1], KeyboardInterrupt):
+        return
     cleanup = getattr(PETSc, "garbage_cleanup", None)
     if cleanup is not None:
         cleanup(comm)
@@ -392,6 +426,19 @@ def read_xdmf_mesh(comm: MPI.Comm, path: str | Path, name: str = "mesh") -> dolf
     """Read back a mesh written by :func:`write_xdmf`."""
     with dolfinx.io.XDMFFile(comm, str(path), "r") as f:
         return f.read_mesh(name=name)
+
+
+def gmsh_initialize(gmsh) -> None:
+    """``gmsh.initialize()``, keeping Python's Ctrl-C (a KeyboardInterrupt).
+
+    gmsh ≥ 4.9 sets SIGINT to its default action while it is initialized
+    (``interruptible=True``, restored only by ``finalize``): a Ctrl-C would then kill the
+    process without a word, and the command could not end with its one line.
+    """
+    if "interruptible" in inspect.signature(gmsh.initialize).parameters:
+        gmsh.initialize(interruptible=False)
+    else:
+        gmsh.initialize()
 
 
 def gmsh_model_to_mesh(model, comm: MPI.Comm, rank: int, gdim: int):

@@ -38,6 +38,7 @@ class NotConverged(SolveError):
 #: The collective phases that run user code or rank-local I/O, by name (see :func:`collective`).
 SITES = {
     "problem file": "reading the problem file (rank 0)",
+    "options": "the solver options (read from keywords, argv and PETSc's database per rank)",
     "mesh": "reading or generating the mesh with gmsh (rank 0)",
     "output folder": "checking the output folder before the solve (rank 0)",
     "decomposition": "the decomposition (a ByFunction labeller, PT-Scotch on rank 0)",

@@ -232,6 +232,38 @@ class _Methods:
         return asdict(self)
 
 
+def check_same_on_ranks(opts: SolverOptions, comm) -> None:
+    """Raise on every rank unless the options are equal on every rank of ``comm`` (collective).
+
+    The options steer collective work: a ``rtol`` or ``max_it`` that differs per rank makes
+    the ranks stop at different iterations and wait for each other forever, and a ``method``
+    or ``factor`` that differs is taken from some rank and ignored on the others. So they are
+    compared before any work (one allgather of a few hundred bytes), and the error names each
+    option that differs with its value per rank. Floats are compared bit for bit: a ``rtol``
+    computed per rank that differs in the last digit is still a different stopping test.
+
+    Args:
+        opts: This rank's options.
+        comm: The ranks that solve together.
+
+    Raises:
+        InputError: On every rank, when some option differs between ranks.
+    """
+    if comm.size == 1:
+        return
+    mine = {k: repr(v) for k, v in opts.to_dict().items()}  # repr: NaN-safe, exact for floats
+    every = comm.allgather(mine)
+    differ = sorted(k for k in mine if any(e.get(k) != mine[k] for e in every))
+    differ += sorted({k for e in every for k in e} - set(mine))  # cannot happen in one build
+    if differ:
+        shown = "; ".join(f"{k}: " + ", ".join(f"rank {r} {e.get(k, '<missing>')}"
+                                                 for r, e in enumerate(every))
+                          for k in differ[:8])
+        raise InputError(f"solver options differ between the ranks: {', '.join(differ)} "
+                         f"({shown}); every rank must pass the same options (compute a "
+                         "per-rank value once on rank 0 and broadcast it)")
+
+
 def _check_names(given: Mapping[str, Any]) -> None:
     unknown = set(given) - set(DECLARED)
     if unknown:
@@ -265,4 +297,4 @@ def _make_class() -> type:
 SolverOptions = _make_class()
 
 __all__ = ["DECLARED", "FETI", "OPTION_SETS", "PENALTY", "SolverOptions",
-           "command_line_options", "kind", "option_value", "parse_text"]
+           "check_same_on_ranks", "command_line_options", "kind", "option_value", "parse_text"]

@@ -4,7 +4,8 @@
 #   2. the serial OpenBLAS as the BLAS/LAPACK alternative (no thread oversubscription under MPI);
 #   3. the virtual environment .venv (it sees the Debian packages: --system-site-packages);
 #   4. the editable install of dolfinx_feti (redone only when pyproject.toml changes);
-#   5. the linters (ruff, import-linter), pinned in pyproject.toml's "lint" extra, from PyPI.
+#   5. the linters (ruff, import-linter), pinned in pyproject.toml's "lint" extra, from PyPI;
+#   6. Hypothesis (the property-based tests), pinned in its "test" extra, from PyPI.
 # Idempotent; a second run takes well under a second.
 set -euo pipefail
 
@@ -128,3 +129,18 @@ for req in $lint_reqs; do
         "$VENV/bin/pip" install -q --disable-pip-version-check "$req"
     fi
 done
+
+# 6. Hypothesis (pinned in pyproject.toml's "test" extra; pytest itself comes from Debian) -------
+hyp_req="$("$SYS_PYTHON" -c '
+import tomllib
+with open("pyproject.toml", "rb") as f:
+    test = tomllib.load(f)["project"]["optional-dependencies"]["test"]
+print(next(r for r in test if r.startswith("hypothesis")))
+')"
+hyp_version="${hyp_req#hypothesis==}"
+if [ "$("$VENV/bin/python" -c 'import hypothesis; print(hypothesis.__version__)' 2>/dev/null)" = "$hyp_version" ]; then
+    say "hypothesis: $hyp_version present"
+else
+    say "hypothesis: installing $hyp_req"
+    "$VENV/bin/pip" install -q --disable-pip-version-check "$hyp_req"
+fi

@@ -447,6 +447,22 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     return found.coupling(nodes, normals, D, (r, c, v), x.shape[0], npairs)
 
 
+def same_way_pairs(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,
+                   search_distance: float, cell_type: str | None = None) -> int:
+    """How many facet pairs would be coupled if the master surface faced the other way.
+
+    A pair of surfaces that face the same way (the outward normals agree) has no pair that
+    faces each other, so the search couples nothing; this count tells that case from two
+    surfaces that are merely out of reach of each other.
+    """
+    slave = facets_in_cell_order(cells, slave, cell_type)
+    master = facets_in_cell_order(cells, master, cell_type)
+    ns, _ = facet_normals(x, cells, slave, cell_type)
+    nm, _ = facet_normals(x, cells, master, cell_type)
+    i, _ = candidate_pairs(x, slave, ns, master, -nm, search_distance)
+    return int(i.size)
+
+
 def penetration(p: np.ndarray, normals: np.ndarray, x: np.ndarray, cells: np.ndarray,
                 facets: np.ndarray, depth: float, cell_type: str | None = None) -> np.ndarray:
     """How deep each point lies behind a surface (0 where it does not).

@@ -15,7 +15,7 @@ node-to-node rows, and with matching meshes (w_jk = δ) the rows are the node-to
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,10 +25,32 @@ from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints
 from ..problem.contact_problem import Mortar, Tie
 from .contact import surface
-from .mortar import COVERAGE_FULL_TOL, MortarCoupling, mortar_coupling, open_rim
+from .mortar import (
+    COVERAGE_FULL_TOL,
+    MortarCoupling,
+    default_search_distance,
+    mean_facet_size,
+    mortar_coupling,
+    open_rim,
+    same_way_pairs,
+)
 from .mortar_normals import with_normals
 from .mortar_p2 import quadratic_coupling
 from .rows import Kind, Rows
+
+#: A tie whose rows bridge a gap wider than this times the surfaces' facet size gets a warning:
+#: two surfaces that are one interface coincide up to the discretization of a curved surface
+#: (about h²/(8R), below h/16 for facets up to half the radius).
+TIE_GAP_FACETS = 0.25
+#: A tie within one body across a gap wider than this times the facet size is refused: that
+#: is two faces of the body (e.g. its top and bottom), not an interface of two meshed pieces.
+SAME_BODY_GAP_FACETS = 1.0
+#: Contact rows bridging a gap wider than this times the facet size, and wider than the default
+#: search distance, get a warning (a large search_distance reaching across a body).
+CONTACT_GAP_FACETS = 4.0
+#: Weighted gaps below this times eps times the largest coordinate of the surfaces are
+#: round-off of the geometry (touching surfaces), and taken as exactly 0.
+GAP_ROUNDOFF = 64.0
 
 
 @dataclass
@@ -43,6 +65,8 @@ class MortarInfo:
         uncoupled: Slave nodes with no master facet in range (no row).
         rim_nodes: The coupled slave nodes on the rim of a candidate surface.
         tie: A :class:`~dolfinx_feti.Tie` (equality rows), else a contact condition.
+        warnings: Notes on the pair found before the solve (rows bridging a wide gap, no
+            row at all), for the report.
     """
 
     spec: int
@@ -53,6 +77,7 @@ class MortarInfo:
     uncoupled: int
     rim_nodes: np.ndarray
     tie: bool = False
+    warnings: list[str] = field(default_factory=list)
 
     def summary(self) -> dict:
         """Plain data for the report."""
@@ -63,21 +88,96 @@ class MortarInfo:
                 "search_distance": self.coupling.search_distance}
 
 
-def _coupling(mesh: MeshData, slave: str, master: str, search_distance,
+def _coupling(mesh: MeshData, name: str, slave: str, master: str, search_distance,
               points: DofPoints | None = None) -> MortarCoupling:
-    """The coupling at the vertices (degree 1), or at the dof points of 3-node segments."""
+    """The coupling at the vertices (degree 1), or at the dof points of 3-node segments.
+
+    Two surfaces that face the same way are refused by name (one surface with itself,
+    self-contact, is not such a pair).
+    """
     surface(mesh, slave)  # a surface that is no boundary of a body is refused by name here
     surface(mesh, master)
     args = (mesh.x, mesh.cells, mesh.facets(slave), mesh.facets(master))
+    self_contact = slave == master
     if points is not None and points.degree == 2:
-        return quadratic_coupling(*args, points, search_distance, mesh.cell_type,
-                                  self_contact=slave == master)
-    return mortar_coupling(*args, search_distance, mesh.cell_type, self_contact=slave == master)
+        coupling = quadratic_coupling(*args, points, search_distance, mesh.cell_type,
+                                      self_contact=self_contact)
+    else:
+        coupling = mortar_coupling(*args, search_distance, mesh.cell_type,
+                                   self_contact=self_contact)
+    if not self_contact and not np.any(coupling.coupled):
+        same = same_way_pairs(*args, coupling.search_distance, mesh.cell_type)
+        if same:
+            raise InputError(f"{name}: inconsistent normals: the two surfaces face the same "
+                             f"way (their outward normals agree at all {same} facet pairs "
+                             "within the search distance), so no slave node is coupled; "
+                             "the surfaces of an interface must face each other (did you "
+                             "name a surface of the wrong body, or the far side of one?)")
+    return coupling
 
 
 def _point_x(mesh: MeshData, points: DofPoints | None) -> np.ndarray:
     """The coordinates of the points the rows are at (the vertices for degree 1)."""
     return mesh.x if points is None or points.degree == 1 else points.x
+
+
+def _pair_checks(mesh: MeshData, name: str, slave: str, master: str,
+                 coupling: MortarCoupling, gap: np.ndarray, tie: bool,
+                 px: np.ndarray) -> list[str]:
+    """Rows that bridge a gap much wider than the facets: warned, or refused within a body.
+
+    Args:
+        mesh: The mesh.
+        name: The condition, for messages.
+        slave: The slave group.
+        master: The master group.
+        coupling: Their coupling.
+        gap: Per coupled slave node, the distance its row bridges (ties: to the weighted
+            master point; contact: along the normal, signed).
+        tie: Whether the rows are a tie's.
+        px: The coordinates the coupling's slave nodes index (the dof points of degree 2).
+    """
+    S, M = mesh.facets(slave), mesh.facets(master)
+    h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
+    slave_nodes = coupling.slave_nodes[coupling.coupled]
+    if slave_nodes.size == 0:
+        return [f"{name}: no row: no slave node has a master facet within the search "
+                f"distance {coupling.search_distance:.3g} (the surfaces are out of each "
+                "other's reach), so the condition does nothing"]
+    k = int(np.argmax(np.abs(gap)))
+    worst = float(abs(gap[k]))
+    where = np.round(px[slave_nodes[k]], 6).tolist()
+    what = (f"{name}: its rows bridge gaps up to {worst:.3g} between the surfaces "
+            f"({worst / h:.1f} times their mean facet size {h:.3g}; e.g. at the slave node at "
+            f"{where})")
+    if tie:
+        if worst <= TIE_GAP_FACETS * h:
+            return []
+        common = _bodies(mesh, slave) & _bodies(mesh, master)
+        if common and worst > SAME_BODY_GAP_FACETS * h:
+            raise InputError(f"{what}, and both surfaces belong to body "
+                             f"{mesh.body_names[min(common)]!r}: these are two faces of one "
+                             "body, not an interface; a tie glues surfaces that coincide")
+        return [f"{what}: a tie glues surfaces that coincide; the bodies are glued across "
+                "the gap as if it were not there (check the groups, or mesh the bodies "
+                "touching)"]
+    reach = max(CONTACT_GAP_FACETS * h, default_search_distance(mesh.x, S, M))
+    if worst <= reach:
+        return []
+    return [f"{what}: a search_distance this large may couple the slave surface to a far "
+            "part of the master (e.g. across a body); give a smaller search_distance"]
+
+
+def snap_roundoff(gap: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """The gaps with those below the round-off of the coordinates ``x`` set to exactly 0.
+
+    Two surfaces that touch exactly get weighted gaps of a few eps times the coordinates'
+    size; taken as data they turn a zero load into a QP with a tiny non-zero solution that
+    costs dozens of iterations.
+    """
+    scale = float(np.abs(x).max(initial=0.0))
+    return np.where(np.abs(gap) <= GAP_ROUNDOFF * np.finfo(float).eps * scale, 0.0, gap)
+
 
 
 def _rim_rows(mesh: MeshData, slave: str, master: str, coupling: MortarCoupling) -> np.ndarray:
@@ -138,13 +238,17 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
     if common and spec.slave != spec.master:  # one group with itself: self-contact
         raise InputError(f"{name}: both surfaces belong to body "
                          f"{mesh.body_names[min(common)]!r}; contact is between two bodies")
-    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
+    coupling = _coupling(mesh, name, spec.slave, spec.master, spec.search_distance, points)
     coupling = with_normals(mesh, spec.slave, spec.master, coupling, spec.normals, points)
     keep = coupling.coupled
     n = -coupling.normals[keep]  # toward the slave: the master's outward direction
     first = node_subs[node_ptr[:-1]]  # the smallest subdomain holding each node
+    nodes = np.unique(np.concatenate([mesh.facets(spec.slave).ravel(),
+                                      mesh.facets(spec.master).ravel()]))
+    gap = snap_roundoff(coupling.weighted_gap(_point_x(mesh, points)), mesh.x[nodes])
+    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, gap, tie=False,
+                            px=_point_x(mesh, points))
     if bs > 1:
-        gap = coupling.weighted_gap(_point_x(mesh, points))
         dirs = -n  # the row is s·n·(Σ w u_m − u_s): slave direction −n
     else:
         gap = np.zeros(int(keep.sum()))
@@ -157,7 +261,8 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
                 spec=np.full(nr, index, dtype=np.int32))
     info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
                       rows=nr, uncoupled=int((~keep).sum()),
-                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling))
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling),
+                      warnings=warnings)
     return rows, info
 
 
@@ -170,11 +275,18 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
     already holds them), as in the gluing of matching subdomains. ``points`` as for
     :func:`mortar_contact_rows`.
     """
-    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
+    name = f"tie {spec.slave!r} (slave) / {spec.master!r} (master)"
+    coupling = _coupling(mesh, name, spec.slave, spec.master, spec.search_distance, points)
     if not np.any(coupling.coupled):
-        raise InputError(f"tie {spec.slave!r} (slave) / {spec.master!r} (master): no slave node "
-                         f"has a master facet within the search distance "
-                         f"{coupling.search_distance:.3g}: the surfaces are not an interface")
+        raise InputError(f"{name}: no slave node has a master facet within the search "
+                         f"distance {coupling.search_distance:.3g}: the surfaces are out of "
+                         "each other's reach (not an interface, or a search_distance too "
+                         "small for the gap between them)")
+    keep = np.flatnonzero(coupling.coupled)
+    px = _point_x(mesh, points)
+    bridged = np.linalg.norm(coupling.weights() @ px - px[coupling.slave_nodes[keep]], axis=1)
+    warnings = _pair_checks(mesh, name, spec.slave, spec.master, coupling, bridged, tie=True,
+                            px=px)
     first = node_subs[node_ptr[:-1]]
     blocks = []
     slave = coupling.slave_nodes[coupling.coupled]
@@ -199,9 +311,9 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
     rows = rows.permuted(np.lexsort((comp, rows.node)))  # node-major, like the gluing rows
     info = MortarInfo(spec=index, slave=spec.slave, master=spec.master, coupling=coupling,
                       rows=rows.size, uncoupled=int((~coupling.coupled).sum()),
-                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True)
+                      rim_nodes=_rim_rows(mesh, spec.slave, spec.master, coupling), tie=True,
+                      warnings=warnings)
     return rows, info
-
 
 
 def self_contact_areas(mesh: MeshData, spec: Mortar, points: DofPoints | None = None
@@ -212,5 +324,6 @@ def self_contact_areas(mesh: MeshData, spec: Mortar, points: DofPoints | None = 
     whole group, which goes round the corners of the body (a contact pressure is the nodal
     force divided by it, as for two surfaces).
     """
-    coupling = _coupling(mesh, spec.slave, spec.master, spec.search_distance, points)
+    coupling = _coupling(mesh, f"self-contact {spec.slave!r}", spec.slave, spec.master,
+                         spec.search_distance, points)
     return coupling.slave_nodes, coupling.D

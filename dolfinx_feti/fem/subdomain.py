@@ -22,6 +22,7 @@ from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import row_keys
 from .dofmap import cell_dof_points
+from .form_checks import check_form_kinds, check_magnitudes, check_symmetric
 from .load_form import LoadForm
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
@@ -266,10 +267,12 @@ class Subdomain:
         K.eliminate_zeros()  # P1 on structured grids leaves exact zeros: they cost in the factor
         K.sort_indices()
         if not np.all(np.isfinite(K.data)):
-            raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
-                             "assembled stiffness matrix has non-finite entries (NaN/Inf in the "
-                             "data)")
-        return K, self._load(L, K.shape[0], self._kept_load)
+            raise InputError(f"{self._where}: the assembled stiffness matrix has non-finite "
+                             "entries (NaN/Inf in the data)")
+        f = self._load(L, K.shape[0], self._kept_load)
+        check_magnitudes(K, f, self._where)
+        check_symmetric(K, self._where)  # before K K⁺ K = K, which would blame the null space
+        return K, f
 
     def assemble_load(self, forms, value_size: int) -> np.ndarray:
         """Assemble only the linear form of ``forms`` (a new load case on the same space).
@@ -284,6 +287,10 @@ class Subdomain:
         self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
         return self._load(L, self._perm.size, self._kept_load)
 
+    @property
+    def _where(self) -> str:
+        return f"subdomain(s) {self._ids} (bodies {list(self.bodies)})"
+
     def _forms(self, forms, value_size: int):
         """The user's (a, L) on this subdomain's space, checked; the space's permutation kept."""
         if getattr(self, "_space", None) is None:
@@ -296,7 +303,13 @@ class Subdomain:
                 perm[bs * node_of_dof + c] = bs * np.arange(node_of_dof.size) + c
             self._perm = perm
         V = self._space
-        a, L = forms(V, self)
+        result = forms(V, self)
+        if not (isinstance(result, tuple | list) and len(result) == 2):
+            raise InputError(f"{self._where}: forms(V, sub) returned {type(result).__name__}"
+                             + (f" of length {len(result)}" if hasattr(result, "__len__") else "")
+                             + ", not a pair (a, L)")
+        a, L = result
+        check_form_kinds(a, None if _is_zero(L) else L, self._where)
         self._check_space(((a, "bilinear"), (L, "linear")), V)
         for form, what in ((a, "bilinear"), (L, "linear")):
             _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
@@ -321,6 +334,6 @@ class Subdomain:
             b.destroy()
         f = f[self._perm]
         if not np.all(np.isfinite(f)):
-            raise InputError(f"subdomain(s) {self._ids} (bodies {list(self.bodies)}): the "
-                             "assembled load has non-finite entries (NaN/Inf in the data)")
+            raise InputError(f"{self._where}: the assembled load has non-finite entries "
+                             "(NaN/Inf in the data)")
         return f

@@ -49,6 +49,7 @@ from ..errors import InputError, SolveError, collective
 from ..fem import Elasticity, Poisson
 from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
 from ..mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
 from ..problem.contact_problem import (
     ContactProblem,
@@ -672,8 +673,18 @@ class _Reader:
             return ""
         mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
         self.mesh_path = mesh_path
-        exists = self.comm.bcast(mesh_path.is_file() if self.comm.rank == 0 else None, root=0)
-        if not exists:
+        if not self.data["mesh"].strip():
+            c.fault("mesh", "empty: expected the path of a gmsh .msh file (relative to the "
+                    "problem file's folder) or a table {generator = '<name>', ...}")
+            return ""
+        kind = self.comm.bcast(("file" if mesh_path.is_file() else "folder" if
+                                mesh_path.is_dir() else None) if self.comm.rank == 0 else None,
+                               root=0)
+        if kind == "folder":
+            c.fault("mesh", f"{str(mesh_path)!r} is a folder, not a gmsh .msh file (paths are "
+                    "relative to the problem file's folder)")
+            return str(mesh_path)
+        if kind is None:
             c.fault("mesh", f"mesh file not found: {str(mesh_path)!r} (paths are relative to "
                     "the problem file's folder); expected a gmsh .msh file")
             return str(mesh_path)
@@ -718,7 +729,7 @@ class _Reader:
         try:
             with collective(comm, "mesh"):
                 if comm.rank == 0:
-                    gmsh.initialize()
+                    gmsh_initialize(gmsh)
                     gmsh.option.setNumber("General.Terminal", 0)
                     gens[name](**kwargs)
             self.mesh = read_gmsh(None, comm)

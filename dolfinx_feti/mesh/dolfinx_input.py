@@ -192,6 +192,8 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
         if tags is not None and compat.tags_data(tags)[0] != dim:
             raise InputError(f"from_dolfinx: {what} are tags of entities of dimension "
                              f"{compat.tags_data(tags)[0]}, expected {dim}")
+        if tags is not None:
+            check_tags_belong(mesh, tags, dim, what)
     if distribute:
         if not replicate:
             raise InputError("from_dolfinx: distribute=True spreads the mesh over the ranks; "
@@ -202,6 +204,54 @@ def from_dolfinx(mesh, cell_tags=None, facet_tags=None,
                              "yet: use distribute=False")
         return scatter(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names)
     return gather(local_part(mesh, cell_tags, facet_tags), mesh, cell_type, names, replicate)
+
+
+def check_tags_belong(mesh, tags, dim: int, what: str) -> None:
+    """Refuse MeshTags of another mesh before DOLFINx indexes with them (collective).
+
+    DOLFINx trusts the entity indices of MeshTags: those of another mesh, out of range, make
+    it read past its arrays (a segmentation fault), and in range they tag other entities (a
+    Dirichlet group inside a body). Tags made on ``mesh`` pass at once; tags made on another
+    mesh pass only when their indices are this rank's entities and each tagged entity has the
+    same vertices in both meshes (the same mesh, e.g. read twice from one file).
+
+    Raises:
+        InputError: On every rank, naming the tags and what is wrong.
+    """
+    own, theirs = compat.mesh_topology(mesh), compat.tags_topology(tags)
+    same = theirs is not None and theirs == own
+    if mesh.comm.allreduce(bool(same), op=MPI.LAND):
+        return
+    _, idx, values = compat.tags_data(tags)
+    offsets, vertices = compat.entity_vertices(own, dim)
+    other = None if theirs is None else compat.entity_vertices(theirs, dim)
+    with collective(mesh.comm, "mesh"):
+        n = offsets.size - 1
+        kind = "cells" if dim == mesh.topology.dim else "facets"
+        if idx.size != values.size:
+            raise InputError(f"from_dolfinx: {what} hold {idx.size} entities but {values.size} "
+                             "values")
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            raise InputError(f"from_dolfinx: {what} belong to another mesh: they tag entity "
+                             f"{int(idx.max() if idx.max() >= n else idx.min())} but this "
+                             f"rank's part of the mesh has {n} {kind} (0 to {n - 1}); make the "
+                             "tags on the mesh you pass (the mesh and the tags of one "
+                             "gmshio.model_to_mesh call)")
+        if other is not None and idx.size:
+            o_off, o_vert = other
+            if idx.max() >= o_off.size - 1 or not np.array_equal(
+                    _rows(offsets, vertices, idx), _rows(o_off, o_vert, idx)):
+                raise InputError(f"from_dolfinx: {what} belong to another mesh: the entities "
+                                 f"they tag have other vertices in the mesh passed (it is not "
+                                 "the mesh the tags were made on); make the tags on the mesh "
+                                 "you pass")
+
+
+def _rows(offsets: np.ndarray, array: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """The concatenated rows ``idx`` of an adjacency list (offsets, array)."""
+    counts = offsets[idx + 1] - offsets[idx]
+    start = np.repeat(offsets[idx] - np.cumsum(counts) + counts, counts)
+    return array[start + np.arange(int(counts.sum()))]
 
 
 def local_part(mesh, cell_tags, facet_tags) -> LocalPart:
@@ -361,6 +411,7 @@ def _names(cell_values: np.ndarray, facet_values: np.ndarray, tdim: int,
     """tag → name for the cell tags and the facet tags, with the checks of ``names``."""
     body = {int(v): str(int(v)) for v in cell_values}
     facet = {int(v): str(int(v)) for v in facet_values}
+    named: dict[tuple[int, int], str] = {}  # (dim, tag) → the name given to it
     for name, tag in dict(names or {}).items():
         if isinstance(tag, tuple):
             if len(tag) != 2 or tag[0] not in (tdim, tdim - 1):
@@ -378,6 +429,13 @@ def _names(cell_values: np.ndarray, facet_values: np.ndarray, tdim: int,
         if not targets:
             raise InputError(f"from_dolfinx: names[{name!r}] = {tag}: no such tag; the cell "
                              f"tags are {sorted(body)}, the facet tags {sorted(facet)}")
+        key = (tdim if targets[0] is body else tdim - 1, value)
+        if key in named:  # one group has one name: a second would silently replace the first
+            raise InputError(f"from_dolfinx: names {named[key]!r} and {name!r} both name the "
+                             f"{'cell' if key[0] == tdim else 'facet'} tag {value}; give each "
+                             "tag one name (a group used in two roles is named once and used "
+                             "twice)")
+        named[key] = str(name)
         targets[0][value] = str(name)
     every = list(body.values()) + list(facet.values())
     twice = sorted({n for n in every if every.count(n) > 1})

@@ -115,7 +115,7 @@ def build_mesh(generator, *args, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | No
 
     with collective(comm, "mesh"):
         if comm.rank == 0:
-            gmsh.initialize()
+            gmsh_initialize(gmsh)
             gmsh.option.setNumber("General.Terminal", 0)
             try:
                 generator(*args, **kwargs)
@@ -134,13 +134,18 @@ def _extract(source, gdim: int | None) -> MeshData:
 
     if not isinstance(source, (str, Path)):
         return _extract_current(gmsh, gdim)
+    if isinstance(source, str) and not source.strip():
+        raise InputError("the mesh path is empty: expected the path of a gmsh .msh file (or "
+                         "None for gmsh's current model)")
     path = Path(source)
+    if path.is_dir():
+        raise InputError(f"the mesh path {str(path)!r} is a folder, not a gmsh .msh file")
     if not path.is_file():
         raise InputError(f"mesh file not found: {path}")
     # gmsh 4.8 cannot tell whether it is initialized; initializing twice is harmless and keeps
     # the caller's models. The file is merged into a fresh model of its own (gmsh.open on a bad
     # file leaves gmsh locked and the broken model current), removed afterwards.
-    gmsh.initialize()
+    gmsh_initialize(gmsh)
     gmsh.option.setNumber("General.Terminal", 0)
     previous = gmsh.model.getCurrent()
     name = f"dolfinx_feti_read_{path.stem}"
@@ -162,6 +167,13 @@ def _extract(source, gdim: int | None) -> MeshData:
         gmsh.model.remove()
         if previous in gmsh.model.list():
             gmsh.model.setCurrent(previous)
+
+
+def gmsh_initialize(gmsh) -> None:
+    """:func:`dolfinx_feti.compat.gmsh_initialize` (imported here only when gmsh is used)."""
+    from ..compat import gmsh_initialize as initialize
+
+    initialize(gmsh)
 
 
 def check_msh_file(path: Path) -> tuple[int, int] | None:
@@ -204,16 +216,25 @@ def _check_what_gmsh_kept(gmsh, path: Path, declared: tuple[int, int] | None,
                           log: list[str]) -> None:
     """Refuse a mesh file whose data gmsh repaired or dropped silently.
 
-    gmsh skips a node whose tag repeats (with a warning) and, in version 2 files, keeps one of
-    two elements with the same tag (without one): the mesh read would not be the one written.
+    gmsh skips a node whose tag repeats (with a warning in version 2 files, a mere "Info" line
+    in version 4 files, where it still lists the node twice with the first coordinates: one
+    node silently moved) and, in version 2 files, keeps one of two elements with the same tag
+    (without a word): the mesh read would not be the one written.
     """
-    bad = [line for line in log if line.startswith(("Warning", "Error"))]
+    bad = [line for line in log if line.startswith(("Warning", "Error"))
+           or "duplicate" in line.lower()]
     if bad:
         raise InputError(f"{path}: malformed mesh data: gmsh says {bad[0]!r}"
                          + (f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""))
+    tags = gmsh.model.mesh.getNodes()[0]
+    nodes = tags.size
+    uniq, count = np.unique(tags, return_counts=True)
+    if uniq.size != nodes:
+        raise InputError(f"{path}: malformed mesh data: node tag {int(uniq[count > 1][0])} is "
+                         f"given {int(count.max())} times ({int((count > 1).sum())} repeated "
+                         "tags); gmsh keeps one position for it")
     if declared is None:
         return
-    nodes = gmsh.model.mesh.getNodes()[0].size
     elements = sum(t.size for t in gmsh.model.mesh.getElements()[1])
     if (nodes, elements) != declared:
         raise InputError(f"{path}: malformed mesh data: the file declares {declared[0]} nodes and "

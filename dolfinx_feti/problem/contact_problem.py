@@ -523,11 +523,13 @@ class ContactProblem:
         if self.mesh.part is not None:  # rank 0 checked the whole mesh at input
             _check_verdicts(self.mesh.part.verdicts, self, contact_groups)
         elif self.mesh.root_only is None:
+            _check_distinct_surfaces(self.mesh, [*self.contact, *self.ties])
             _check_mesh(self.mesh, contact_groups, self.forms)
         else:  # collective on the mesh's ranks: rank 0 holds the arrays
             comm, points = self.mesh.root_only, None
             with collective(comm, "mesh"):
                 if self.mesh.holds_arrays:
+                    _check_distinct_surfaces(self.mesh, [*self.contact, *self.ties])
                     _check_mesh(self.mesh, contact_groups, self.forms)
                     points = self.dof_points.num_points
             points = comm.bcast(points, root=0)
@@ -593,6 +595,24 @@ def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
     if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
         raise InputError(f"{what} {c.slave!r}/{c.master!r}: search_distance must be a finite "
                          f"number > 0, got {d!r}")
+
+
+def _check_distinct_surfaces(mesh: MeshData, pairs) -> None:
+    """The two groups of a pair are two surfaces, not one surface under two names.
+
+    Two physical groups may hold the same facets (a group named twice, e.g. "contact" and
+    "top"); a pair of them is no interface, and each later check would name another cause.
+    """
+    for c in pairs:
+        if len(c.groups) != 2 or c.groups[0] == c.groups[1]:  # an obstacle; self-contact
+            continue
+        a = np.unique(np.sort(mesh.facets(c.groups[0]), axis=1), axis=0)
+        b = np.unique(np.sort(mesh.facets(c.groups[1]), axis=1), axis=0)
+        if a.shape == b.shape and np.array_equal(a, b):
+            kind = "tie" if isinstance(c, Tie) else "contact pair"
+            raise InputError(f"{kind} {c.slave!r} (slave) / {c.master!r} (master): the two "
+                             f"groups hold the same {a.shape[0]} facets (one surface under two "
+                             "names); an interface needs the surfaces of its two sides")
 
 
 def check_dimensions(problem: ContactProblem) -> None:

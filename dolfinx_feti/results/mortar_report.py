@@ -47,6 +47,7 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
     for info in infos:
         summary = info.summary()
         summaries.append(summary)
+        warnings.extend(info.warnings)  # found by the search, before the solve
         if info.tie:
             continue
         name = f"mortar contact {info.slave!r} (slave) / {info.master!r} (master)"

@@ -54,8 +54,8 @@ nodal_values = "p_nodal.npz"
 pressure_plot = { surface = "block_bottom", along = "x" }
 """
 
-EXIT = {"problem file": 2, "mesh": 2, "output folder": 1, "decomposition": 1, "constraints": 1,
-        "friction": 1, "assembly": 1, "factorization": 1, "outputs": 1}
+EXIT = {"problem file": 2, "options": 1, "mesh": 2, "output folder": 1, "decomposition": 1,
+        "constraints": 1, "friction": 1, "assembly": 1, "factorization": 1, "outputs": 1}
 
 
 @pytest.fixture
