@@ -24,6 +24,7 @@ split of the cells, and no rank ever holds an array of the size of the whole mes
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -49,6 +50,22 @@ from .topology import cell_volumes, reference, row_keys
 #: The number of sample points that all ranks together propose per selection round (bounds
 #: the data of a round; each work item gets at most 64 per rank).
 _SAMPLES_PER_ROUND = 2**15
+
+
+@dataclass(frozen=True)
+class BlockLabels:
+    """This rank's labels of its cells, given (a block of a whole mesh).
+
+    The labels of the whole mesh's decomposition that rank 0 ran (PT-Scotch's parts, a
+    :class:`~.decompose.ByFunction` labeller's labels), cut with the blocks. The pieces of
+    equal label are the subdomains, as for ``ByFunction``, without the midpoints a labeller
+    would be called on.
+
+    Attributes:
+        label: One integer label per local cell.
+    """
+
+    label: np.ndarray
 
 
 def rcb_distributed(points: np.ndarray, ids: np.ndarray, n: int, comm: MPI.Comm,
@@ -471,6 +488,8 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
             weights = np.abs(cell_volumes(cell_x.reshape(-1, gdim), local, cell_type))
         part = _rcb_forest(_midpoints(cell_x), cell_ids, cell_body, np.array(parts), comm, weights)
         label = cell_body.astype(np.int64) * (1 << 32) + part
+    elif isinstance(how, BlockLabels):
+        label = how.label
     elif isinstance(how, ByFunction):
         label = np.zeros(0, dtype=np.int64)
         with collective(comm, "decomposition"):
@@ -510,4 +529,5 @@ def labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     return label
 
 
-__all__ = ["decompose_distributed", "labels_of", "rcb_distributed", "split_components_distributed"]
+__all__ = ["BlockLabels", "decompose_distributed", "labels_of", "rcb_distributed",
+           "split_components_distributed"]
