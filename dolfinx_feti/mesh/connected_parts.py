@@ -86,8 +86,8 @@ def merge_plan(size: np.ndarray, label: np.ndarray, body: np.ndarray,
 
 
 def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int,
-                whole: np.ndarray | None = None, cell_ids: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                whole: np.ndarray | None = None, cell_ids: np.ndarray | None = None,
+                alone: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The facets of a rank's cells: the local pairs, the single ones and their vertices.
 
     Args:
@@ -101,6 +101,8 @@ def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int,
             the same: the whole mesh's sorted facets restricted to the rank's cells are
             those cells' facets sorted stably, the cells being numbered in the same order.
         cell_ids: With ``whole``, the rank's cells among them (ascending).
+        alone: The rank is the only one (no facet is shared with another rank): the single
+            facets and their vertices are not needed (returned empty).
 
     Returns:
         ``(pairs, single, outer)``: the pairs of local cells sharing a facet (as
@@ -125,6 +127,8 @@ def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int,
             keys, order = keys[keep], at[keep] * nf + order[keep] % nf
     same = keys[1:] == keys[:-1]
     pairs = np.stack([order[:-1][same] // nf, order[1:][same] // nf], axis=1)
+    if alone:
+        return pairs, np.zeros(nc * nf, dtype=bool), np.zeros((0, len(ref.facets[0])), np.int64)
     single = np.ones(nc * nf, dtype=bool)
     single[order[:-1][same]] = single[order[1:][same]] = False
     f = np.flatnonzero(single)
@@ -203,7 +207,7 @@ def merge_fragments_distributed(cells: np.ndarray, cell_ids: np.ndarray, cell_su
     comm.Allreduce(MPI.IN_PLACE, piece_label, op=MPI.MAX)
     comm.Allreduce(MPI.IN_PLACE, piece_body, op=MPI.MAX)
     # the facets between pieces: within this rank, and across ranks met at a directory rank
-    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids)
+    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids, comm.size == 1)
     nf, nvf = len(reference(cells, cell_type).facets), outer.shape[1]
     local = _pair_counts(sub[pairs[:, 0]], sub[pairs[:, 1]], max(npiece, 1))
     remote = np.zeros((0, 3), dtype=np.int64)

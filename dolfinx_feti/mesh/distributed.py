@@ -167,6 +167,11 @@ _SPREAD = {2: ((16, 0x0000FFFF0000FFFF), (8, 0x00FF00FF00FF00FF), (4, 0x0F0F0F0F
                (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249))}
 
 
+def _rows(a: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """``a[rows]``; ``a`` itself for all its rows (None)."""
+    return a if rows is None else a[rows]
+
+
 def _spread(q: np.ndarray, dim: int) -> np.ndarray:
     """Bit b of each 21-bit ``q`` moved to bit b · dim (a few shifts and masks per array)."""
     if dim not in _SPREAD:
@@ -255,14 +260,20 @@ def _blocks(mesh: MeshData | None, comm: MPI.Comm, checks, replicated: bool,
                 used[mesh.cells[cells]] = True
                 ids = np.flatnonzero(used)
                 index[ids] = np.arange(ids.size)
-                return {"x": mesh.x[ids], "cells": index[mesh.cells[cells]],
-                        "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids],
+                if cells.size == mesh.num_cells and ids.size == mesh.num_nodes and \
+                        mesh.cells.dtype == index.dtype:
+                    cells = ids = None  # the whole mesh, numbered as it is: no copies
+                return {"x": _rows(mesh.x, ids),
+                        "cells": mesh.cells if cells is None else index[mesh.cells[cells]],
+                        "cell_body": _rows(mesh.cell_body, cells),
+                        "node_tags": _rows(mesh.node_tags, ids),
                         "facets": {n: index[f[facet_rank[n] == r]]
                                    for n, f in mesh.facet_groups.items()},
-                        "vertex_ids": ids, "cell_ids": cells,
+                        "vertex_ids": np.arange(mesh.num_nodes) if ids is None else ids,
+                        "cell_ids": np.arange(mesh.num_cells) if cells is None else cells,
                         "facet_index": {n: np.flatnonzero(facet_rank[n] == r)
                                         for n in mesh.facet_groups},
-                        "arrays": {k: a[cells] for k, a in cell_arrays.items()}}
+                        "arrays": {k: _rows(a, cells) for k, a in cell_arrays.items()}}
 
         if comm.rank == 0:
             found = checks(mesh)

@@ -392,7 +392,7 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm, whole=None):
     """
     nc = cells.shape[0]
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
-    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids)
+    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids, comm.size == 1)
     nf, nvf = len(reference(cells, cell_type).facets), outer.shape[1]
     pairs = pairs[label[pairs[:, 0]] == label[pairs[:, 1]]]
     graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(nc, nc))
