@@ -114,7 +114,7 @@ def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int,
     ref = reference(cells, cell_type)
     nf = len(ref.facets)
     if whole is None:
-        keys = row_keys(cell_facets(cells, cell_type).reshape(nc * nf, -1), nv)
+        keys = row_keys(cell_facets(cells, cell_type).reshape(nc * nf, len(ref.facets[0])), nv)
         order = np.argsort(keys, kind="stable")
         keys = keys[order]
     else:

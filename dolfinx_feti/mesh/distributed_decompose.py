@@ -397,7 +397,7 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm, whole=None):
     pairs = pairs[label[pairs[:, 0]] == label[pairs[:, 1]]]
     graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(nc, nc))
     npiece, piece = connected_components(graph, directed=False) if nc else (0, np.zeros(0, int))
-    if np.all(ids[1:] > ids[:-1]):  # cells in id order (blocks are): the first is the least
+    if nc and np.all(ids[1:] > ids[:-1]):  # cells in id order (blocks are): the first is the least
         first = ids[first_of_each(piece, npiece)]
     else:
         first = np.full(npiece, np.iinfo(np.int64).max)
