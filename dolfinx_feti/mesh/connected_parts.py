@@ -28,7 +28,7 @@ from mpi4py import MPI
 from scipy.sparse.csgraph import connected_components
 
 from ..parallel.exchange import Blocks, exchange
-from .topology import cell_facets, facet_neighbours, reference, row_keys
+from .topology import cell_facets, facet_index, facet_neighbours, reference, row_keys
 
 #: A piece other than its part's largest is kept when it holds at least this fraction of the
 #: body's mean part size (cells).
@@ -85,27 +85,55 @@ def merge_plan(size: np.ndarray, label: np.ndarray, body: np.ndarray,
     return rank[group]
 
 
-def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The facets of a rank's cells: sorted vertices, the local pairs, the single ones.
+def rank_facets(cells: np.ndarray, cell_type: str | None, nv: int,
+                whole: np.ndarray | None = None, cell_ids: np.ndarray | None = None,
+                alone: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The facets of a rank's cells: the local pairs, the single ones and their vertices.
+
+    Args:
+        cells: The rank's cells in global vertex numbers.
+        cell_type: The cells' type (None: simplices).
+        nv: A bound of the vertex numbers.
+        whole: The whole mesh's cells, when this rank holds them (a mesh read whole): the
+            facets are then taken
+            in the order of the whole mesh's facet index (:func:`.topology.facet_index`,
+            which the mesh checks leave cached) instead of being sorted again. The order is
+            the same: the whole mesh's sorted facets restricted to the rank's cells are
+            those cells' facets sorted stably, the cells being numbered in the same order.
+        cell_ids: With ``whole``, the rank's cells among them (ascending).
+        alone: The rank is the only one (no facet is shared with another rank): the single
+            facets and their vertices are not needed (returned empty).
 
     Returns:
-        ``(facets, pairs, single)``: every cell's facets (row ``cell * nf + j``, vertices
-        sorted), the pairs of local cells sharing a facet (as
-        :func:`.topology.facet_neighbours`), and whether each facet has no second local cell
-        (the other cell, if any, is on another rank).
+        ``(pairs, single, outer)``: the pairs of local cells sharing a facet (as
+        :func:`.topology.facet_neighbours`), whether each facet (row ``cell * nf + j``) has
+        no second local cell (the other cell, if any, is on another rank), and the sorted
+        vertices of those single facets, in the order of their rows.
     """
     nc = cells.shape[0]
     ref = reference(cells, cell_type)
-    nf, nvf = len(ref.facets), len(ref.facets[0])
-    facets = np.sort(cell_facets(cells, cell_type).reshape(nc * nf, nvf), axis=1)
-    keys = row_keys(facets, nv)
-    order = np.argsort(keys, kind="stable")
-    same = keys[order][1:] == keys[order][:-1]
+    nf = len(ref.facets)
+    if whole is None:
+        keys = row_keys(cell_facets(cells, cell_type).reshape(nc * nf, len(ref.facets[0])), nv)
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
+    else:
+        keys, order, _ = facet_index(whole, cell_type)
+        if nc < whole.shape[0]:  # the rank's facets, renumbered by its cells
+            local = np.full(whole.shape[0], -1, dtype=np.int64)
+            local[cell_ids] = np.arange(nc)
+            at = local[order // nf]
+            keep = at >= 0
+            keys, order = keys[keep], at[keep] * nf + order[keep] % nf
+    same = keys[1:] == keys[:-1]
     pairs = np.stack([order[:-1][same] // nf, order[1:][same] // nf], axis=1)
+    if alone:
+        return pairs, np.zeros(nc * nf, dtype=bool), np.zeros((0, len(ref.facets[0])), np.int64)
     single = np.ones(nc * nf, dtype=bool)
     single[order[:-1][same]] = single[order[1:][same]] = False
-    return facets, pairs, single
+    f = np.flatnonzero(single)
+    outer = np.sort(cells[(f // nf)[:, None], np.array(ref.facets)[f % nf]], axis=1)
+    return pairs, single, outer
 
 
 def _pair_counts(a: np.ndarray, b: np.ndarray, npiece: int) -> np.ndarray:
@@ -140,7 +168,8 @@ def merge_fragments(cells: np.ndarray, cell_sub: np.ndarray, label: np.ndarray,
 
 def merge_fragments_distributed(cells: np.ndarray, cell_ids: np.ndarray, cell_sub: np.ndarray,
                                 label: np.ndarray, cell_body: np.ndarray,
-                                cell_type: str | None, comm: MPI.Comm) -> np.ndarray:
+                                cell_type: str | None, comm: MPI.Comm,
+                                whole: np.ndarray | None = None) -> np.ndarray:
     """:func:`merge_fragments` on a mesh spread over the ranks (collective).
 
     Args:
@@ -151,6 +180,7 @@ def merge_fragments_distributed(cells: np.ndarray, cell_ids: np.ndarray, cell_su
         cell_body: Their bodies.
         cell_type: The cells' type.
         comm: The ranks holding the cells.
+        whole: The whole mesh's cells, if this rank holds them (:func:`rank_facets`).
 
     Returns:
         The subdomain of each local cell: ``merge_fragments(all …)[cell_ids]``.
@@ -177,17 +207,19 @@ def merge_fragments_distributed(cells: np.ndarray, cell_ids: np.ndarray, cell_su
     comm.Allreduce(MPI.IN_PLACE, piece_label, op=MPI.MAX)
     comm.Allreduce(MPI.IN_PLACE, piece_body, op=MPI.MAX)
     # the facets between pieces: within this rank, and across ranks met at a directory rank
-    facets, pairs, single = rank_facets(cells, cell_type, nv)
-    nf, nvf = len(reference(cells, cell_type).facets), facets.shape[1]
+    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids, comm.size == 1)
+    nf, nvf = len(reference(cells, cell_type).facets), outer.shape[1]
     local = _pair_counts(sub[pairs[:, 0]], sub[pairs[:, 1]], max(npiece, 1))
-    f = np.flatnonzero(single)
-    home = Blocks(nv, comm.size).home(facets[f].sum(axis=1) % max(nv, 1))
-    (got,), _, _, _ = exchange(comm, home, np.column_stack([facets[f], sub[f // nf]]))
-    gkeys = row_keys(got[:, :nvf], nv)
-    gorder = np.argsort(gkeys, kind="stable")
-    gsame = gkeys[gorder][1:] == gkeys[gorder][:-1]
-    remote = _pair_counts(got[gorder[:-1][gsame], nvf], got[gorder[1:][gsame], nvf],
-                          max(npiece, 1))
+    remote = np.zeros((0, 3), dtype=np.int64)
+    if comm.size > 1:  # one rank holds both cells of each of its facets
+        home = Blocks(nv, comm.size).home(outer.sum(axis=1) % max(nv, 1))
+        (got,), _, _, _ = exchange(comm, home,
+                                   np.column_stack([outer, sub[np.flatnonzero(single) // nf]]))
+        gkeys = row_keys(got[:, :nvf], nv)
+        gorder = np.argsort(gkeys, kind="stable")
+        gsame = gkeys[gorder][1:] == gkeys[gorder][:-1]
+        remote = _pair_counts(got[gorder[:-1][gsame], nvf], got[gorder[1:][gsame], nvf],
+                              max(npiece, 1))
     every = np.concatenate(comm.allgather(np.concatenate([local, remote])))
     keys, inv = np.unique(every[:, 0] * max(npiece, 1) + every[:, 1], return_inverse=True)
     counts = np.bincount(inv.ravel(), weights=every[:, 2]).astype(np.int64)

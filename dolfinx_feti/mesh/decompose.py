@@ -231,12 +231,20 @@ def _split_components(cells: np.ndarray, label: np.ndarray,
     return renumber[comp].astype(np.int32)
 
 
+def pair_keys(cell_sub: np.ndarray, cell_points: np.ndarray, n: int) -> np.ndarray:
+    """The distinct (subdomain, point) pairs of the cells, as sorted keys ``sub * n + point``.
+
+    ``np.unique`` of the keys, column by column: each column gives sorted runs, which a
+    stable sort merges faster than a sort of the whole.
+    """
+    keys = np.sort((cell_sub.astype(np.int64) * n + cell_points.T).ravel(), kind="stable")
+    return keys[np.r_[True, keys[1:] != keys[:-1]]] if keys.size else keys
+
+
 def _build(mesh: MeshData, cell_sub: np.ndarray, comm_size: int, cell_points: np.ndarray,
            N: int) -> Decomposition:
     nsub = int(cell_sub.max()) + 1
-    # column by column: sorted runs, which a stable sort merges fast
-    keys = np.sort((cell_sub.astype(np.int64) * N + cell_points.T).ravel(), kind="stable")
-    keys = keys[np.r_[True, keys[1:] != keys[:-1]]] if keys.size else keys
+    keys = pair_keys(cell_sub, cell_points, N)
     pair_sub = (keys // N).astype(np.int32)
     pair_node = keys % N
     sub_ptr = np.searchsorted(pair_sub, np.arange(nsub + 1)).astype(np.int64)

@@ -100,6 +100,9 @@ class MeshPart:
         verdicts: Rank 0's checks of the whole mesh (:class:`Verdicts`).
         facet_index: Group → the position of each local facet in the whole group (the
             file's order, which the contact rows follow).
+        whole_cells: The whole mesh's cells, when this rank holds the whole mesh (a mesh read
+            whole, :func:`block_of`): the facet index the mesh checks cached for them serves
+            the block (:func:`.connected_parts.rank_facets`). None for a distributed read.
     """
 
     comm: MPI.Comm
@@ -108,6 +111,7 @@ class MeshPart:
     group_sizes: dict[str, int]
     verdicts: Verdicts
     facet_index: dict[str, np.ndarray]
+    whole_cells: np.ndarray | None = None
 
 
 def verdicts(mesh: MeshData) -> Verdicts:
@@ -163,6 +167,11 @@ _SPREAD = {2: ((16, 0x0000FFFF0000FFFF), (8, 0x00FF00FF00FF00FF), (4, 0x0F0F0F0F
                (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249))}
 
 
+def _rows(a: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """``a[rows]``; ``a`` itself for all its rows (None)."""
+    return a if rows is None else a[rows]
+
+
 def _spread(q: np.ndarray, dim: int) -> np.ndarray:
     """Bit b of each 21-bit ``q`` moved to bit b · dim (a few shifts and masks per array)."""
     if dim not in _SPREAD:
@@ -214,16 +223,17 @@ def block_of(mesh: MeshData, comm: MPI.Comm, cell_arrays: dict | None = None,
 
     return _blocks(mesh if mesh.holds_arrays else None, comm, found,
                    replicated=mesh.root_only is None, cell_arrays=cell_arrays,
-                   midpoints=midpoints)
+                   midpoints=midpoints, keep_whole=True)
 
 
 def _blocks(mesh: MeshData | None, comm: MPI.Comm, checks, replicated: bool,
-            cell_arrays: dict | None = None, midpoints: np.ndarray | None = None
-            ) -> tuple[MeshData, dict]:
+            cell_arrays: dict | None = None, midpoints: np.ndarray | None = None,
+            keep_whole: bool = False) -> tuple[MeshData, dict]:
     """The blocks of :func:`scatter_mesh` and :func:`block_of`.
 
     Planned on rank 0 (on every rank if ``replicated``), cut locally (``replicated``) or
-    handed out; ``checks(mesh)`` gives rank 0's verdicts.
+    handed out; ``checks(mesh)`` gives rank 0's verdicts. ``keep_whole``: the ranks holding
+    the whole mesh keep a reference to its cells (``MeshPart.whole_cells``).
     """
     common = make = None
     cell_arrays = cell_arrays or {}
@@ -250,14 +260,20 @@ def _blocks(mesh: MeshData | None, comm: MPI.Comm, checks, replicated: bool,
                 used[mesh.cells[cells]] = True
                 ids = np.flatnonzero(used)
                 index[ids] = np.arange(ids.size)
-                return {"x": mesh.x[ids], "cells": index[mesh.cells[cells]],
-                        "cell_body": mesh.cell_body[cells], "node_tags": mesh.node_tags[ids],
+                if cells.size == mesh.num_cells and ids.size == mesh.num_nodes and \
+                        mesh.cells.dtype == index.dtype:
+                    cells = ids = None  # the whole mesh, numbered as it is: no copies
+                return {"x": _rows(mesh.x, ids),
+                        "cells": mesh.cells if cells is None else index[mesh.cells[cells]],
+                        "cell_body": _rows(mesh.cell_body, cells),
+                        "node_tags": _rows(mesh.node_tags, ids),
                         "facets": {n: index[f[facet_rank[n] == r]]
                                    for n, f in mesh.facet_groups.items()},
-                        "vertex_ids": ids, "cell_ids": cells,
+                        "vertex_ids": np.arange(mesh.num_nodes) if ids is None else ids,
+                        "cell_ids": np.arange(mesh.num_cells) if cells is None else cells,
                         "facet_index": {n: np.flatnonzero(facet_rank[n] == r)
                                         for n in mesh.facet_groups},
-                        "arrays": {k: a[cells] for k, a in cell_arrays.items()}}
+                        "arrays": {k: _rows(a, cells) for k, a in cell_arrays.items()}}
 
         if comm.rank == 0:
             found = checks(mesh)
@@ -269,7 +285,8 @@ def _blocks(mesh: MeshData | None, comm: MPI.Comm, checks, replicated: bool,
     names = common["names"]
     part = MeshPart(comm=comm, vertex_ids=p["vertex_ids"], cell_ids=p["cell_ids"],
                     group_sizes=common["sizes"], verdicts=common["verdicts"],
-                    facet_index=p["facet_index"])
+                    facet_index=p["facet_index"],
+                    whole_cells=mesh.cells if keep_whole and mesh is not None else None)
     return replace(names, x=p["x"], cells=p["cells"], cell_body=p["cell_body"],
                    node_tags=p["node_tags"], facet_groups=p["facets"], part=part,
                    counts=dict(names.counts)), p["arrays"]

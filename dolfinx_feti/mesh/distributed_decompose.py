@@ -24,6 +24,7 @@ split of the cells, and no rank ever holds an array of the size of the whole mes
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -35,12 +36,36 @@ from ..parallel.distributed_graph import component_minima
 from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
 from .auto_parts import BALANCE, Auto, auto_parts
 from .connected_parts import merge_fragments_distributed, rank_facets
-from .decompose import ByFunction, ByTags, Parts, fixed_point_weights, weight_target
+from .decompose import (
+    ByFunction,
+    ByTags,
+    Parts,
+    first_of_each,
+    fixed_point_weights,
+    midpoints_of,
+    weight_target,
+)
 from .topology import cell_volumes, reference, row_keys
 
 #: The number of sample points that all ranks together propose per selection round (bounds
 #: the data of a round; each work item gets at most 64 per rank).
 _SAMPLES_PER_ROUND = 2**15
+
+
+@dataclass(frozen=True)
+class BlockLabels:
+    """This rank's labels of its cells, given (a block of a whole mesh).
+
+    The labels of the whole mesh's decomposition that rank 0 ran (PT-Scotch's parts, a
+    :class:`~.decompose.ByFunction` labeller's labels), cut with the blocks. The pieces of
+    equal label are the subdomains, as for ``ByFunction``, without the midpoints a labeller
+    would be called on.
+
+    Attributes:
+        label: One integer label per local cell.
+    """
+
+    label: np.ndarray
 
 
 def rcb_distributed(points: np.ndarray, ids: np.ndarray, n: int, comm: MPI.Comm,
@@ -327,11 +352,12 @@ def split_components_distributed(cells: np.ndarray, cell_ids: np.ndarray, label:
     return _split(cells, cell_ids, label, cell_type, comm)[0]
 
 
-def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
+def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None, whole=None):
     """:func:`split_components_distributed`, and the first cell of each local cell's piece.
 
     ``stats``, if given, receives the rounds of the search across ranks
-    (:func:`.distributed_graph.component_minima`).
+    (:func:`.distributed_graph.component_minima`); ``whole``: the whole mesh's cells if this
+    rank holds them (:func:`.connected_parts.rank_facets`).
     """
     cells = np.asarray(cells, dtype=np.int64)
     ids = np.asarray(cell_ids, dtype=np.int64)
@@ -341,7 +367,7 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
                      dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, bound, op=MPI.MAX)
     nv, num = int(bound[0]), int(bound[1] if num_cells is None else num_cells)
-    piece, first, edges = _pieces_and_links(cells, ids, label, cell_type, nv, comm)
+    piece, first, edges = _pieces_and_links(cells, ids, label, cell_type, nv, comm, whole)
     # the pieces joined across ranks: each takes the smallest first cell of its component
     first = component_minima(comm, first, edges, stats)
     # number the pieces by their first cell: a directory of the cell ids
@@ -355,7 +381,7 @@ def _split(cells, cell_ids, label, cell_type, comm, num_cells=None, stats=None):
     return sub[piece].astype(np.int32), first[piece]
 
 
-def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
+def _pieces_and_links(cells, ids, label, cell_type, nv, comm, whole=None):
     """The pieces of equal label of this rank's cells and the links between pieces of ranks.
 
     Returns:
@@ -366,21 +392,25 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
     """
     nc = cells.shape[0]
     # the pieces of the local cells (facet pairs as in topology.facet_neighbours)
-    facets, pairs, single = rank_facets(cells, cell_type, nv)
-    nf, nvf = len(reference(cells, cell_type).facets), facets.shape[1]
+    pairs, single, outer = rank_facets(cells, cell_type, nv, whole, ids, comm.size == 1)
+    nf, nvf = len(reference(cells, cell_type).facets), outer.shape[1]
     pairs = pairs[label[pairs[:, 0]] == label[pairs[:, 1]]]
     graph = sp.coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(nc, nc))
     npiece, piece = connected_components(graph, directed=False) if nc else (0, np.zeros(0, int))
-    first = np.full(npiece, np.iinfo(np.int64).max)
-    np.minimum.at(first, piece, ids)
+    if nc and np.all(ids[1:] > ids[:-1]):  # cells in id order (blocks are): the first is the least
+        first = ids[first_of_each(piece, npiece)]
+    else:
+        first = np.full(npiece, np.iinfo(np.int64).max)
+        np.minimum.at(first, piece, ids)
     offset = exclusive_scan(comm, npiece)
+    if comm.size == 1:  # both cells of every facet are here
+        return piece, first, np.zeros((0, 2), dtype=np.int64)
     # facets of one local cell: the other cell, if any, is on another rank; meet at the rank
     # that keeps the sum of their vertices modulo nv in a directory (their smallest vertex
     # would send most facets to the first ranks: the least of a few numbers is small)
-    f = np.flatnonzero(single)
-    c = f // nf
-    rows = np.column_stack([facets[f], label[c], ids[c], offset + piece[c]])
-    home = Blocks(nv, comm.size).home(facets[f].sum(axis=1) % max(nv, 1))
+    c = np.flatnonzero(single) // nf
+    rows = np.column_stack([outer, label[c], ids[c], offset + piece[c]])
+    home = Blocks(nv, comm.size).home(outer.sum(axis=1) % max(nv, 1))
     (got,), _, _, _ = exchange(comm, home, rows)
     _, inv = np.unique(row_keys(got[:, :nvf], nv), return_inverse=True)
     got = got[np.lexsort((got[:, nvf + 1], inv.ravel()))]
@@ -392,7 +422,8 @@ def _pieces_and_links(cells, ids, label, cell_type, nv, comm):
 
 def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.ndarray,
                           cell_body: np.ndarray, cell_type: str, body_names: tuple[str, ...],
-                          num_cells: int, how, comm: MPI.Comm) -> tuple[np.ndarray, np.ndarray]:
+                          num_cells: int, how, comm: MPI.Comm, whole: np.ndarray | None = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
     """The subdomains of :func:`.decompose.decompose` on a distributed mesh (collective).
 
     Args:
@@ -406,6 +437,9 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
         how: :class:`~.decompose.ByTags`, :class:`~.decompose.Parts` (method "rcb") or
             :class:`~.decompose.ByFunction` (called on every rank with its cells' midpoints).
         comm: The ranks holding the cells.
+        whole: The whole mesh's cells, if this rank holds them (a mesh read whole): the
+            pieces then start from its cached facet index
+            (:func:`.connected_parts.rank_facets`).
 
     Returns:
         ``(cell_sub, sub_body)``: the subdomain of each local cell and the body of every
@@ -419,7 +453,6 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     cell_x = np.ascontiguousarray(cell_x, dtype=np.float64)  # the layout of x[cells]
     cell_body = np.asarray(cell_body)
     nc, nvc, gdim = cell_x.shape
-    midpoints = cell_x.mean(axis=1)
     if isinstance(how, Auto):  # Parts by the cells of each body over all ranks
         count = np.bincount(cell_body, minlength=len(body_names)).astype(np.int64)
         comm.Allreduce(MPI.IN_PLACE, count, op=MPI.SUM)
@@ -453,20 +486,22 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
         if how.balance == "volume":
             local = np.arange(nc * nvc).reshape(nc, nvc)
             weights = np.abs(cell_volumes(cell_x.reshape(-1, gdim), local, cell_type))
-        part = _rcb_forest(midpoints, cell_ids, cell_body, np.array(parts), comm, weights)
+        part = _rcb_forest(_midpoints(cell_x), cell_ids, cell_body, np.array(parts), comm, weights)
         label = cell_body.astype(np.int64) * (1 << 32) + part
+    elif isinstance(how, BlockLabels):
+        label = how.label
     elif isinstance(how, ByFunction):
         label = np.zeros(0, dtype=np.int64)
         with collective(comm, "decomposition"):
             if nc:  # a rank without cells does not call the labeller
-                label = labels_of(how, midpoints)
+                label = labels_of(how, _midpoints(cell_x))
     else:
         raise InputError(f"unknown decomposition {how!r}: use Auto(), ByTags(), Parts(n) or "
                          "ByFunction(fn)")
-    cell_sub, first = _split(cells, cell_ids, label, cell_type, comm, num_cells)
+    cell_sub, first = _split(cells, cell_ids, label, cell_type, comm, num_cells, whole=whole)
     if isinstance(how, Parts) and how.merge:  # first: each cell's group's first cell is a first
         cell_sub = merge_fragments_distributed(cells, cell_ids, cell_sub, label, cell_body,
-                                               cell_type, comm)
+                                               cell_type, comm, whole)
     nsub = np.array([cell_sub.max() + 1 if nc else 0], dtype=np.int64)
     comm.Allreduce(MPI.IN_PLACE, nsub, op=MPI.MAX)
     sub_body = np.full(int(nsub[0]), -1, dtype=np.int64)
@@ -474,6 +509,12 @@ def decompose_distributed(cells: np.ndarray, cell_x: np.ndarray, cell_ids: np.nd
     sub_body[cell_sub[is_first]] = cell_body[is_first]
     comm.Allreduce(MPI.IN_PLACE, sub_body, op=MPI.MAX)
     return cell_sub, sub_body.astype(cell_body.dtype)
+
+
+def _midpoints(cell_x: np.ndarray) -> np.ndarray:
+    """The mean of each cell's vertices, bit for bit ``cell_x.mean(axis=1)``."""
+    nc, nvc, gdim = cell_x.shape
+    return midpoints_of(cell_x.reshape(-1, gdim), np.arange(nc * nvc).reshape(nc, nvc))
 
 
 def labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
@@ -488,4 +529,5 @@ def labels_of(how: ByFunction, midpoints: np.ndarray) -> np.ndarray:
     return label
 
 
-__all__ = ["decompose_distributed", "labels_of", "rcb_distributed", "split_components_distributed"]
+__all__ = ["BlockLabels", "decompose_distributed", "labels_of", "rcb_distributed",
+           "split_components_distributed"]

@@ -193,7 +193,7 @@ class SubdomainDirectory:
                         + np.tile(cell_sub.astype(np.int64), cell_points.shape[1]))
         (got,), _, _, _ = exchange(comm, self.blocks.home(key // nsub), key)
         # Home: each point's sorted subdomains (pairs sent by several ranks counted once).
-        key = _distinct(got)
+        key = got if comm.size == 1 else _distinct(got)  # one rank sent it distinct and sorted
         point, self._sub = key // nsub, key % nsub
         self.sub_size = np.bincount(self._sub, minlength=nsub).astype(np.int64)
         comm.Allreduce(MPI.IN_PLACE, self.sub_size, op=MPI.SUM)

@@ -78,22 +78,30 @@ def row_keys(a: np.ndarray, bound: int | None = None) -> np.ndarray:
     return a.view(np.dtype((np.void, a.dtype.itemsize * width))).ravel()
 
 
-_FACET_INDEX: list = []  # (cells, sorted keys, order): one mesh's facet index, kept for reuse
+# (cells, sorted keys, order, bound), the latest used first: the facet indices of the last two
+# cells arrays, kept for reuse (two: a mesh's index outlives the small meshes checked beside it,
+# such as the contact surface the set-up builds)
+_FACET_INDEX: list = []
+_FACET_INDEX_KEPT = 2
 
 
-def facet_index(cells: np.ndarray, cell_type: str | None = None
+def facet_index(cells: np.ndarray, cell_type: str | None = None, cache: bool = True
                  ) -> tuple[np.ndarray, np.ndarray, int]:
     """Sorted keys of all cell facets and their positions (cached for the last cells array).
 
-    Position p is facet ``p % nf`` of cell ``p // nf`` (nf facets per cell).
+    Position p is facet ``p % nf`` of cell ``p // nf`` (nf facets per cell). ``cache=False``
+    for a passing array (a few cells), whose index would evict a mesh's.
     """
-    if _FACET_INDEX and _FACET_INDEX[0][0] is cells:
-        return _FACET_INDEX[0][1:]
+    for i, entry in enumerate(_FACET_INDEX):
+        if entry[0] is cells:
+            _FACET_INDEX.insert(0, _FACET_INDEX.pop(i))
+            return entry[1:]
     f = cell_facets(cells, cell_type)
     bound = int(cells.max()) + 1 if cells.size else 1
     keys = row_keys(f.reshape(-1, f.shape[2]), bound)
     order = np.argsort(keys, kind="stable")
-    _FACET_INDEX[:] = [(cells, keys[order], order, bound)]
+    if cache:
+        _FACET_INDEX[:] = [(cells, keys[order], order, bound), *_FACET_INDEX][:_FACET_INDEX_KEPT]
     return keys[order], order, bound
 
 
@@ -132,18 +140,19 @@ def locate_few_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | No
     on = np.zeros(int(max(cells.max(initial=-1), facets.max(initial=-1))) + 1, dtype=bool)
     on[facets] = True
     near = np.flatnonzero(np.count_nonzero(on[cells], axis=1) >= nvf)
-    cell, local = locate_facets(cells[near], facets, cell_type)
+    cell, local = locate_facets(cells[near], facets, cell_type, cache=False)
     return np.where(cell >= 0, near[np.maximum(cell, 0)] if near.size else -1, -1), local
 
 
-def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None
-                  ) -> tuple[np.ndarray, np.ndarray]:
+def locate_facets(cells: np.ndarray, facets: np.ndarray, cell_type: str | None = None,
+                  cache: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """For each given facet, one cell containing it and the local index of the facet in that cell.
 
     Returns ``(cell, local)``; both are -1 for a facet that is no facet of any cell.
+    ``cache``: as :func:`facet_index`.
     """
     nf = facets_per_cell(cells, cell_type)
-    sorted_keys, order, bound = facet_index(cells, cell_type)
+    sorted_keys, order, bound = facet_index(cells, cell_type, cache)
     facets = np.asarray(facets)
     if facets.size and facets.max() >= bound:
         return np.full(facets.shape[0], -1), np.full(facets.shape[0], -1)

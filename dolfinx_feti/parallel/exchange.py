@@ -22,6 +22,10 @@ def exchange(comm: MPI.Comm, dest: np.ndarray, *arrays: np.ndarray):
         their order), and the send order and the send and receive counts (to :func:`answer`).
     """
     dest = np.asarray(dest, dtype=np.int64)
+    if comm.size == 1 and not np.any(dest):  # every row to this rank, in its order: copies
+        counts = np.array([dest.size], dtype=np.int64)
+        return ([np.array(a, dtype=np.asarray(a).dtype.newbyteorder("=")) for a in arrays],
+                np.arange(dest.size), counts, counts.copy())
     order = np.argsort(dest, kind="stable")
     counts = np.bincount(dest, minlength=comm.size).astype(np.int64)
     rcounts = np.empty_like(counts)

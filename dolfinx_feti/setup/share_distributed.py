@@ -30,6 +30,7 @@ from ..constraints.distributed_rows import dirichlet_mask_distributed, own_rows,
 from ..constraints.friction import friction_data
 from ..constraints.rows import Rows
 from ..errors import InputError, collective
+from ..mesh.decompose import pair_keys
 from ..mesh.distributed_decompose import decompose_distributed
 from ..mesh.distributed_points import (
     SubdomainDirectory,
@@ -90,7 +91,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None, whole=
     with timer.phase("decomposition"):
         cell_sub, sub_body = decompose_distributed(
             cells, cell_x, part.cell_ids, mesh.cell_body, mesh.cell_type, mesh.body_names,
-            mesh.num_cells, problem.decomposition, comm)
+            mesh.num_cells, problem.decomposition, comm, whole=part.whole_cells)
     with timer.phase("distribution"):
         cell_points, num_points, first = number_points(cells, mesh.cell_type, problem.degree,
                                                        mesh.num_nodes, comm)
@@ -109,7 +110,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None, whole=
             mesh, cells, cell_x, cell_body, tags, cell_points, first, problem.degree, whole)
         local_points = points.cell_points
         subs = np.flatnonzero(sub_rank == comm.rank)
-        keys = np.unique(cell_sub.astype(np.int64)[:, None] * pids.size + local_points)
+        keys = pair_keys(cell_sub, local_points, pids.size)
         pair_sub, pair_node = keys // pids.size, keys % pids.size
         pair_ptr = np.searchsorted(pair_sub, np.r_[subs, subs[-1] + 1] if subs.size else [0])
         ptr, node_subs = directory.ask(pids)

@@ -27,7 +27,7 @@ from ..errors import collective
 from ..mesh.data import answered_by_root
 from ..mesh.decompose import ByFunction, Parts, decompose, midpoints_of
 from ..mesh.distributed import block_of
-from ..mesh.distributed_decompose import labels_of
+from ..mesh.distributed_decompose import BlockLabels, labels_of
 from ..problem.contact_problem import ContactProblem
 from ..timing import Timer
 
@@ -62,7 +62,8 @@ def as_blocks(problem: ContactProblem, comm: MPI.Comm, timer: Timer
 
     Returns:
         The problem on the block (the same conditions, forms and decomposition; a
-        PT-Scotch decomposition as rank 0's labels), and for a curved mesh its
+        PT-Scotch or ByFunction decomposition as rank 0's labels,
+        :class:`~.mesh.distributed_decompose.BlockLabels`), and for a curved mesh its
         :class:`WholePoints` (None otherwise).
     """
     mesh, how = problem.mesh, problem.decomposition
@@ -83,8 +84,7 @@ def as_blocks(problem: ContactProblem, comm: MPI.Comm, timer: Timer
     view = copy.copy(problem)  # no new checks: they ran on the whole mesh
     object.__setattr__(view, "mesh", block)
     if labelled:
-        label = given["label"]
-        object.__setattr__(view, "decomposition", ByFunction(lambda midpoints: label))
+        object.__setattr__(view, "decomposition", BlockLabels(given["label"]))
     whole = None
     if mesh.high_order is not None:
         whole = WholePoints(mesh, problem.dof_points.x if mesh.holds_arrays else None,
