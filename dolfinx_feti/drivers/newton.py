@@ -97,21 +97,34 @@ class NewtonOptions:
         return opts
 
 
+def _check_obstacle(c: RigidObstacle, problem: ContactProblem) -> None:
+    """Rigid obstacles: the gap and normal of the current positions, any degree."""
+
+
+def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
+    if c.gap is not None or problem.value_size == 1:
+        raise InputError("large-deformation contact: node-to-node contact takes its gap "
+                         "from the geometry (no gap override, a vector problem)")
+    if problem.degree != 1:
+        raise InputError("large-deformation contact: node-to-node contact of degree-1 "
+                         "meshes only")
+
+
+#: The contact conditions the Newton driver takes, each with its check: the rows of the current
+#: configuration exist for these (drivers/current_rows.py). A new one is an entry here.
+NEWTON_CONDITIONS = {RigidObstacle: _check_obstacle, NodeToNode: _check_pair}
+
+
 def check_newton_problem(problem: ContactProblem) -> None:
     """Refuse by name what the Newton driver does not handle."""
     for c in problem.contact:
-        if not isinstance(c, RigidObstacle | NodeToNode):
+        check = NEWTON_CONDITIONS.get(type(c))
+        if check is None:
             raise InputError(
                 f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
                 "driver yet (rigid obstacles and node-to-node contact only: mortar contact "
                 "needs the search and the integrals on the deformed surfaces)")
-        if isinstance(c, NodeToNode) and (c.gap is not None or problem.value_size == 1):
-            raise InputError("large-deformation contact: node-to-node contact takes its gap "
-                             "from the geometry (no gap override, a vector problem)")
-    if problem.contact and any(isinstance(c, NodeToNode) for c in problem.contact) and \
-            problem.degree != 1:
-        raise InputError("large-deformation contact: node-to-node contact of degree-1 "
-                         "meshes only")
+        check(c, problem)
     for c in problem.contact:
         if c.friction is not None:
             raise InputError("large-deformation contact: friction is not supported by the "

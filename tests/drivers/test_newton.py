@@ -302,3 +302,16 @@ def test_tfeti_refuses_a_prestressed_floating_subdomain(block):
     with pytest.raises(df.SolveError, match="K K⁺ K = K fails"):
         df.solve(pressed(block, 0.2, df.NeoHookean(E, NU), df.Parts(2)), method="tfeti",
                  rtol=1e-10)
+
+
+@pytest.mark.parametrize("contact, words", [
+    (df.Mortar(slave="disk_contact", master="block_contact"), "Mortar is not supported"),
+    (df.NodeToNode(slave="disk_contact", master="block_contact", gap=0.1), "no gap override")])
+def test_conditions_newton_does_not_take_are_refused_by_name(root, contact, words):
+    mesh = df.read_gmsh(root / "meshes/hertz2d.msh")
+    problem = df.ContactProblem(
+        mesh, df.NeoHookean(200.0, 0.3),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+        contact=[contact])
+    with pytest.raises(df.InputError, match=words):
+        df.solve(problem)
