@@ -271,3 +271,21 @@ def test_solves_leave_no_petsc_garbage(hertz_mesh, capfd):
     solver.destroy()
     kept = df.solve(hertz(hertz_mesh), rtol=1e-6)  # its set-up freed, its result kept
     assert _garbage(capfd) <= 10 * MPI.COMM_WORLD.size and kept.report.converged
+
+
+def test_new_friction_values_beside_a_frictionless_condition(hertz_mesh):
+    """A new Tresca bound on one pair while another condition has no friction."""
+
+    def problem(bound):
+        far = df.RigidObstacle("load", df.Plane((0.0, 100.0), (0.0, -1.0)))  # never touched
+        return hertz(hertz_mesh, contact=[
+            df.NodeToNode(slave="disk_contact", master="block_contact",
+                          friction=df.Tresca(bound)), far])
+
+    solver = df.FetiSolver(problem(0.5), rtol=RTOL)
+    try:
+        solver.solve()
+        solver.update(problem(0.8))
+        assert_same(solver.solve(), df.solve(problem(0.8), rtol=RTOL))
+    finally:
+        solver.destroy()

@@ -42,11 +42,12 @@ def with_friction_of(data: FrictionData, old: ContactProblem, new: ContactProble
     tresca, coefficient = data.tresca.copy(), data.coefficient.copy()
     rtol, max_steps = np.inf, 0
     for i, (c_old, c_new) in enumerate(zip(old.contact, new.contact, strict=True)):
-        fr = c_new.friction
+        fr = getattr(c_new, "friction", None)
+        if fr is None:  # frictionless: no rows of its own here (the set-up's structure is kept)
+            continue
         m = spec == i
-        if fr.fixed_point() is not None:
-            r, n = fr.fixed_point()
-            rtol, max_steps = min(rtol, r), max(max_steps, n)
+        if (fixed := fr.fixed_point()) is not None:
+            rtol, max_steps = min(rtol, fixed[0]), max(max_steps, fixed[1])
         old_key, new_key = friction_key(c_old), friction_key(c_new)
         if old_key == new_key or not np.any(m):
             continue
