@@ -163,9 +163,8 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
         fr = c.friction
         tresca[m], coefficient[m] = NODAL_VALUES[type(fr)](fr, problem.dof_points.x[node],
                                                            group, area[m])
-        if fr.fixed_point() is not None:
-            r, n = fr.fixed_point()
-            rtol, max_steps = min(rtol, r), max(max_steps, n)
+        if (fixed := fr.fixed_point()) is not None:
+            rtol, max_steps = min(rtol, fixed[0]), max(max_steps, fixed[1])
     return FrictionData(rows=t, normal_row=normal_row, per_node=nt, tresca=tresca,
                         coefficient=coefficient, area=area, rtol=float(rtol),
                         max_steps=int(max_steps))

@@ -122,6 +122,7 @@ class Subdomain:
         self._facet_ids, self._facet_data = self._group_facets(
             {name: np.concatenate(parts) for name, parts in local_facets.items()})
         self._facet_tags_made = None
+        self._kept_load: LoadForm | None = None  # the last load's compiled form (load_form.py)
 
     @property
     def _ids(self) -> str:
@@ -280,9 +281,8 @@ class Subdomain:
         A load of the shape of the last one (see :mod:`~dolfinx_feti.fem.load_form`) sets the
         kept compiled form's constants; any other is built and compiled again.
         """
-        kept = getattr(self, "_kept_load", None)
-        if kept is not None and kept.matches(forms, self):
-            return self._load(None, self._perm.size, kept, forms)
+        if self._kept_load is not None and self._kept_load.matches(forms, self):
+            return self._load(None, self._perm.size, self._kept_load, forms)
         _, L = self._forms(forms, value_size)
         self._kept_load = LoadForm.of(forms, self, None if _is_zero(L) else L)
         return self._load(L, self._perm.size, self._kept_load)

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from coulomb_kkt import coulomb_violations
-from test_friction_cm import A_HERTZ, NU, E, F, H, P, half_width, load
+from test_friction_cm import A_HERTZ, F, H, P, cattaneo_problem, half_width
 from test_mortar import occ_mesh
 
 import dolfinx_feti as df
@@ -35,12 +35,7 @@ def disk_mesh():
 def near_sliding(request, disk_mesh):
     ratio = request.param
     Q = ratio * F * P
-    problem = df.ContactProblem(
-        disk_mesh, df.Elasticity(E, NU, tractions={"load": load(Q)}),
-        dirichlet=[df.Dirichlet("bottom")],
-        contact=[df.NodeToNode("disk_contact", "block_contact", friction=df.Coulomb(F))],
-        decomposition=df.Parts(2))
-    return ratio, Q, df.solve(problem, rtol=RTOL)
+    return ratio, Q, df.solve(cattaneo_problem(disk_mesh, Q), rtol=RTOL)
 
 
 def test_near_gross_sliding_converges(near_sliding):

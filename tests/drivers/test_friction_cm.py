@@ -37,16 +37,19 @@ def mesh():
     return df.build_mesh(meshes.hertz2d_full, h_contact=H)
 
 
-@pytest.fixture(scope="module", params=[0.3, 0.7])
-def case(request, mesh):
-    ratio = request.param
-    Q = ratio * F * P
-    problem = df.ContactProblem(
+def cattaneo_problem(mesh, Q: float) -> df.ContactProblem:
+    """The floating disk under (Q, −P), Coulomb friction 𝓕 on node-to-node contact."""
+    return df.ContactProblem(
         mesh, df.Elasticity(E, NU, tractions={"load": load(Q)}),
         dirichlet=[df.Dirichlet("bottom")],
         contact=[df.NodeToNode("disk_contact", "block_contact", friction=df.Coulomb(F))],
         decomposition=df.Parts(2))
-    return Q, df.solve(problem, rtol=1e-8)
+
+
+@pytest.fixture(scope="module", params=[0.3, 0.7])
+def case(request, mesh):
+    Q = request.param * F * P
+    return Q, df.solve(cattaneo_problem(mesh, Q), rtol=1e-8)
 
 
 def half_width(x, inside, h):
