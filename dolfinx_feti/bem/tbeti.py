@@ -20,7 +20,6 @@ from mpi4py import MPI
 
 from ..errors import InputError, collective
 from ..fem.assembly import SubdomainData, block_diagonal
-from ..fem.forms import Elasticity, Poisson
 from ..fem.rigid import rigid_modes
 from ..feti.chain import chain_qp
 from ..feti.system import BlockSystem
@@ -44,26 +43,43 @@ def check_problem(problem: ContactProblem) -> None:
     if problem.degree != 1:
         raise InputError("method 'tbeti' uses piecewise linear boundary elements: degree 1, "
                          f"not {problem.degree}")
-    if not isinstance(forms, (Elasticity, Poisson)):
+    describe = getattr(forms, "boundary_model", None)
+    if describe is None:
         raise InputError("method 'tbeti' needs the PDE's fundamental solution: the forms must "
                          "be df.Elasticity or df.Poisson, not a forms function")
-    if isinstance(forms, Elasticity) and forms.body_force is not None:
-        raise InputError("method 'tbeti' takes no body force (boundary elements have no "
-                         "volume terms); load the bodies by tractions, or use 'tfeti'")
-    if isinstance(forms, Poisson) and (callable(forms.source) or forms.source != 0):
-        raise InputError("method 'tbeti' takes no source term (boundary elements have no "
-                         "volume terms); load by fluxes on boundary groups, or use 'tfeti'")
+    model = describe()
+    if model.kernel not in KERNELS:
+        raise InputError(f"method 'tbeti' has no boundary operators for the fundamental "
+                         f"solution {model.kernel!r} (it has {sorted(KERNELS)})")
+    if model.volume_load is not None:
+        raise InputError(f"method 'tbeti' takes no {model.volume_load} (boundary elements have "
+                         f"no volume terms); load the bodies by {model.load_name} on boundary "
+                         "groups, or use 'tfeti'")
 
 
-def _materials(problem: ContactProblem, share) -> dict[str, np.ndarray]:
-    """Per local subdomain, the material constants of its body."""
-    forms = problem.forms
+def _laplace(bnd: Boundaries, c: dict, labels: list[str]) -> tuple[list, list, dict]:
+    ops = laplace_operators(bnd.mesh)
+    S = [k * steklov(op, lab) for k, op, lab in zip(c["k"], ops, labels, strict=True)]
+    return ops, S, {}
+
+
+def _lame(bnd: Boundaries, c: dict, labels: list[str]) -> tuple[list, list, dict]:
+    ops = lame_operators(bnd.mesh, c["mu"], c["nu"])
+    S = [steklov(op, lab) for op, lab in zip(ops, labels, strict=True)]
+    return ops, S, {"mu": c["mu"], "nu": c["nu"]}
+
+
+#: The boundary operators of each fundamental solution (``BoundaryModel.kernel``): given the
+#: boundaries, the constants per local subdomain and the subdomains' labels, the operators,
+#: the Steklov–Poincaré operators S_s and what the interior maps need.
+KERNELS = {"laplace": _laplace, "lame": _lame}
+
+
+def _constants(problem: ContactProblem, share) -> dict[str, np.ndarray]:
+    """Per local subdomain, the constants of its body's fundamental solution."""
     bodies = [problem.mesh.body_names[share.dec.sub_body[s]] for s in share.dec.subs]
-    if isinstance(forms, Poisson):
-        return {"k": np.array([forms._k[b] for b in bodies])}
-    E = np.array([forms._E[b] for b in bodies])
-    nu = np.array([forms._nu[b] for b in bodies])
-    return {"mu": E / (2 * (1 + nu)), "nu": nu}
+    return {name: np.array([float(per_body[b]) for b in bodies])
+            for name, per_body in problem.forms.boundary_model().constants.items()}
 
 
 def _evaluate(g, X: np.ndarray, bs: int, group: str) -> np.ndarray:
@@ -85,8 +101,7 @@ def _evaluate(g, X: np.ndarray, bs: int, group: str) -> np.ndarray:
 
 def load_vector(problem: ContactProblem, share, n_pairs: int) -> np.ndarray:
     """∫ g φ_i over the loaded facets of each local subdomain (P1, node-major)."""
-    bs, forms = problem.value_size, problem.forms
-    loads = forms.tractions if isinstance(forms, Elasticity) else forms.flux
+    bs, loads = problem.value_size, problem.forms.boundary_model().loads
     f = np.zeros((n_pairs, bs))
     s_q, w_q = np.polynomial.legendre.leggauss(LOAD_POINTS)
     s_q, w_q = 0.5 * (s_q + 1), 0.5 * w_q
@@ -111,22 +126,16 @@ def load_vector(problem: ContactProblem, share, n_pairs: int) -> np.ndarray:
 def boundary_operators(problem: ContactProblem, share, bnd: Boundaries
                        ) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Per local subdomain, S_s (boundary dofs) and the interior map (collective-free)."""
-    bs = problem.value_size
-    mat = _materials(problem, share)
     labels = [f"subdomain {s}" for s in share.dec.subs]
-    if bs == 1:
-        ops = laplace_operators(bnd.mesh)
-        S = [k * steklov(op, lab) for k, op, lab in zip(mat["k"], ops, labels, strict=True)]
-    else:
-        ops = lame_operators(bnd.mesh, mat["mu"], mat["nu"])
-        S = [steklov(op, lab) for op, lab in zip(ops, labels, strict=True)]
+    kernel = KERNELS[problem.forms.boundary_model().kernel]
+    ops, S, interior = kernel(bnd, _constants(problem, share), labels)
     dec = share.dec
     inner = np.ones(dec.pair_node.size, dtype=bool)
     inner[bnd.pair] = False
     ipairs = np.flatnonzero(inner)
     isub = np.repeat(np.arange(dec.subs.size), np.diff(dec.pair_ptr))[ipairs]
     X = bnd.scaled(share.points.x[dec.pair_node[ipairs], :2], isub)
-    E = interior_maps(bnd.mesh, ops, X, isub, bs, mat.get("mu"), mat.get("nu"))
+    E = interior_maps(bnd.mesh, ops, X, isub, problem.value_size, **interior)
     return S, E
 
 
@@ -191,4 +200,4 @@ def tbeti_qp(problem: ContactProblem, share, comm: MPI.Comm, factor, norm_rtol: 
     return qp
 
 
-__all__ = ["check_problem", "load_vector", "tbeti_chain", "tbeti_qp"]
+__all__ = ["KERNELS", "check_problem", "load_vector", "tbeti_chain", "tbeti_qp"]

@@ -7,6 +7,7 @@ expects, with ``value_size`` and a ``check(mesh)`` that validates its data again
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import ufl
@@ -100,6 +101,30 @@ def check_magnitude(what: str, values, given: str) -> None:
                          "underflow in double precision; choose other units")
 
 
+@dataclass(frozen=True)
+class BoundaryModel:
+    """What boundary elements (Total BETI) need of a PDE: its fundamental solution and loads.
+
+    Boundary elements replace a subdomain's stiffness by its Steklov–Poincaré operator, which
+    needs the PDE's fundamental solution and has no volume terms; a forms class that can be
+    solved so says how (see :meth:`Elasticity.boundary_model`).
+
+    Attributes:
+        kernel: The fundamental solution: ``"laplace"``, or ``"lame"`` (plane strain).
+        constants: Constant name → body name → value (``"k"``; or ``"mu"`` and ``"nu"``).
+        loads: Boundary group → load (a number, a vector or a function of x).
+        load_name: What the loads are called ("tractions", "fluxes"), for messages.
+        volume_load: The volume load the forms carry (which boundary elements cannot take),
+            or None.
+    """
+
+    kernel: str
+    constants: Mapping[str, Mapping[str, float]]
+    loads: Mapping
+    load_name: str
+    volume_load: str | None
+
+
 class Elasticity:
     """Small-strain isotropic linear elasticity, plane strain in 2D.
 
@@ -178,6 +203,22 @@ class Elasticity:
                 raise InputError(f"body force has {b.size} components; the mesh is "
                                  f"{mesh.gdim}D")
 
+    def boundary_model(self) -> BoundaryModel:
+        """Lamé's fundamental solution, μ and ν per body, the tractions (after :meth:`check`)."""
+        mu = {b: E / (2 * (1 + self._nu[b])) for b, E in self._E.items()}
+        return BoundaryModel("lame", {"mu": mu, "nu": dict(self._nu)}, self.tractions,
+                             "tractions", None if self.body_force is None else "body force")
+
+    def output_fields(self, u, cellwise: Callable) -> dict:
+        """Cell fields for the output: the von Mises stress of ``u`` as a UFL expression.
+
+        Args:
+            u: The displacement Function.
+            cellwise: Body name → value mapping (or one number) → a DG0 Function on ``u``'s
+                mesh.
+        """
+        return {"von_mises": _von_mises(u, cellwise(self.E), cellwise(self.nu))}
+
     def __call__(self, V, sub):
         """The forms on one subdomain."""
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -254,6 +295,15 @@ class Poisson:
         if not callable(self.source) and not np.isfinite(self.source):
             raise InputError(f"source is not finite: {self.source}")
 
+    def boundary_model(self) -> BoundaryModel:
+        """Laplace's fundamental solution, k per body, the fluxes (after :meth:`check`)."""
+        source = "source term" if callable(self.source) or self.source != 0 else None
+        return BoundaryModel("laplace", {"k": dict(self._k)}, self.flux, "fluxes", source)
+
+    def output_fields(self, u, cellwise: Callable) -> dict:
+        """No cell fields besides the solution (see :meth:`Elasticity.output_fields`)."""
+        return {}
+
     def __call__(self, V, sub):
         """The forms on one subdomain."""
         u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
@@ -267,3 +317,19 @@ class Poisson:
             if sub.has_facets(name):
                 L += (g(x) if callable(g) else compat.constant(msh, g)) * v * sub.ds(name)
         return a, scaled_form(L, self.load_factor, V)
+
+
+def _von_mises(u, E, nu):
+    """The von Mises stress of a displacement as a UFL expression (plane strain in 2D)."""
+    d = len(u)
+    mu = E / (2 * (1 + nu))
+    lmbda = E * nu / ((1 + nu) * (1 - 2 * nu))
+    eps = ufl.sym(ufl.grad(u))
+    sigma = 2 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(d)
+    if d == 3:
+        s = ufl.dev(sigma)
+        return ufl.sqrt(1.5 * ufl.inner(s, s))
+    szz = lmbda * ufl.tr(eps)
+    mean = (ufl.tr(sigma) + szz) / 3
+    s = sigma - mean * ufl.Identity(d)
+    return ufl.sqrt(1.5 * (ufl.inner(s, s) + (szz - mean) ** 2))

@@ -5,8 +5,8 @@
   σ_zz = λ tr ε).
 - :func:`output_functions`: the cell fields that :meth:`Solution.write_xdmf` writes besides
   the displacement and the contact pressure: ``subdomain`` (the subdomain of each cell) and,
-  for :class:`~dolfinx_feti.Elasticity`, ``von_mises`` at the cell midpoints, computed in UFL
-  from ``solution.u`` (any element), both piecewise constant (DG0).
+  the fields the forms name (for :class:`~dolfinx_feti.Elasticity`, ``von_mises`` at the cell
+  midpoints, computed in UFL from ``solution.u``, any element), piecewise constant (DG0).
 - :func:`pressure_profile` / :func:`plot_pressure`: the contact pressure along a contact
   surface (against x, y, z or, in 2D, the arc length) and its PNG plot.
 - :func:`save_nodal_values`: the solution as NumPy arrays in the mesh's node order (``.npz``).
@@ -24,11 +24,9 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
-import ufl
 
 from .. import compat
 from ..errors import InputError
-from ..fem import Elasticity
 from ..mesh.data import MeshData
 
 
@@ -103,10 +101,11 @@ def von_mises(mesh: MeshData, u: np.ndarray, E, nu) -> np.ndarray:
 def output_functions(solution) -> list:
     """DG0 Functions for the XDMF output besides the displacement and the contact pressure.
 
-    ``subdomain`` (the subdomain index of each cell) always; ``von_mises`` when the forms are
-    :class:`~dolfinx_feti.Elasticity` (for other forms the material law is unknown). The von
-    Mises stress is interpolated on each rank's own cells from the distributed ``solution.u``:
-    no rank holds the whole mesh's displacements.
+    ``subdomain`` (the subdomain index of each cell) always, and the fields the forms name
+    (their ``output_fields``: ``von_mises`` for :class:`~dolfinx_feti.Elasticity`; a forms
+    function's material law is unknown, so none). The von Mises stress is interpolated on
+    each rank's own cells from the distributed ``solution.u``: no rank holds the whole
+    mesh's displacements.
     """
     from .output import cell_function
 
@@ -119,30 +118,14 @@ def output_functions(solution) -> list:
                              num_cells=share.num_cells)
 
     out = [cellwise(share.dec.cell_sub.astype(float), "subdomain")]
-    forms = solution.problem.forms
-    if isinstance(forms, Elasticity) and solution.problem.value_size == mesh.gdim:
-        E = cellwise(_per_cell(forms.E, share.mesh), "E")
-        nu = cellwise(_per_cell(forms.nu, share.mesh), "nu")
-        vm = cellwise(np.zeros(share.cell_ids.size), "von_mises")
-        compat.interpolate_expression(vm, _von_mises_ufl(solution.u, E, nu))
-        out.append(vm)
+    fields = getattr(solution.problem.forms, "output_fields", None)
+    if fields is not None:  # the forms know their derived fields (a forms function: none)
+        for name, expr in fields(solution.u, lambda v: cellwise(_per_cell(v, share.mesh),
+                                                                 "coefficient")).items():
+            f = cellwise(np.zeros(share.cell_ids.size), name)
+            compat.interpolate_expression(f, expr)
+            out.append(f)
     return out
-
-
-def _von_mises_ufl(u, E, nu):
-    """The von Mises stress of a displacement Function as a UFL expression (as von_mises)."""
-    d = len(u)
-    mu = E / (2 * (1 + nu))
-    lmbda = E * nu / ((1 + nu) * (1 - 2 * nu))
-    eps = ufl.sym(ufl.grad(u))
-    sigma = 2 * mu * eps + lmbda * ufl.tr(eps) * ufl.Identity(d)
-    if d == 3:
-        s = ufl.dev(sigma)
-        return ufl.sqrt(1.5 * ufl.inner(s, s))
-    szz = lmbda * ufl.tr(eps)  # plane strain
-    mean = (ufl.tr(sigma) + szz) / 3
-    s = sigma - mean * ufl.Identity(d)
-    return ufl.sqrt(1.5 * (ufl.inner(s, s) + (szz - mean) ** 2))
 
 
 # ------------------------------------------------------------------------------------------
