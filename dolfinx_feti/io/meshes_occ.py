@@ -94,7 +94,7 @@ def _transfinite(dim: int, body: int, h: float) -> None:
 
 def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
                    width: float = 1.0, height: float = 1.0, gap: float = 0.0,
-                   recombine: bool = False) -> dict:
+                   recombine: bool | str = False) -> dict:
     """Two boxes, one on top of the other, meshed independently (non-matching interface).
 
     "lower" = [0, width]^(dim−1) × [0, height], "upper" the same box shifted up by
@@ -113,7 +113,8 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
         width: Horizontal size of the boxes.
         height: Vertical size of the boxes.
         gap: Initial gap between the boxes.
-        recombine: Quadrilaterals (2D) or hexahedra (3D) instead of simplices.
+        recombine: Quadrilaterals (2D) or hexahedra (3D) instead of simplices; a body's
+            name (``"lower"`` or ``"upper"``) for that body only (a model of two cell types).
     """
     if dim not in (2, 3) or min(h_lower, h_upper, width, height) <= 0 or gap < 0:
         raise ValueError(f"stacked_blocks: bad sizes dim={dim}, h={h_lower}/{h_upper}, "
@@ -135,8 +136,11 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
     gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
     _size_in([(dim, lower)], h_lower)
     _size_in([(dim, upper)], h_upper)
-    if recombine:
-        for body, h in ((lower, h_lower), (upper, h_upper)):
+    if recombine not in (False, True, "lower", "upper"):
+        raise ValueError(f"stacked_blocks: recombine={recombine!r}: expected a bool, "
+                         "'lower' or 'upper'")
+    for name, body, h in (("lower", lower, h_lower), ("upper", upper, h_upper)):
+        if recombine is True or recombine == name:
             _transfinite(dim, body, h)
     top = z1 + height
     w = [width] * (dim - 1)

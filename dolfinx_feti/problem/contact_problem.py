@@ -19,6 +19,7 @@ from ..mesh.checks import (
 from ..mesh.data import MeshData
 from ..mesh.decompose import ByFunction, ByTags, Parts
 from ..mesh.dofpoints import facet_weights
+from ..mesh.mixed import MixedMesh
 from ..validation import (
     Choice,
     Either,
@@ -435,8 +436,8 @@ Contact = NodeToNode | Mortar | RigidObstacle
 
 
 @dataclass
-@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh; for a DOLFINx mesh, "
-                       "from_dolfinx(mesh, cell_tags, facet_tags))"),
+@checked(mesh=Instance(MeshData, MixedMesh, what="a MeshData (see read_gmsh; for a DOLFINx "
+                       "mesh, from_dolfinx(mesh, cell_tags, facet_tags))"),
          forms=Function("a function forms(V, sub) -> (a, L)"),
          value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
          contact=SequenceOf(Instance(object, what="a contact condition")),
@@ -483,6 +484,13 @@ class ContactProblem:
 
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
+        if isinstance(self.mesh, MixedMesh):
+            raise InputError(
+                "the mesh has bodies of several cell types (" + self.mesh.describe() + "): "
+                "a problem on such a mesh is not solved yet (read and checked, one mesh per "
+                "type: mesh.parts; the mortar coupling of a triangle and a quadrilateral "
+                "surface exists, constraints/mortar_mixed.py); solve a part alone with "
+                "ContactProblem(mesh.parts[i], ...)")
         self.degree = _degree(self.degree, self.forms, self.mesh.geometry_degree)
         if self.mesh.geometry_degree == 2 and self.degree != 2:
             raise InputError("the mesh is of second order (curved cells): it needs a degree-2 "
