@@ -482,15 +482,21 @@ class ContactProblem:
     ties: Sequence[Tie] = field(default_factory=list)
     degree: int | None = None
 
+    #: On a mesh of several cell types, the problem split per mesh
+    #: (:class:`~.mixed_problem.MixedParts`); None otherwise.
+    mixed = None
+
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
-        if isinstance(self.mesh, MixedMesh):
-            raise InputError(
-                "the mesh has bodies of several cell types (" + self.mesh.describe() + "): "
-                "a problem on such a mesh is not solved yet (read and checked, one mesh per "
-                "type: mesh.parts; the mortar coupling of a triangle and a quadrilateral "
-                "surface exists, constraints/mortar_mixed.py); solve a part alone with "
-                "ContactProblem(mesh.parts[i], ...)")
+        if isinstance(self.mesh, MixedMesh):  # one problem per cell type, and what joins them
+            from .mixed_problem import split_problem
+
+            if self.value_size is None:
+                vs = getattr(self.forms, "value_size", None)
+                self.value_size = self.mesh.gdim if vs == "vector" else vs
+            self.mixed = split_problem(self)
+            self.degree = 1
+            return
         self.degree = _degree(self.degree, self.forms, self.mesh.geometry_degree)
         if self.mesh.geometry_degree == 2 and self.degree != 2:
             raise InputError("the mesh is of second order (curved cells): it needs a degree-2 "

@@ -122,10 +122,3 @@ def test_distributed_refused():
     with pytest.raises(df.InputError, match=r"several cell types .* \(replicate=True, "
                        r"distribute=False\)"):
         df.build_mesh(stacked_blocks, 2, 0.5, 0.5, recombine="lower", distribute=True)
-
-
-def test_problem_on_mixed_mesh_refused_by_name():
-    mesh = df.build_mesh(stacked_blocks, 2, 0.5, 0.5, recombine="lower")
-    with pytest.raises(df.InputError, match="bodies of several cell types .*quadrilateral "
-                       r"\(order 1\): bodies \['lower'\]; triangle"):
-        df.ContactProblem(mesh, df.Elasticity(1.0, 0.3))

@@ -1,0 +1,111 @@
+"""Bodies of different cell types in one problem (drivers/mixed_solve.py): patch tests, Hertz."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+import dolfinx_feti as df
+from dolfinx_feti.io.meshes_occ import stacked_blocks
+
+P, E, NU = 1.0, 1.0, 0.3
+
+
+def _exact(x: np.ndarray, dim: int) -> np.ndarray:
+    """Uniform vertical compression p, free sides: 3D and plane strain."""
+    if dim == 3:
+        return np.stack([NU * P / E * x[:, 0], NU * P / E * x[:, 1], -P / E * x[:, 2]], 1)
+    return np.stack([NU * (1 + NU) * P / E * x[:, 0], -(1 - NU**2) * P / E * x[:, 1]], 1)
+
+
+def _patch_problem(dim, recombined, tie, decomposition=None):
+    mesh = df.build_mesh(stacked_blocks, dim, 0.25, 0.4, recombine=recombined)
+    bcs = [df.Dirichlet("bottom", 0.0, components=(dim - 1,)),
+           df.Dirichlet("sym0", 0.0, components=(0,))]  # sym0: a group on both meshes
+    if dim == 3:
+        bcs.append(df.Dirichlet("sym1", 0.0, components=(1,)))
+    cond = df.Tie("upper_bottom", "lower_top") if tie else df.Mortar("upper_bottom", "lower_top")
+    return df.ContactProblem(
+        mesh, df.Elasticity(E, NU, tractions={"top": [0.0] * (dim - 1) + [-P]}), dirichlet=bcs,
+        decomposition=decomposition or df.Auto(), **({"ties": [cond]} if tie else
+                                                      {"contact": [cond]}))
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("recombined", ["lower", "upper"])
+@pytest.mark.parametrize("tie", [True, False], ids=["tie", "contact"])
+def test_patch_test_exact(dim, recombined, tie):
+    """A quadrilateral/hexahedral block and a triangle/tetrahedral one, non-matching.
+
+    Uniform pressure through the interface: the displacement is the linear field of uniform
+    stress on both meshes, the interface traction uniform (contact: the pressure p at every
+    slave node; tie: the traction (0, …, −p) on the slave).
+    """
+    problem = _patch_problem(dim, recombined, tie)
+    kinds = {p.cell_type for p in problem.mesh.parts}
+    assert kinds == ({"hexahedron", "tetrahedron"} if dim == 3 else
+                     {"quadrilateral", "triangle"})
+    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    assert sol.report.converged
+    for body in ("lower", "upper"):
+        x, u = sol.displacement(body)
+        ex = _exact(x, dim)
+        assert np.abs(u - ex).max() < 1e-10 * np.abs(ex).max()
+    f = sol.forces(0)
+    if tie:
+        expect = np.zeros(dim)
+        expect[-1] = -P
+        assert np.abs(f["pressure"] - expect).max() < 1e-10
+    else:
+        assert np.abs(f["pressure"] - P).max() < 1e-10
+    # the interface force balances the load p on the top of area 1
+    total = f["force"].sum(axis=0)[-1] if tie else f["force"].sum()
+    assert total == pytest.approx(-P if tie else P, rel=1e-10)
+
+
+def test_more_subdomains_spread_over_the_ranks():
+    """Several subdomains per mesh (rank after rank in the joined layout): still exact."""
+    problem = _patch_problem(3, "lower", False, df.Parts(3))
+    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    assert sol.report.sizes["subdomains"] == 6
+    for body in ("lower", "upper"):
+        x, u = sol.displacement(body)
+        assert np.abs(u - _exact(x, 3)).max() < 1e-10
+    assert np.abs(sol.forces(0)["pressure"] - P).max() < 1e-10
+
+
+def test_one_function_per_mesh(tmp_path_factory):
+    """The displacement as a DOLFINx Function on each mesh, equal to the nodal values."""
+    problem = _patch_problem(2, "lower", True)
+    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    for k, u in enumerate(sol.u):
+        V = u.function_space
+        x = V.tabulate_dof_coordinates()[:, :2]
+        vals = u.x.array.reshape(-1, 2)
+        n = V.dofmap.index_map.size_local
+        assert np.abs(vals[:n] - _exact(x[:n], 2)).max() < 1e-10
+        assert V.mesh.topology.cell_type.name == problem.mesh.parts[k].cell_type
+    folder = MPI.COMM_WORLD.bcast(str(tmp_path_factory.mktemp("mixed")) if
+                                  MPI.COMM_WORLD.rank == 0 else None, root=0)
+    files = sol.write_xdmf(f"{folder}/u.xdmf")
+    assert [f.name for f in files] == ["u_quadrilateral.xdmf", "u_triangle.xdmf"]
+    assert all(f.exists() and f.with_suffix(".h5").exists() for f in files)
+
+
+def test_conditions_refused_by_name():
+    mesh = df.build_mesh(stacked_blocks, 2, 0.5, 0.5, recombine="lower")
+    forms = df.Elasticity(E, NU)
+    with pytest.raises(df.InputError, match=r"NodeToNode\('upper_bottom', 'lower_top'\) joins "
+                       "surfaces on meshes of different cell types"):
+        df.ContactProblem(mesh, forms, contact=[df.NodeToNode("upper_bottom", "lower_top")])
+    with pytest.raises(df.InputError, match="friction and normals='flatter' are not"):
+        df.ContactProblem(mesh, forms, contact=[df.Mortar("upper_bottom", "lower_top",
+                                                          friction=df.Tresca(0.1))])
+    with pytest.raises(df.InputError, match="a surface lies on bodies of several cell types"):
+        df.ContactProblem(mesh, forms, ties=[df.Tie("sym0", "lower_top")])
+    problem = df.ContactProblem(mesh, forms, ties=[df.Tie("upper_bottom", "lower_top")])
+    with pytest.raises(df.InputError, match="solved by df.solve"):
+        df.FetiSolver(problem)
+    with pytest.raises(df.InputError, match="method='fetidp'.* Total FETI"):
+        df.solve(problem, method="fetidp")
