@@ -254,6 +254,7 @@ def _condition_rows(mesh, a, first: np.ndarray, fixed: np.ndarray, point_start: 
     info = Coupled(index=a.index, tie=a.tie, slave_part=a.slave,
                    slave_nodes=c.slave_nodes[keep], D=c.D[keep], scale=rows.scale,
                    row_node=np.searchsorted(slave, rows.node), row_comp=comp_of_row,
+                   normal=np.zeros((keep.size, mesh.gdim)) if a.tie else -c.normals[keep],
                    uncoupled=int(c.slave_nodes.size - keep.size), pairs=c.pairs)
     return rows, info
 

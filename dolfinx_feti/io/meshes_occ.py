@@ -170,7 +170,8 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
 
 def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
                   h_far: float = 1.0, R: float = 8.0, width: float = 20.0,
-                  height: float = 20.0, refine: float = 2.5) -> dict:
+                  height: float = 20.0, refine: float = 2.5,
+                  recombine: str | None = None) -> dict:
     """2D Hertz, half model: a quarter disk on a block, each meshed on its own.
 
     The geometry of :func:`dolfinx_feti.io.meshes.hertz2d` (disk of radius R centred at (0, R)
@@ -181,9 +182,15 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     Physical groups: "disk" (2, 1), "block" (2, 2), "disk_contact" (1, 11) = the whole arc,
     "block_contact" (1, 12) = the whole top of the block, "load" (1, 13) = the disk's flat top
     y = R, "symmetry" (1, 14) = the x = 0 edges, "bottom" (1, 15) = y = −height.
+
+    ``recombine``: ``"block"`` or ``"disk"`` meshes that body with quadrilaterals (a model of
+    two cell types), None both with triangles.
     """
     if not 0 < max(h_contact_disk, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("disk_on_block: need 0 < h_contact <= h_far and refine > 0")
+    if recombine not in (None, "block", "disk"):
+        raise ValueError(f"disk_on_block: recombine={recombine!r}: expected None, 'block' or "
+                         "'disk'")
     gmsh.model.add("disk_on_block")
     set_output_options()
     occ = gmsh.model.occ
@@ -215,6 +222,9 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     add_group(1, load, 13, "load")
     add_group(1, disk_sym + block_sym, 14, "symmetry")
     add_group(1, bottom, 15, "bottom")
+    if recombine is not None:  # all quadrilaterals (Blossom's full-quad recombination)
+        gmsh.option.setNumber("Mesh.RecombinationAlgorithm", 3)
+        gmsh.model.mesh.setRecombine(2, block if recombine == "block" else disk)
     gmsh.model.mesh.generate(2)
     return physical_groups()
 

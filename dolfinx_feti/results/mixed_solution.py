@@ -27,6 +27,8 @@ class Coupled:
         scale: Per row, the factor s_j of the row (the nodal force is s_j λ).
         row_node: Per row, its slave node (index into ``slave_nodes``).
         row_comp: Per row, the component of a tie row (−1 for contact).
+        normal: Per slave node, the unit normal of its contact row, pointing from the master
+            toward the slave (zeros for a tie).
         uncoupled: Slave nodes without a row.
         pairs: Facet pairs with an overlap.
     """
@@ -39,6 +41,7 @@ class Coupled:
     scale: np.ndarray
     row_node: np.ndarray
     row_comp: np.ndarray
+    normal: np.ndarray
     uncoupled: int
     pairs: int
 
@@ -135,8 +138,9 @@ class MixedSolution:
 
         Returns:
             ``node`` (slave points of its mesh), ``x`` their coordinates, ``force`` (contact:
-            the normal force, ≥ 0; tie: the force vector per node) and ``pressure`` (force
-            per unit area of the slave surface, ``force / D``).
+            the normal force, ≥ 0, pushing the slave along ``normal``; tie: the force vector
+            per node), ``pressure`` (force per unit area of the slave surface, ``force / D``)
+            and ``normal``.
         """
         c = self.coupled[i]
         start = int(sum(x.rows for x in self.coupled[:i]))
@@ -151,7 +155,7 @@ class MixedSolution:
             force[c.row_node] = f
             pressure = force / c.D
         return {"node": c.slave_nodes, "x": mesh.x[c.slave_nodes], "force": force,
-                "pressure": pressure}
+                "pressure": pressure, "normal": c.normal}
 
 
 __all__ = ["Coupled", "MixedSolution"]

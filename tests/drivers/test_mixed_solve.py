@@ -7,7 +7,7 @@ import pytest
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.io.meshes_occ import stacked_blocks
+from dolfinx_feti.io.meshes_occ import disk_on_block, stacked_blocks
 
 P, E, NU = 1.0, 1.0, 0.3
 
@@ -109,3 +109,40 @@ def test_conditions_refused_by_name():
         df.FetiSolver(problem)
     with pytest.raises(df.InputError, match="method='fetidp'.* Total FETI"):
         df.solve(problem, method="fetidp")
+
+
+# -- Hertz 2D: a triangle-meshed cylinder on a quadrilateral block ------------------------------
+
+R, P_H, E_H, NU_H = 8.0, 10.0, 200.0, 0.3
+E_STAR = E_H / (2.0 * (1.0 - NU_H**2))
+A_HERTZ = 2.0 * np.sqrt(R * P_H / (np.pi * E_STAR))  # half-width of the contact strip
+P0_HERTZ = np.sqrt(P_H * E_STAR / (np.pi * R))
+
+
+def test_hertz_cylinder_of_triangles_on_a_block_of_quadrilaterals():
+    """Plane strain Hertz (half model), the disk of triangles, the block of quadrilaterals.
+
+    The contact half-width within one block element of Hertz's a, the peak pressure within
+    3 % of p0 (measured: 2.1 %), the vertical contact force equal to the load.
+    """
+    h = 0.05
+    mesh = df.build_mesh(disk_on_block, h, 1.7 * h, recombine="block")
+    assert mesh.cell_types == ("triangle", "quadrilateral")
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, -P_H / 2 / R)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+        contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4))
+    sol = df.solve(problem, method="tfeti", rtol=1e-8)
+    assert sol.report.converged
+    f = sol.forces(0)
+    p0 = f["pressure"].max()
+    assert abs(p0 / P0_HERTZ - 1.0) < 0.03
+    half_width = f["x"][f["pressure"] > 1e-6 * p0, 0].max()
+    block = mesh.parts[mesh.part_of_body("block")]
+    top = block.facets("block_contact")
+    near = np.abs(block.x[top][:, :, 0].mean(axis=1) - A_HERTZ) < 0.5
+    element = np.abs(np.diff(block.x[top][near][:, :, 0], axis=1)).max()
+    assert abs(half_width - A_HERTZ) < element, (half_width, A_HERTZ, element)
+    load = P_H / 2 / R * R  # the traction on the disk's flat top, of length R
+    vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[1]
+    assert vertical == pytest.approx(load, rel=1e-6)
