@@ -62,6 +62,42 @@ class MixedMesh:
                              f"groups are {known}")
         return found
 
+    @classmethod
+    def of(cls, parts) -> MixedMesh:
+        """The meshes of bodies of different cell types as one mesh, e.g. DOLFINx meshes.
+
+        For meshes made apart, one per cell type (DOLFINx 0.5 has no mesh of two types):
+        ``df.MixedMesh.of([df.from_dolfinx(hexes, ...), df.from_dolfinx(tets, ...)])``. The
+        solution is then one Function per mesh, on the user's own meshes. A boundary group
+        may be named in several meshes (e.g. a symmetry plane through two bodies).
+
+        Args:
+            parts: The meshes (:class:`MeshData`, held whole on every rank), two or more.
+
+        Raises:
+            InputError: Fewer than two meshes, meshes of different dimensions, a body name
+                used twice, a name used for a body and a boundary group, or a mesh not
+                held whole on every rank.
+        """
+        parts = tuple(parts)
+        if len(parts) < 2 or not all(isinstance(p, MeshData) for p in parts):
+            raise InputError("MixedMesh.of: expected two or more MeshData (one per cell "
+                             "type), e.g. from from_dolfinx")
+        if any(not p.holds_arrays or p.root_only is not None for p in parts):
+            raise InputError("MixedMesh.of: every mesh must be held whole on every rank "
+                             "(from_dolfinx/read_gmsh with replicate=True, distribute=False)")
+        if len({p.gdim for p in parts}) != 1:
+            raise InputError(f"MixedMesh.of: meshes of different dimensions "
+                             f"{[p.gdim for p in parts]}")
+        bodies = [b for p in parts for b in p.body_names]
+        if len(set(bodies)) != len(bodies):
+            raise InputError(f"MixedMesh.of: a body name is used in two meshes ({bodies}): "
+                             "name the bodies apart (from_dolfinx(..., names=...))")
+        clash = sorted(set(bodies) & {g for p in parts for g in p.facet_groups})
+        if clash:
+            raise InputError(f"physical group name {clash[0]!r} is used twice")
+        return cls(parts, tuple(bodies))
+
     def describe(self) -> str:
         """One line per part: its cell type and bodies (for messages)."""
         return "; ".join(f"{p.cell_type} (order {p.geometry_degree}): bodies "
