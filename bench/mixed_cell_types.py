@@ -1,0 +1,98 @@
+"""Bodies of different cell types in one problem: the patch tests and Hertz, measured.
+
+Prints two tables (the figures of docs/index.md, *Bodies of different cell types*):
+
+1. the patch tests through a non-matching interface of a quadrilateral/hexahedral block and a
+   triangle/tetrahedral one (stacked unit boxes, h 0.25 / 0.4; uniform pressure p = 1 on the
+   top): ‖u − u_exact‖∞ / ‖u_exact‖∞ over both meshes, max |p − 1| at the slave nodes (tie: the
+   traction against (0, …, −1)), F-multiplications;
+2. Hertz in plane strain (the quarter disk of triangles on a block of quadrilaterals,
+   ``disk_on_block(recombine="block")``, R 8, E 200, ν 0.3, load 10): the peak pressure against
+   Hertz's p0, the half-width of the contact zone against a, and the block's element size
+   there.
+
+Run: ``PYTHONPATH=$PWD python bench/mixed_cell_types.py`` (about 10 s); under ``mpirun -n 2``
+the same figures.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+import dolfinx_feti as df
+from dolfinx_feti.io.meshes_occ import disk_on_block, stacked_blocks
+
+
+def patch(dim: int, recombined: str, tie: bool) -> tuple[float, float, int]:
+    """One patch test: (displacement error, traction error, F-multiplications)."""
+    nu = 0.3
+    mesh = df.build_mesh(stacked_blocks, dim, 0.25, 0.4, recombine=recombined)
+    bcs = [df.Dirichlet("bottom", 0.0, components=(dim - 1,)),
+           df.Dirichlet("sym0", 0.0, components=(0,))]
+    if dim == 3:
+        bcs.append(df.Dirichlet("sym1", 0.0, components=(1,)))
+    cond = (df.Tie if tie else df.Mortar)("upper_bottom", "lower_top")
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(1.0, nu, tractions={"top": [0.0] * (dim - 1) + [-1.0]}),
+        dirichlet=bcs, **({"ties": [cond]} if tie else {"contact": [cond]}))
+    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    err = scale = 0.0
+    for body in ("lower", "upper"):
+        x, u = sol.displacement(body)
+        if dim == 3:
+            ex = np.stack([nu * x[:, 0], nu * x[:, 1], -x[:, 2]], 1)
+        else:
+            ex = np.stack([nu * (1 + nu) * x[:, 0], -(1 - nu**2) * x[:, 1]], 1)
+        err, scale = max(err, np.abs(u - ex).max()), max(scale, np.abs(ex).max())
+    p = sol.forces(0)["pressure"]
+    expect = np.eye(dim)[-1] * -1.0 if tie else 1.0
+    return err / scale, float(np.abs(p - expect).max()), sol.report.hessian_mults
+
+
+def hertz(h: float) -> tuple[float, float, float, float, int]:
+    """(p0 error, half-width, Hertz's a, block element there, F-multiplications)."""
+    R, P, E, nu = 8.0, 10.0, 200.0, 0.3
+    e_star = E / (2.0 * (1.0 - nu**2))
+    a, p0 = 2.0 * np.sqrt(R * P / (np.pi * e_star)), np.sqrt(P * e_star / (np.pi * R))
+    mesh = df.build_mesh(disk_on_block, h, 1.7 * h, recombine="block")
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E, nu, tractions={"load": (0.0, -P / 2 / R)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
+        contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4))
+    sol = df.solve(problem, method="tfeti", rtol=1e-8)
+    f = sol.forces(0)
+    pmax = f["pressure"].max()
+    half = f["x"][f["pressure"] > 1e-6 * pmax, 0].max()
+    block = mesh.parts[mesh.part_of_body("block")]
+    top = block.x[block.facets("block_contact")]
+    near = np.abs(top[:, :, 0].mean(axis=1) - a) < 0.5
+    element = np.abs(np.diff(top[near][:, :, 0], axis=1)).max()
+    return pmax / p0 - 1.0, half, a, element, sol.report.hessian_mults
+
+
+def main() -> None:
+    out = ["| cells (lower / upper) | condition | slave | ‖u − u_exact‖∞ rel. | max traction "
+           "error | F-mults |", "|---|---|---|---|---|---|"]
+    names = {(2, "lower"): "quadrilaterals / triangles", (2, "upper"): "triangles / "
+             "quadrilaterals", (3, "lower"): "hexahedra / tetrahedra",
+             (3, "upper"): "tetrahedra / hexahedra"}
+    slave_kind = {(2, "lower"): "triangles' edges", (2, "upper"): "quadrilaterals' edges",
+                  (3, "lower"): "triangles", (3, "upper"): "quadrilaterals"}
+    for dim in (2, 3):
+        for rec in ("lower", "upper"):
+            for tie in (False, True):
+                e, p, m = patch(dim, rec, tie)
+                out.append(f"| {names[dim, rec]} | {'tie' if tie else 'contact'} | "
+                           f"{slave_kind[dim, rec]} | {e:.1e} | {p:.1e} | {m} |")
+    out += ["", "| h (disk / block) | p_max / p0 − 1 | half-width | Hertz a | block element "
+            "there | F-mults |", "|---|---|---|---|---|---|"]
+    for h in (0.2, 0.1, 0.05):
+        e, half, a, el, m = hertz(h)
+        out.append(f"| {h} / {1.7 * h:.3g} | {e:+.2%} | {half:.3f} | {a:.3f} | {el:.3f} | {m} |")
+    if MPI.COMM_WORLD.rank == 0:
+        print("\n".join(out))
+
+
+if __name__ == "__main__":
+    main()
