@@ -9,9 +9,12 @@ Prints two tables (the figures of docs/index.md, *Bodies of different cell types
 2. Hertz in plane strain (the quarter disk of triangles on a block of quadrilaterals,
    ``disk_on_block(recombine="block")``, R 8, E 200, ν 0.3, load 10): the peak pressure against
    Hertz's p0, the half-width of the contact zone against a, and the block's element size
-   there.
+   there;
+3. Hertz in 3D (the quarter hemisphere of tetrahedra on a graded block of hexahedra,
+   ``sphere_on_block(recombine="block")``, R 8, E 200, ν 0.3, force 20 on the whole sphere):
+   the same figures, the contact radius against a.
 
-Run: ``PYTHONPATH=$PWD python bench/mixed_cell_types.py`` (about 10 s); under ``mpirun -n 2``
+Run: ``PYTHONPATH=$PWD python bench/mixed_cell_types.py`` (about 1 min); under ``mpirun -n 2``
 the same figures.
 """
 
@@ -21,7 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.io.meshes_occ import disk_on_block, stacked_blocks
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 
 def patch(dim: int, recombined: str, tie: bool) -> tuple[float, float, int]:
@@ -71,6 +74,30 @@ def hertz(h: float) -> tuple[float, float, float, float, int]:
     return pmax / p0 - 1.0, half, a, element, sol.report.hessian_mults
 
 
+def hertz3d(h_sphere: float, h_block: float) -> tuple[float, float, float, float, int]:
+    """(p0 error, contact radius, Hertz's a, block element there, F-multiplications)."""
+    R, F, E, nu = 8.0, 20.0, 200.0, 0.3
+    e_star = E / (2.0 * (1.0 - nu**2))
+    a = (3 * F * R / (4 * e_star)) ** (1 / 3)
+    p0 = 3 * F / (2 * np.pi * a**2)
+    mesh = df.build_mesh(sphere_on_block, h_sphere, h_block, recombine="block")
+    t = F / 4 / (np.pi * R**2 / 4)
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E, nu, tractions={"load": (0.0, 0.0, -t)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
+                   df.Dirichlet("sym_y", components=[1])],
+        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(4))
+    sol = df.solve(problem, method="tfeti", rtol=1e-9)
+    f = sol.forces(0)
+    pmax = f["pressure"].max()
+    radius = np.linalg.norm(f["x"][:, :2], axis=1)[f["pressure"] > 1e-6 * pmax].max()
+    block = mesh.parts[mesh.part_of_body("block")]
+    top = block.x[block.facets("block_contact")]
+    near = np.abs(np.linalg.norm(top.mean(axis=1)[:, :2], axis=1) - a) < 0.3
+    element = np.ptp(top[near][:, :, :2], axis=1).max()
+    return pmax / p0 - 1.0, radius, a, element, sol.report.hessian_mults
+
+
 def main() -> None:
     out = ["| cells (lower / upper) | condition | slave | ‖u − u_exact‖∞ rel. | max traction "
            "error | F-mults |", "|---|---|---|---|---|---|"]
@@ -90,6 +117,11 @@ def main() -> None:
     for h in (0.2, 0.1, 0.05):
         e, half, a, el, m = hertz(h)
         out.append(f"| {h} / {1.7 * h:.3g} | {e:+.2%} | {half:.3f} | {a:.3f} | {el:.3f} | {m} |")
+    out += ["", "| h (sphere / block at the contact) | p_max / p0 − 1 | contact radius | Hertz a | "
+            "block element there | F-mults |", "|---|---|---|---|---|---|"]
+    for hs, hb in ((0.4, 0.25), (0.25, 0.15)):
+        e, rad, a, el, m = hertz3d(hs, hb)
+        out.append(f"| {hs} / {hb} | {e:+.2%} | {rad:.3f} | {a:.3f} | {el:.3f} | {m} |")
     if MPI.COMM_WORLD.rank == 0:
         print("\n".join(out))
 

@@ -11,6 +11,7 @@ and returns the groups as ``{name: (dim, tag)}``.
 from __future__ import annotations
 
 import gmsh
+import numpy as np
 
 from .meshes import add_group, physical_groups, set_output_options
 
@@ -90,6 +91,30 @@ def _transfinite(dim: int, body: int, h: float) -> None:
         gmsh.model.mesh.setRecombine(2, s_)
     if dim == 3:
         gmsh.model.mesh.setTransfiniteVolume(body)
+
+
+def _graded_hexahedra(box: int, h0: float, ratio: float) -> None:
+    """A box of hexahedra, its edges graded geometrically from h0 at the coordinate planes.
+
+    Each edge starts at size h0 at its end nearer the plane x = 0, y = 0 or z = 0 it is
+    normal to (boxes with a corner at the origin) and grows by ``ratio`` per element.
+    """
+    mesh = gmsh.model.mesh
+    faces = gmsh.model.getBoundary([(3, box)], combined=False, oriented=False)
+    curves = sorted({abs(t) for _, t in gmsh.model.getBoundary(faces, combined=False,
+                                                               oriented=False)})
+    for c in curves:
+        a, b = (gmsh.model.getValue(0, abs(t), []) for _, t in
+                gmsh.model.getBoundary([(1, c)], combined=False, oriented=True))
+        axis = int(np.argmax(np.abs(b - a)))
+        length = abs(b[axis] - a[axis])
+        n = max(int(np.ceil(np.log(1.0 + length * (ratio - 1.0) / h0) / np.log(ratio))), 1)
+        coef = ratio if abs(a[axis]) < abs(b[axis]) else 1.0 / ratio  # small at the plane
+        mesh.setTransfiniteCurve(c, n + 1, "Progression", coef)
+    for _, f in faces:
+        mesh.setTransfiniteSurface(f)
+        mesh.setRecombine(2, f)
+    mesh.setTransfiniteVolume(box)
 
 
 def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
@@ -231,7 +256,8 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
 
 def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.25,
                     h_far: float = 2.0, R: float = 8.0, width: float = 16.0,
-                    height: float = 8.0, refine: float = 1.5) -> dict:
+                    height: float = 8.0, refine: float = 1.5,
+                    recombine: str | None = None) -> dict:
     """3D Hertz, quarter model: a hemisphere on a block, each meshed on its own.
 
     The lower half of the ball of radius R centred at (0, 0, R), cut to x, y >= 0, touches the
@@ -243,9 +269,16 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     spherical surface, "block_contact" (2, 12) = the whole top of the block, "load" (2, 13) =
     the flat top z = R of the hemisphere, "sym_x" (2, 14) = the faces x = 0, "sym_y" (2, 15)
     = the faces y = 0, "bottom" (2, 16) = z = −height.
+
+    ``recombine="block"``: the block of hexahedra instead (a model of two cell types), a
+    structured grid graded from h_contact_block at the planes x = 0, y = 0 and z = 0 by a
+    factor 1.15 per element.
     """
     if not 0 < max(h_contact_sphere, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("sphere_on_block: need 0 < h_contact <= h_far and refine > 0")
+    if recombine not in (None, "block"):
+        raise ValueError(f"sphere_on_block: recombine={recombine!r}: expected None or "
+                         "'block'")
     gmsh.model.add("sphere_on_block")
     set_output_options()
     occ = gmsh.model.occ
@@ -278,6 +311,8 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     add_group(2, sym_x, 14, "sym_x")
     add_group(2, sym_y, 15, "sym_y")
     add_group(2, bottom, 16, "bottom")
+    if recombine == "block":
+        _graded_hexahedra(block, h_contact_block, 1.15)
     gmsh.model.mesh.generate(3)
     return physical_groups()
 

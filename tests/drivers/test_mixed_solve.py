@@ -7,7 +7,7 @@ import pytest
 from mpi4py import MPI
 
 import dolfinx_feti as df
-from dolfinx_feti.io.meshes_occ import disk_on_block, stacked_blocks
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
 P, E, NU = 1.0, 1.0, 0.3
 
@@ -146,3 +146,40 @@ def test_hertz_cylinder_of_triangles_on_a_block_of_quadrilaterals():
     load = P_H / 2 / R * R  # the traction on the disk's flat top, of length R
     vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[1]
     assert vertical == pytest.approx(load, rel=1e-6)
+
+
+def test_hertz_sphere_of_tetrahedra_on_a_block_of_hexahedra():
+    """3D Hertz (quarter model): a tetrahedral hemisphere on a graded hexahedral block.
+
+    The contact radius within one block element of Hertz's a (measured: 1.007 against 1.030,
+    elements 0.29 there), the peak pressure within 3 % of p0 (measured −0.6 %), the vertical
+    contact force equal to the load on the sphere's flat top.
+    """
+    F = 20.0  # on the whole sphere
+    e_star = E_H / (2.0 * (1.0 - NU_H**2))
+    a = (3 * F * R / (4 * e_star)) ** (1 / 3)
+    p0 = 3 * F / (2 * np.pi * a**2)
+    mesh = df.build_mesh(sphere_on_block, 0.25, 0.15, recombine="block")
+    assert mesh.cell_types == ("tetrahedron", "hexahedron")
+    t = F / 4 / (np.pi * R**2 / 4)
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
+                   df.Dirichlet("sym_y", components=[1])],
+        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(4))
+    sol = df.solve(problem, method="tfeti", rtol=1e-9)
+    assert sol.report.converged
+    f = sol.forces(0)
+    pmax = f["pressure"].max()
+    assert abs(pmax / p0 - 1.0) < 0.03, pmax / p0
+    radius = np.linalg.norm(f["x"][:, :2], axis=1)[f["pressure"] > 1e-6 * pmax].max()
+    block = mesh.parts[mesh.part_of_body("block")]
+    top = block.x[block.facets("block_contact")]
+    near = np.abs(np.linalg.norm(top.mean(axis=1)[:, :2], axis=1) - a) < 0.3
+    element = np.ptp(top[near][:, :, :2], axis=1).max()
+    assert abs(radius - a) < element, (radius, a, element)
+    sphere = mesh.parts[mesh.part_of_body("sphere")]
+    v = sphere.x[sphere.facets("load")]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum()
+    vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[2]
+    assert vertical == pytest.approx(t * area, rel=1e-6)
