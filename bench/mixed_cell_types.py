@@ -20,11 +20,17 @@ the same figures.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 from mpi4py import MPI
 
-import dolfinx_feti as df
-from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "support"))
+import hertz_cases as hertz  # noqa: E402
+
+import dolfinx_feti as df  # noqa: E402
+from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks  # noqa: E402
 
 
 def patch(dim: int, recombined: str, tie: bool) -> tuple[float, float, int]:
@@ -53,49 +59,22 @@ def patch(dim: int, recombined: str, tie: bool) -> tuple[float, float, int]:
     return err / scale, float(np.abs(p - expect).max()), sol.report.hessian_mults
 
 
-def hertz(h: float) -> tuple[float, float, float, float, int]:
+def hertz2d(h: float) -> tuple[float, float, float, float, int]:
     """(p0 error, half-width, Hertz's a, block element there, F-multiplications)."""
-    R, P, E, nu = 8.0, 10.0, 200.0, 0.3
-    e_star = E / (2.0 * (1.0 - nu**2))
-    a, p0 = 2.0 * np.sqrt(R * P / (np.pi * e_star)), np.sqrt(P * e_star / (np.pi * R))
     mesh = df.build_mesh(disk_on_block, h, 1.7 * h, recombine="block")
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E, nu, tractions={"load": (0.0, -P / 2 / R)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-        contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4))
-    sol = df.solve(problem, method="tfeti", rtol=1e-8)
-    f = sol.forces(0)
-    pmax = f["pressure"].max()
-    half = f["x"][f["pressure"] > 1e-6 * pmax, 0].max()
-    block = mesh.parts[mesh.part_of_body("block")]
-    top = block.x[block.facets("block_contact")]
-    near = np.abs(top[:, :, 0].mean(axis=1) - a) < 0.5
-    element = np.abs(np.diff(top[near][:, :, 0], axis=1)).max()
-    return pmax / p0 - 1.0, half, a, element, sol.report.hessian_mults
+    sol = df.solve(hertz.disk_problem(mesh), method="tfeti", rtol=1e-8)
+    pmax, half, element = hertz.mixed_figures(sol, mesh, 2)
+    return pmax / hertz.DISK_P0 - 1.0, half, hertz.DISK_A, element, sol.report.hessian_mults
 
 
 def hertz3d(h_sphere: float, h_block: float) -> tuple[float, float, float, float, int]:
     """(p0 error, contact radius, Hertz's a, block element there, F-multiplications)."""
-    R, F, E, nu = 8.0, 20.0, 200.0, 0.3
-    e_star = E / (2.0 * (1.0 - nu**2))
-    a = (3 * F * R / (4 * e_star)) ** (1 / 3)
-    p0 = 3 * F / (2 * np.pi * a**2)
     mesh = df.build_mesh(sphere_on_block, h_sphere, h_block, recombine="block")
-    t = F / 4 / (np.pi * R**2 / 4)
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E, nu, tractions={"load": (0.0, 0.0, -t)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
-                   df.Dirichlet("sym_y", components=[1])],
-        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(4))
+    problem, _ = hertz.sphere_problem(mesh, df.Parts(4))
     sol = df.solve(problem, method="tfeti", rtol=1e-9)
-    f = sol.forces(0)
-    pmax = f["pressure"].max()
-    radius = np.linalg.norm(f["x"][:, :2], axis=1)[f["pressure"] > 1e-6 * pmax].max()
-    block = mesh.parts[mesh.part_of_body("block")]
-    top = block.x[block.facets("block_contact")]
-    near = np.abs(np.linalg.norm(top.mean(axis=1)[:, :2], axis=1) - a) < 0.3
-    element = np.ptp(top[near][:, :, :2], axis=1).max()
-    return pmax / p0 - 1.0, radius, a, element, sol.report.hessian_mults
+    pmax, radius, element = hertz.mixed_figures(sol, mesh, 3)
+    return pmax / hertz.SPHERE_P0 - 1.0, radius, hertz.SPHERE_A, element, \
+        sol.report.hessian_mults
 
 
 def main() -> None:
@@ -115,7 +94,7 @@ def main() -> None:
     out += ["", "| h (disk / block) | p_max / p0 − 1 | half-width | Hertz a | block element "
             "there | F-mults |", "|---|---|---|---|---|---|"]
     for h in (0.2, 0.1, 0.05):
-        e, half, a, el, m = hertz(h)
+        e, half, a, el, m = hertz2d(h)
         out.append(f"| {h} / {1.7 * h:.3g} | {e:+.2%} | {half:.3f} | {a:.3f} | {el:.3f} | {m} |")
     out += ["", "| h (sphere / block at the contact) | p_max / p0 − 1 | contact radius | Hertz a | "
             "block element there | F-mults |", "|---|---|---|---|---|---|"]

@@ -88,6 +88,9 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     with collective(comm, "options"):
         opts = SolverOptions.create(argv=options, **kwargs) if not isinstance(
             options, SolverOptions) else options.replace(**kwargs)
+        if getattr(problem.forms, "solve_by", None) is not None:
+            raise InputError(f"forms solved by {problem.forms.solve_by!r} (large deformation) "
+                             "on bodies of several cell types are not implemented")
         if opts.method not in ("tfeti", "auto"):
             raise InputError(f"method={opts.method!r}: a problem on bodies of several cell "
                              "types is solved by Total FETI (method 'tfeti' or 'auto')")

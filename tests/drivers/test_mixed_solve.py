@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hertz_cases as hertz
 import numpy as np
 import pytest
 from mpi4py import MPI
@@ -109,15 +110,13 @@ def test_conditions_refused_by_name():
         df.FetiSolver(problem)
     with pytest.raises(df.InputError, match="method='fetidp'.* Total FETI"):
         df.solve(problem, method="fetidp")
+    large = df.ContactProblem(mesh, df.NeoHookean(E, NU),
+                              ties=[df.Tie("upper_bottom", "lower_top")])
+    with pytest.raises(df.InputError, match="large deformation.* not implemented"):
+        df.solve(large)
 
 
-# -- Hertz 2D: a triangle-meshed cylinder on a quadrilateral block ------------------------------
-
-R, P_H, E_H, NU_H = 8.0, 10.0, 200.0, 0.3
-E_STAR = E_H / (2.0 * (1.0 - NU_H**2))
-A_HERTZ = 2.0 * np.sqrt(R * P_H / (np.pi * E_STAR))  # half-width of the contact strip
-P0_HERTZ = np.sqrt(P_H * E_STAR / (np.pi * R))
-
+# -- Hertz: a triangle-meshed cylinder on quadrilaterals, a tetrahedral sphere on hexahedra ---
 
 def test_hertz_cylinder_of_triangles_on_a_block_of_quadrilaterals():
     """Plane strain Hertz (half model), the disk of triangles, the block of quadrilaterals.
@@ -128,24 +127,14 @@ def test_hertz_cylinder_of_triangles_on_a_block_of_quadrilaterals():
     h = 0.05
     mesh = df.build_mesh(disk_on_block, h, 1.7 * h, recombine="block")
     assert mesh.cell_types == ("triangle", "quadrilateral")
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, -P_H / 2 / R)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-        contact=[df.Mortar("disk_contact", "block_contact")], decomposition=df.Parts(4))
-    sol = df.solve(problem, method="tfeti", rtol=1e-8)
+    sol = df.solve(hertz.disk_problem(mesh), method="tfeti", rtol=1e-8)
     assert sol.report.converged
+    pmax, half_width, element = hertz.mixed_figures(sol, mesh, 2)
+    assert abs(pmax / hertz.DISK_P0 - 1.0) < 0.03
+    assert abs(half_width - hertz.DISK_A) < element, (half_width, hertz.DISK_A, element)
     f = sol.forces(0)
-    p0 = f["pressure"].max()
-    assert abs(p0 / P0_HERTZ - 1.0) < 0.03
-    half_width = f["x"][f["pressure"] > 1e-6 * p0, 0].max()
-    block = mesh.parts[mesh.part_of_body("block")]
-    top = block.facets("block_contact")
-    near = np.abs(block.x[top][:, :, 0].mean(axis=1) - A_HERTZ) < 0.5
-    element = np.abs(np.diff(block.x[top][near][:, :, 0], axis=1)).max()
-    assert abs(half_width - A_HERTZ) < element, (half_width, A_HERTZ, element)
-    load = P_H / 2 / R * R  # the traction on the disk's flat top, of length R
     vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[1]
-    assert vertical == pytest.approx(load, rel=1e-6)
+    assert vertical == pytest.approx(hertz.DISK_P / 2, rel=1e-6)  # on the flat top of length R
 
 
 def test_hertz_sphere_of_tetrahedra_on_a_block_of_hexahedra():
@@ -155,31 +144,17 @@ def test_hertz_sphere_of_tetrahedra_on_a_block_of_hexahedra():
     elements 0.29 there), the peak pressure within 3 % of p0 (measured −0.6 %), the vertical
     contact force equal to the load on the sphere's flat top.
     """
-    F = 20.0  # on the whole sphere
-    e_star = E_H / (2.0 * (1.0 - NU_H**2))
-    a = (3 * F * R / (4 * e_star)) ** (1 / 3)
-    p0 = 3 * F / (2 * np.pi * a**2)
     mesh = df.build_mesh(sphere_on_block, 0.25, 0.15, recombine="block")
     assert mesh.cell_types == ("tetrahedron", "hexahedron")
-    t = F / 4 / (np.pi * R**2 / 4)
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
-                   df.Dirichlet("sym_y", components=[1])],
-        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(4))
+    problem, t = hertz.sphere_problem(mesh, df.Parts(4))
     sol = df.solve(problem, method="tfeti", rtol=1e-9)
     assert sol.report.converged
-    f = sol.forces(0)
-    pmax = f["pressure"].max()
-    assert abs(pmax / p0 - 1.0) < 0.03, pmax / p0
-    radius = np.linalg.norm(f["x"][:, :2], axis=1)[f["pressure"] > 1e-6 * pmax].max()
-    block = mesh.parts[mesh.part_of_body("block")]
-    top = block.x[block.facets("block_contact")]
-    near = np.abs(np.linalg.norm(top.mean(axis=1)[:, :2], axis=1) - a) < 0.3
-    element = np.ptp(top[near][:, :, :2], axis=1).max()
-    assert abs(radius - a) < element, (radius, a, element)
+    pmax, radius, element = hertz.mixed_figures(sol, mesh, 3)
+    assert abs(pmax / hertz.SPHERE_P0 - 1.0) < 0.03, pmax / hertz.SPHERE_P0
+    assert abs(radius - hertz.SPHERE_A) < element, (radius, hertz.SPHERE_A, element)
     sphere = mesh.parts[mesh.part_of_body("sphere")]
     v = sphere.x[sphere.facets("load")]
     area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum()
+    f = sol.forces(0)
     vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[2]
     assert vertical == pytest.approx(t * area, rel=1e-6)
