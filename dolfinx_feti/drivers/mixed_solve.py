@@ -41,6 +41,7 @@ from ..results.report import Report
 from ..setup.share_distributed import columns
 from ..setup.stages import share_problem
 from ..timing import Timer
+from .kkt_stop import kkt_residuals
 from .qp_solve import solve_qp
 
 
@@ -128,6 +129,8 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.sizes = {"primal": int(layout.n.sum()), "dual": int(total.dual_size[1]),
                     "subdomains": int(sum(s.dec.num_subdomains for s in shares)),
                     "ranks": comm.size}
+    report.kkt, report.max_penetration = kkt_residuals(
+        total, own_rows.scale, own_rows.kind, own_rows.inequality, out.u, out.lam)
     report.timings = timer.reduced(comm)
     lam = out.lam.array_r[own_rows.size - cross.rows.size:] if comm.rank == 0 else None
     return MixedSolution(problem, shares, datas, layout, out.u.array_r.copy(), coupled,

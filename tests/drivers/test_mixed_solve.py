@@ -49,6 +49,8 @@ def test_patch_test_exact(dim, recombined, tie):
                      {"quadrilateral", "triangle"})
     sol = df.solve(problem, method="tfeti", rtol=1e-12)
     assert sol.report.converged
+    assert max(sol.report.kkt.values()) < 1e-10, sol.report.kkt  # the joined system's KKT
+    assert sol.report.max_penetration < 1e-10
     for body in ("lower", "upper"):
         x, u = sol.displacement(body)
         ex = _exact(x, dim)
