@@ -160,3 +160,21 @@ def test_hertz_sphere_of_tetrahedra_on_a_block_of_hexahedra():
     f = sol.forces(0)
     vertical = (f["force"][:, None] * f["normal"]).sum(axis=0)[2]
     assert vertical == pytest.approx(t * area, rel=1e-6)
+
+
+def test_distributed_equals_serial():
+    """The solve over the ranks equals each rank's own serial solve (Hertz 2D, an active set).
+
+    Under ``mpirun -n 2`` the first solve is spread over two ranks, the second is one rank's
+    alone (the mesh is held whole on every rank).
+    """
+    mesh = df.build_mesh(disk_on_block, 0.2, 0.34, recombine="block")
+    problem = hertz.disk_problem(mesh)
+    spread = df.solve(problem, method="tfeti", rtol=1e-10)
+    alone = df.solve(problem, comm=MPI.COMM_SELF, method="tfeti", rtol=1e-10)
+    for k in range(len(mesh.parts)):
+        a, b = spread.nodal_values(k), alone.nodal_values(k)
+        assert np.abs(a - b).max() < 1e-7 * np.abs(b).max()
+    fa, fb = spread.forces(0), alone.forces(0)
+    np.testing.assert_array_equal(fa["node"], fb["node"])
+    assert np.abs(fa["force"] - fb["force"]).max() < 1e-6 * fb["force"].max()
