@@ -26,12 +26,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 
+from .. import compat
 from ..constraints.mortar_mixed import mortar_coupling_between
 from ..constraints.mortar_rows import coupled_rows, snap_roundoff
 from ..constraints.rows import Kind, Rows
-from ..errors import InputError, collective
+from ..errors import InputError, NotConverged, collective
 from ..fem.assembly import assemble_subdomains, block_diagonal
 from ..feti.chain import chain_qp
 from ..feti.system import BlockSystem, petsc_aij, row_blocks, row_types
@@ -97,9 +99,10 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                              "types is solved by Total FETI (method 'tfeti' or 'auto')")
     timer = Timer()
     split, bs = problem.mixed, problem.value_size
-    shares, datas = [], []
+    shares, datas, shared_all = [], [], []
     for p in split.problems:
         shared = share_problem(p, comm, "tfeti", timer)
+        shared_all.append(shared)
         shares.append(shared.share)
         datas.append(assemble_subdomains(p, shared.share, comm, timer, keep=False))
     layout = Layout.of([d.K.shape[0] for d in datas], comm)
@@ -120,7 +123,11 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     qp.copy_weight = np.concatenate([1.0 / np.repeat(s.dec.multiplicity, bs) for s in shares])
     report = Report()
     report.warnings.extend(qp.warnings)
-    out = solve_qp(qp, opts, report=report, timer=timer)
+    report.warnings.extend(w for s in shared_all for info in s.mortar for w in info.warnings)
+    try:
+        out = solve_qp(qp, opts, report=report, timer=timer)
+    finally:  # the chain's operators and factors (the solution keeps plain arrays)
+        qp.destroy()
     res = out.result
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
     report.reason = res.reason
@@ -133,8 +140,16 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         total, own_rows.scale, own_rows.kind, own_rows.inequality, out.u, out.lam)
     report.timings = timer.reduced(comm)
     lam = out.lam.array_r[own_rows.size - cross.rows.size:] if comm.rank == 0 else None
-    return MixedSolution(problem, shares, datas, layout, out.u.array_r.copy(), coupled,
-                         comm.bcast(lam, root=0), report, comm)
+    sol = MixedSolution(problem, shares, datas, layout, out.u.array_r.copy(), coupled,
+                        comm.bcast(lam, root=0), report, comm)
+    for v in (out.x, out.u, out.lam):
+        v.destroy()
+    total.destroy()
+    compat.garbage_cleanup(comm)
+    if opts.error_if_not_converged and not report.converged:
+        raise NotConverged(f"the solver did not converge: {report.reason}; see "
+                           "error.solution.report", sol)
+    return sol
 
 
 @dataclass
@@ -268,8 +283,6 @@ def _condition_rows(mesh, a, first: np.ndarray, fixed: np.ndarray, point_start: 
 def _joined_system(datas, own: Rows, cols: np.ndarray, layout: Layout, comm: MPI.Comm
                    ) -> BlockSystem:
     """The Total FETI system of all meshes: K block diagonal, the rows' columns joined."""
-    import scipy.sparse as sp
-
     n_loc = int(layout.n[comm.rank].sum())
     n_glob = int(layout.n.sum())
     rows_glob = comm.allreduce(own.size)
