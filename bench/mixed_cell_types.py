@@ -15,7 +15,7 @@ Prints two tables (the figures of docs/index.md, *Bodies of different cell types
    the same figures, the contact radius against a.
 
 Run: ``PYTHONPATH=$PWD python bench/mixed_cell_types.py`` (about 1 min); under ``mpirun -n 2``
-the same figures.
+the same figures (the F-multiplications of 3D Hertz may differ: reductions round off otherwise).
 """
 
 from __future__ import annotations
