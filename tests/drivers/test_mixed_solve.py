@@ -178,3 +178,27 @@ def test_distributed_equals_serial():
     fa, fb = spread.forces(0), alone.forces(0)
     np.testing.assert_array_equal(fa["node"], fb["node"])
     assert np.abs(fa["force"] - fb["force"]).max() < 1e-6 * fb["force"].max()
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_rigid_obstacle_under_the_lower_body(dim):
+    """Conditions within one mesh as before: the hexahedral (quadrilateral) block on a rigid
+    plane instead of a Dirichlet base, the tetrahedral (triangle) block on it by mortar
+    contact: the same exact linear field, both interfaces at the uniform pressure p.
+    """
+    mesh = df.build_mesh(stacked_blocks, dim, 0.25, 0.4, recombine="lower")
+    bcs = [df.Dirichlet("sym0", 0.0, components=(0,))]
+    if dim == 3:
+        bcs.append(df.Dirichlet("sym1", 0.0, components=(1,)))
+    plane = df.Plane([0.0] * dim, [0.0] * (dim - 1) + [1.0])
+    problem = df.ContactProblem(
+        mesh, df.Elasticity(E, NU, tractions={"top": [0.0] * (dim - 1) + [-P]}), dirichlet=bcs,
+        contact=[df.RigidObstacle("bottom", plane), df.Mortar("upper_bottom", "lower_top")])
+    assert len(problem.mixed.problems[0].contact) == 1 and len(problem.mixed.across) == 1
+    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    assert sol.report.converged and sol.report.max_penetration < 1e-10
+    for body in ("lower", "upper"):
+        x, u = sol.displacement(body)
+        ex = _exact(x, dim)
+        assert np.abs(u - ex).max() < 1e-9 * np.abs(ex).max()
+    assert np.abs(sol.forces(0)["pressure"] - P).max() < 1e-9
