@@ -452,7 +452,9 @@ class ContactProblem:
     Args:
         mesh: The mesh (see :func:`dolfinx_feti.read_gmsh`). For a mesh only rank 0 holds
             (``read_gmsh(..., replicate=False)``) create the problem on every rank of its
-            communicator: rank 0 checks it.
+            communicator: rank 0 checks it. A :class:`~dolfinx_feti.MixedMesh` (bodies of
+            several cell types) splits the problem into one per mesh and the Mortar and Tie
+            conditions between them (:mod:`.mixed_problem`; solved by ``df.solve``).
         forms: ``forms(V, sub) -> (a, L)``: the bilinear and linear UFL forms on a subdomain's
             function space ``V``; ``sub`` (:class:`dolfinx_feti.fem.Subdomain`) tells which
             body it belongs to and gives the tagged measures ``sub.dx(...)``, ``sub.ds(...)``.
