@@ -37,6 +37,7 @@ from ..errors import InputError, NotConverged, collective
 from ..fem.assembly import assemble_subdomains, block_diagonal
 from ..feti.chain import chain_qp
 from ..feti.system import BlockSystem, petsc_aij, row_blocks, row_types
+from ..feti.transforms import EliminateDirichlet
 from ..options import SolverOptions
 from ..results.mixed_solution import Coupled, MixedSolution
 from ..results.report import Report
@@ -85,8 +86,9 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                 ) -> MixedSolution:
     """Solve a problem on bodies of different cell types (module docstring; collective).
 
-    Total FETI on the joined system; the options are those of :func:`dolfinx_feti.solve`
-    (``method`` "tfeti" or "auto", which is Total FETI here).
+    Total FETI (or FETI-1) on the joined system; the options are those of
+    :func:`dolfinx_feti.solve` (``method`` "tfeti", "feti1" or "auto", which is Total FETI
+    here).
     """
     with collective(comm, "options"):
         opts = SolverOptions.create(argv=options, **kwargs) if not isinstance(
@@ -94,9 +96,10 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         if getattr(problem.forms, "solve_by", None) is not None:
             raise InputError(f"forms solved by {problem.forms.solve_by!r} (large deformation) "
                              "on bodies of several cell types are not implemented")
-        if opts.method not in ("tfeti", "auto"):
+        if opts.method not in ("tfeti", "feti1", "auto"):
             raise InputError(f"method={opts.method!r}: a problem on bodies of several cell "
-                             "types is solved by Total FETI (method 'tfeti' or 'auto')")
+                             "types is solved by Total FETI or FETI-1 (method 'tfeti', "
+                             "'feti1' or 'auto')")
     timer = Timer()
     split, bs = problem.mixed, problem.value_size
     shares, datas, shared_all = [], [], []
@@ -118,7 +121,12 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     cols.append(cross.cols)
     own_rows = Rows.concatenate(own)
     total = _joined_system(datas, own_rows, np.concatenate(cols), layout, comm)
-    qp = chain_qp(total, [], method="tfeti", factor=opts.factor, norm_rtol=opts.norm_rtol,
+    # FETI-1: the Dirichlet rows eliminated from the joined system (FETI-DP would need the
+    # corners of the joined subdomains: not yet); "auto" is Total FETI here
+    method = "feti1" if opts.method == "feti1" else "tfeti"
+    steps = [EliminateDirichlet(total, own_rows.kind == Kind.DIRICHLET)] \
+        if method == "feti1" else []
+    qp = chain_qp(total, steps, method=method, factor=opts.factor, norm_rtol=opts.norm_rtol,
                   timer=timer, dual_operator=opts.dual_operator)
     qp.copy_weight = np.concatenate([1.0 / np.repeat(s.dec.multiplicity, bs) for s in shares])
     report = Report()
@@ -132,7 +140,7 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
     report.reason = res.reason
     report.iterations, report.outer_iterations = res.iterations, res.outer_iterations
-    report.method = "TFETI"
+    report.method = {"tfeti": "TFETI", "feti1": "FETI-1"}[method]
     report.sizes = {"primal": int(layout.n.sum()), "dual": int(total.dual_size[1]),
                     "subdomains": int(sum(s.dec.num_subdomains for s in shares)),
                     "ranks": comm.size}

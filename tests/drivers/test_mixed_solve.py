@@ -67,11 +67,14 @@ def test_patch_test_exact(dim, recombined, tie):
     assert total == pytest.approx(-P if tie else P, rel=1e-10)
 
 
-def test_more_subdomains_spread_over_the_ranks():
-    """Several subdomains per mesh (rank after rank in the joined layout): still exact."""
+@pytest.mark.parametrize("method", ["tfeti", "feti1"])
+def test_more_subdomains_spread_over_the_ranks(method):
+    """Several subdomains per mesh (rank after rank in the joined layout): still exact, by
+    Total FETI and by FETI-1 (the Dirichlet rows eliminated from the joined system)."""
     problem = _patch_problem(3, "lower", False, df.Parts(3))
-    sol = df.solve(problem, method="tfeti", rtol=1e-12)
+    sol = df.solve(problem, method=method, rtol=1e-12)
     assert sol.report.sizes["subdomains"] == 6
+    assert sol.report.method == {"tfeti": "TFETI", "feti1": "FETI-1"}[method]
     for body in ("lower", "upper"):
         x, u = sol.displacement(body)
         assert np.abs(u - _exact(x, 3)).max() < 1e-10
@@ -110,7 +113,7 @@ def test_conditions_refused_by_name():
     problem = df.ContactProblem(mesh, forms, ties=[df.Tie("upper_bottom", "lower_top")])
     with pytest.raises(df.InputError, match="solved by df.solve"):
         df.FetiSolver(problem)
-    with pytest.raises(df.InputError, match="method='fetidp'.* Total FETI"):
+    with pytest.raises(df.InputError, match="method='fetidp'.* Total FETI or FETI-1"):
         df.solve(problem, method="fetidp")
     large = df.ContactProblem(mesh, df.NeoHookean(E, NU),
                               ties=[df.Tie("upper_bottom", "lower_top")])
