@@ -78,7 +78,7 @@ class FetiSolver:
     def __init__(self, problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                  options: SolverOptions | Sequence[str] | None = None,
                  keep_meshes: bool = True, **kwargs) -> None:
-        if problem.mixed is not None:
+        if getattr(problem, "mixed", None) is not None:
             raise InputError("a problem on bodies of several cell types is solved by "
                              "df.solve(problem) (one solve; FetiSolver's updates are not "
                              "implemented for it)")
@@ -522,7 +522,7 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         InputError: For a problem that is ill-posed as described (e.g. a floating body with a
             load its constraints cannot balance).
     """
-    if problem.mixed is not None:  # bodies of several cell types: one mesh per type
+    if getattr(problem, "mixed", None) is not None:  # bodies of several cell types
         from .drivers.mixed_solve import solve_mixed
 
         return solve_mixed(problem, comm=comm, options=options, **kwargs)
