@@ -40,6 +40,7 @@ from ..feti.system import BlockSystem, petsc_aij, row_blocks, row_types
 from ..feti.transforms import EliminateDirichlet
 from ..options import SolverOptions
 from ..results.mixed_solution import Coupled, MixedSolution
+from ..results.mortar_report import between_meshes_warnings
 from ..results.report import Report
 from ..setup.share_distributed import columns
 from ..setup.stages import share_problem
@@ -150,6 +151,10 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     lam = out.lam.array_r[own_rows.size - cross.rows.size:] if comm.rank == 0 else None
     sol = MixedSolution(problem, shares, datas, layout, out.u.array_r.copy(), coupled,
                         comm.bcast(lam, root=0), report, comm)
+    nodal = [sol.nodal_values(k) for k in range(len(shares))]  # collective
+    warn, report.extra["mortar"] = between_meshes_warnings(problem.mesh.parts, nodal,
+                                                           split.across, coupled)
+    report.warnings.extend(warn)
     for v in (out.x, out.u, out.lam):
         v.destroy()
     total.destroy()
@@ -284,7 +289,8 @@ def _condition_rows(mesh, a, first: np.ndarray, fixed: np.ndarray, point_start: 
                    slave_nodes=c.slave_nodes[keep], D=c.D[keep], scale=rows.scale,
                    row_node=np.searchsorted(slave, rows.node), row_comp=comp_of_row,
                    normal=np.zeros((keep.size, mesh.gdim)) if a.tie else -c.normals[keep],
-                   uncoupled=int(c.slave_nodes.size - keep.size), pairs=c.pairs)
+                   uncoupled=int(c.slave_nodes.size - keep.size), pairs=c.pairs,
+                   search_distance=c.search_distance)
     return rows, info
 
 

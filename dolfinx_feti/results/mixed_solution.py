@@ -31,6 +31,7 @@ class Coupled:
             toward the slave (zeros for a tie).
         uncoupled: Slave nodes without a row.
         pairs: Facet pairs with an overlap.
+        search_distance: The search distance used.
     """
 
     index: int
@@ -44,6 +45,7 @@ class Coupled:
     normal: np.ndarray
     uncoupled: int
     pairs: int
+    search_distance: float
 
     @property
     def rows(self) -> int:

@@ -10,7 +10,7 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti.io.meshes_occ import disk_on_block, sphere_on_block, stacked_blocks
 
-P, E, NU = 1.0, 1.0, 0.3
+P, E, NU = 1.0, 1000.0, 0.3  # strains of 1e-3: the deformed surfaces are checked too
 
 
 def _exact(x: np.ndarray, dim: int) -> np.ndarray:
@@ -51,6 +51,10 @@ def test_patch_test_exact(dim, recombined, tie):
     assert sol.report.converged
     assert max(sol.report.kkt.values()) < 1e-10, sol.report.kkt  # the joined system's KKT
     assert sol.report.max_penetration < 1e-10
+    assert not sol.report.warnings, sol.report.warnings
+    assert sol.report.extra["mortar"][0]["rows"] == sol.coupled[0].rows > 0
+    if not tie:  # every node of both surfaces against the other deformed surface
+        assert sol.report.extra["mortar"][0]["max_penetration"] < 1e-10
     for body in ("lower", "upper"):
         x, u = sol.displacement(body)
         ex = _exact(x, dim)
@@ -156,6 +160,7 @@ def test_hertz_sphere_of_tetrahedra_on_a_block_of_hexahedra():
     assert sol.report.converged
     pmax, radius, element = hertz.mixed_figures(sol, mesh, 3)
     assert abs(pmax / hertz.SPHERE_P0 - 1.0) < 0.03, pmax / hertz.SPHERE_P0
+    assert not sol.report.warnings, sol.report.warnings  # no node through the other surface
     assert abs(radius - hertz.SPHERE_A) < element, (radius, hertz.SPHERE_A, element)
     sphere = mesh.parts[mesh.part_of_body("sphere")]
     v = sphere.x[sphere.facets("load")]
