@@ -18,7 +18,17 @@ from .drivers.load_path import solve_cases, solve_path
 from .errors import InputError, NotConverged, SolveError
 from .fem import Elasticity, Poisson, Subdomain
 from .fem.hyperelastic import Hyperelastic, NeoHookean, SaintVenantKirchhoff
-from .mesh import Auto, ByFunction, ByTags, MeshData, Parts, build_mesh, from_dolfinx, read_gmsh
+from .mesh import (
+    Auto,
+    ByFunction,
+    ByTags,
+    MeshData,
+    MixedMesh,
+    Parts,
+    build_mesh,
+    from_dolfinx,
+    read_gmsh,
+)
 from .options import SolverOptions
 from .problem.contact_problem import (
                       ContactProblem,
@@ -41,8 +51,8 @@ from .solver import FetiSolver, solve
 
 __all__ = ["Auto", "ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb",
            "Cylinder", "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "Hyperelastic",
-           "InputError", "MeshData", "Mortar", "NeoHookean", "NodeToNode", "NotConverged",
-           "Parts", "Plane", "Poisson", "Report", "RigidObstacle", "SaintVenantKirchhoff",
-           "SignedDistance", "Solution", "SolveError", "SolverOptions", "Sphere", "Subdomain",
-           "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx", "read_gmsh", "solve",
-           "solve_cases", "solve_path"]
+           "InputError", "MeshData", "MixedMesh", "Mortar", "NeoHookean", "NodeToNode",
+           "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
+           "SaintVenantKirchhoff", "SignedDistance", "Solution", "SolveError", "SolverOptions",
+           "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx",
+           "read_gmsh", "solve", "solve_cases", "solve_path"]

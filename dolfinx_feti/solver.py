@@ -78,6 +78,10 @@ class FetiSolver:
     def __init__(self, problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                  options: SolverOptions | Sequence[str] | None = None,
                  keep_meshes: bool = True, **kwargs) -> None:
+        if getattr(problem, "mixed", None) is not None:
+            raise InputError("a problem on bodies of several cell types is solved by "
+                             "df.solve(problem) (one solve; FetiSolver's updates are not "
+                             "implemented for it)")
         with collective(comm, "options"):  # a bad value on one rank stops every rank
             if options is None or not isinstance(options, SolverOptions):
                 opts = SolverOptions.create(argv=options, **kwargs)
@@ -518,6 +522,10 @@ def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
         InputError: For a problem that is ill-posed as described (e.g. a floating body with a
             load its constraints cannot balance).
     """
+    if getattr(problem, "mixed", None) is not None:  # bodies of several cell types
+        from .drivers.mixed_solve import solve_mixed
+
+        return solve_mixed(problem, comm=comm, options=options, **kwargs)
     by = getattr(problem.forms, "solve_by", None)
     if by is not None:
         if by not in SOLVE_BY:

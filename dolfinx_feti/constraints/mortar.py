@@ -435,16 +435,39 @@ def mortar_coupling(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master:
     found = search(x, cells, slave, master, search_distance, cell_type, self_contact)
     slave, ns, master, i, j = found.slave, found.ns, found.master, found.i, found.j
     nodes, normals, D = nodal_normals_and_areas(x, cells, slave, cell_type)
+    entries, npairs, D = facet_integrals(x, slave, ns, master, i, j, nodes, D)
+    return found.coupling(nodes, normals, D, entries, x.shape[0], npairs)
+
+
+def facet_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, master: np.ndarray,
+                    i: np.ndarray, j: np.ndarray, nodes: np.ndarray, D: np.ndarray
+                    ) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], int, np.ndarray]:
+    """The entries of M of the pairs (i, j), for first-order facets of any kind.
+
+    Segments (2D), triangles and quadrilaterals (tensor order) on either side, a triangle
+    against a quadrilateral included (bodies of different cell types). ``nodes`` and ``D``
+    are the slave nodes and their lumped areas; on quadrilaterals D becomes ∫ N_j exactly.
+
+    Returns:
+        ``((slave node, master node, value), pairs with an overlap, D)``.
+    """
     if x.shape[1] == 2:
         r, c, v, npairs = _segment_integrals(x, slave, master, i, j)
-    elif slave.shape[1] == 4:
+        return (r, c, v), npairs, D
+    if slave.shape[1] == 3 and master.shape[1] == 3:
+        r, c, v, npairs = _triangle_integrals(x, slave, ns, master, i, j)
+        return (r, c, v), npairs, D
+    if slave.shape[1] == 4:
         A, De = mortar_quad.dual_basis(x[slave])
         D = np.zeros(nodes.size)  # ∫ N_j exactly (the lumped area is exact on parallelograms)
         np.add.at(D, np.searchsorted(nodes, slave), De)
-        r, c, v, npairs = mortar_quad.pair_integrals(x, slave, ns, A, master, i, j)
-    else:
-        r, c, v, npairs = _triangle_integrals(x, slave, ns, master, i, j)
-    return found.coupling(nodes, normals, D, (r, c, v), x.shape[0], npairs)
+    else:  # a flat triangle's dual basis: ψ_j = 4 N_j − 1
+        A = np.broadcast_to(4.0 * np.eye(3) - 1.0, (slave.shape[0], 3, 3))
+    kinds = None if master.shape[1] == slave.shape[1] else tuple(
+        mortar_quad.TRIANGLE if f.shape[1] == 3 else mortar_quad.QUADRILATERAL
+        for f in (slave, master))
+    r, c, v, npairs = mortar_quad.pair_integrals(x, slave, ns, A, master, i, j, kinds=kinds)
+    return (r, c, v), npairs, D
 
 
 def same_way_pairs(x: np.ndarray, cells: np.ndarray, slave: np.ndarray, master: np.ndarray,

@@ -27,6 +27,9 @@ al.'s integration cells.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 
 from .clipping import clip_polygons, fan_quadrature
@@ -162,12 +165,49 @@ def plane_frame(P: np.ndarray, n: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return origin, t1, np.cross(n, t1)
 
 
+def inverse_affine(P: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Reference coordinates of points in planar triangles (F, 3, 2): x = P0 + ξ e1 + η e2."""
+    e1, e2 = P[:, 1] - P[:, 0], P[:, 2] - P[:, 0]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    det = np.where(det == 0.0, 1.0, det)[:, None]
+    d = p - P[:, None, 0]
+    return np.stack([(d[..., 0] * e2[:, None, 1] - d[..., 1] * e2[:, None, 0]) / det,
+                     (e1[:, None, 0] * d[..., 1] - e1[:, None, 1] * d[..., 0]) / det], axis=-1)
+
+
+def triangle_shape(xi: np.ndarray) -> np.ndarray:
+    """Linear shape functions of a triangle at reference points ``xi`` (..., 2), (..., 3)."""
+    return np.stack([1.0 - xi[..., 0] - xi[..., 1], xi[..., 0], xi[..., 1]], axis=-1)
+
+
+@dataclass(frozen=True)
+class FacetKind:
+    """What the overlap integrals need of a kind of flat-mapped facet.
+
+    Attributes:
+        cyclic: The facet's vertices in their order around it.
+        reference: ``reference(P, p)``: reference coordinates (F, Q, 2) of points ``p``
+            (F, Q, 2) of planar facets with vertices ``P`` (F, nv, 2).
+        shape: The facet's functions at reference points (..., 2) → (..., k).
+    """
+
+    cyclic: np.ndarray
+    reference: Callable[[np.ndarray, np.ndarray], np.ndarray]
+    shape: Callable[[np.ndarray], np.ndarray]
+
+
+#: A bilinear quadrilateral (tensor order) and a linear triangle.
+QUADRILATERAL = FacetKind(CYCLIC, inverse_bilinear, shape)
+TRIANGLE = FacetKind(np.arange(3), inverse_affine, triangle_shape)
+
+
 def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarray,
                    master: np.ndarray, i: np.ndarray, j: np.ndarray, basis=shape,
                    slave_points: np.ndarray | None = None,
-                   master_points: np.ndarray | None = None
+                   master_points: np.ndarray | None = None,
+                   kinds: tuple[FacetKind, FacetKind] | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-    """M entries of (slave facet, master facet) pairs of quadrilaterals.
+    """M entries of (slave facet, master facet) pairs of quadrilaterals (or triangles).
 
     Args:
         x: Node coordinates (N, 3).
@@ -181,11 +221,15 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
         slave_points: The points of ``basis`` on each slave facet (F_s, k); the vertices
             when None.
         master_points: The same on each master facet.
+        kinds: The (slave, master) facet kinds, when not both quadrilaterals with ``basis``
+            (a triangle against a quadrilateral: bodies of different cell types).
 
     Returns:
         ``(rows, cols, vals, pairs)``: slave node, master node and value of each entry of M,
         and the number of pairs with a non-empty overlap.
     """
+    quad = FacetKind(CYCLIC, inverse_bilinear, basis)
+    sk, mk = kinds if kinds is not None else (quad, quad)
     Ps, Pm = x[slave[i]], x[master[j]]
     origin, t1, t2 = plane_frame(Ps, ns[i])
 
@@ -194,31 +238,33 @@ def pair_integrals(x: np.ndarray, slave: np.ndarray, ns: np.ndarray, A: np.ndarr
         return np.stack([np.einsum("ikl,il->ik", d, t1), np.einsum("ikl,il->ik", d, t2)], axis=2)
 
     S, Mp = plane(Ps), plane(Pm)
-    Sc = S[:, CYCLIC]
-    cross = (Sc[:, 2, 0] - Sc[:, 0, 0]) * (Sc[:, 3, 1] - Sc[:, 1, 1]) - \
-        (Sc[:, 2, 1] - Sc[:, 0, 1]) * (Sc[:, 3, 0] - Sc[:, 1, 0])
-    Sc = np.where((cross < 0)[:, None, None], Sc[:, ::-1], Sc)  # the clipper must be ccw
-    poly, count = clip_polygons(Mp[:, CYCLIC], np.full(i.size, 4), Sc)
+    Sc = S[:, sk.cyclic]
+    twice_area = (Sc[..., 0] * np.roll(Sc[..., 1], -1, axis=1)
+                  - np.roll(Sc[..., 0], -1, axis=1) * Sc[..., 1]).sum(axis=1)
+    Sc = np.where((twice_area < 0)[:, None, None], Sc[:, ::-1], Sc)  # the clipper must be ccw
+    nm = len(mk.cyclic)
+    poly, count = clip_polygons(Mp[:, mk.cyclic], np.full(i.size, nm), Sc)
     idx = np.flatnonzero(count >= 3)
     poly, count = poly[idx], count[idx]
     first, pair, q, w = fan_quadrature(poly, count, TRI_X, TRI_W)  # w: the plane's area
     on = idx[pair]  # the (slave, master) pair of each triangle
-    xs = inverse_bilinear(S[on], q)
-    xm = inverse_bilinear(Mp[on], q)
-    # A warped slave facet: its area element relative to that of its projection on the plane.
+    xs = sk.reference(S[on], q)
+    xm = mk.reference(Mp[on], q)
+    # A warped slave facet: its area element relative to that of its projection on the plane
+    # (a triangle is flat).
     height = np.abs(np.einsum("ikl,il->ik", Ps - origin[:, None], ns[i])).max(axis=1)
     warped = np.flatnonzero(height[on] > 1e-12 * np.abs(S[on]).max(axis=(1, 2)))
     if warped.size:
         w[warped] *= area_element(Ps[on[warped]], xs[warped]) / \
             np.maximum(area_element(S[on[warped]], xs[warped]), 1e-300)
-    psi = basis(xs) @ np.swapaxes(A[i[on]], 1, 2)  # (T, Q, k): ψ_l = Σ_i A_li N_i
-    vals = np.swapaxes(w[:, :, None] * psi, 1, 2) @ basis(xm)  # (T, k, k): Σ_q w ψ_l N_k
-    nk = A.shape[1]
-    vals = np.add.reduceat(vals, first, axis=0) if pair.size else np.zeros((0, nk, nk))
+    psi = sk.shape(xs) @ np.swapaxes(A[i[on]], 1, 2)  # (T, Q, k): ψ_l = Σ_i A_li N_i
+    vals = np.swapaxes(w[:, :, None] * psi, 1, 2) @ mk.shape(xm)  # (T, k, km): Σ_q w ψ_l N_k
+    ks, km = A.shape[1], mk.shape(np.zeros(2)).size
+    vals = np.add.reduceat(vals, first, axis=0) if pair.size else np.zeros((0, ks, km))
     keep = np.abs(vals).sum(axis=(1, 2)) > 0.0
     si, mj = i[idx[keep]], j[idx[keep]]
     sp_ = slave if slave_points is None else slave_points
     mp_ = master if master_points is None else master_points
-    rows = np.repeat(sp_[si], nk, axis=1).ravel()
-    cols = np.tile(mp_[mj], (1, nk)).ravel()
+    rows = np.repeat(sp_[si], km, axis=1).ravel()
+    cols = np.tile(mp_[mj], (1, ks)).ravel()
     return rows, cols, vals[keep].ravel(), int(keep.sum())

@@ -204,7 +204,7 @@ def _bodies(mesh: MeshData, group: str) -> set[int]:
     return set(np.unique(mesh.cell_body[np.isin(mesh.cells, nodes).any(axis=1)]).tolist())
 
 
-def _coupled_rows(coupling: MortarCoupling, first: np.ndarray, bs: int, dirs: np.ndarray
+def coupled_rows(coupling: MortarCoupling, first: np.ndarray, bs: int, dirs: np.ndarray
                   ) -> tuple[np.ndarray, ...]:
     """Entries of rows s_j (dir_j·u_j − Σ_k w_jk dir_j·u_k), one row per coupled node.
 
@@ -253,7 +253,7 @@ def mortar_contact_rows(mesh: MeshData, spec: Mortar, index: int, node_ptr: np.n
     else:
         gap = np.zeros(int(keep.sum()))
         dirs = np.ones((int(keep.sum()), 1))
-    e_row, e_sub, e_node, e_comp, e_coef, s, slave = _coupled_rows(coupling, first, bs, dirs)
+    e_row, e_sub, e_node, e_comp, e_coef, s, slave = coupled_rows(coupling, first, bs, dirs)
     nr = slave.size
     rows = Rows(e_row=e_row, e_sub=e_sub, e_node=e_node, e_comp=e_comp, e_coef=e_coef,
                 rhs=s * gap, kind=np.full(nr, Kind.CONTACT, dtype=np.int8), scale=s, node=slave,
@@ -293,7 +293,7 @@ def tie_rows(mesh: MeshData, spec: Tie, index: int, node_ptr: np.ndarray, node_s
     for c in range(bs):
         dirs = np.zeros((slave.size, bs))
         dirs[:, c] = 1.0
-        e_row, e_sub, e_node, e_comp, e_coef, s, _ = _coupled_rows(coupling, first, bs, dirs)
+        e_row, e_sub, e_node, e_comp, e_coef, s, _ = coupled_rows(coupling, first, bs, dirs)
         free = ~fixed[slave, c]
         sel = np.flatnonzero(free)
         new = np.full(slave.size, -1)

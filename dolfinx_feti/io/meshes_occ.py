@@ -11,6 +11,7 @@ and returns the groups as ``{name: (dim, tag)}``.
 from __future__ import annotations
 
 import gmsh
+import numpy as np
 
 from .meshes import add_group, physical_groups, set_output_options
 
@@ -92,9 +93,33 @@ def _transfinite(dim: int, body: int, h: float) -> None:
         gmsh.model.mesh.setTransfiniteVolume(body)
 
 
+def _graded_hexahedra(box: int, h0: float, ratio: float) -> None:
+    """A box of hexahedra, its edges graded geometrically from h0 at the coordinate planes.
+
+    Each edge starts at size h0 at its end nearer the plane x = 0, y = 0 or z = 0 it is
+    normal to (boxes with a corner at the origin) and grows by ``ratio`` per element.
+    """
+    mesh = gmsh.model.mesh
+    faces = gmsh.model.getBoundary([(3, box)], combined=False, oriented=False)
+    curves = sorted({abs(t) for _, t in gmsh.model.getBoundary(faces, combined=False,
+                                                               oriented=False)})
+    for c in curves:
+        a, b = (gmsh.model.getValue(0, abs(t), []) for _, t in
+                gmsh.model.getBoundary([(1, c)], combined=False, oriented=True))
+        axis = int(np.argmax(np.abs(b - a)))
+        length = abs(b[axis] - a[axis])
+        n = max(int(np.ceil(np.log(1.0 + length * (ratio - 1.0) / h0) / np.log(ratio))), 1)
+        coef = ratio if abs(a[axis]) < abs(b[axis]) else 1.0 / ratio  # small at the plane
+        mesh.setTransfiniteCurve(c, n + 1, "Progression", coef)
+    for _, f in faces:
+        mesh.setTransfiniteSurface(f)
+        mesh.setRecombine(2, f)
+    mesh.setTransfiniteVolume(box)
+
+
 def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
                    width: float = 1.0, height: float = 1.0, gap: float = 0.0,
-                   recombine: bool = False) -> dict:
+                   recombine: bool | str = False) -> dict:
     """Two boxes, one on top of the other, meshed independently (non-matching interface).
 
     "lower" = [0, width]^(dim−1) × [0, height], "upper" the same box shifted up by
@@ -113,7 +138,8 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
         width: Horizontal size of the boxes.
         height: Vertical size of the boxes.
         gap: Initial gap between the boxes.
-        recombine: Quadrilaterals (2D) or hexahedra (3D) instead of simplices.
+        recombine: Quadrilaterals (2D) or hexahedra (3D) instead of simplices; a body's
+            name (``"lower"`` or ``"upper"``) for that body only (a model of two cell types).
     """
     if dim not in (2, 3) or min(h_lower, h_upper, width, height) <= 0 or gap < 0:
         raise ValueError(f"stacked_blocks: bad sizes dim={dim}, h={h_lower}/{h_upper}, "
@@ -135,8 +161,11 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
     gmsh.option.setNumber("Mesh.MeshSizeMax", 1e22)
     _size_in([(dim, lower)], h_lower)
     _size_in([(dim, upper)], h_upper)
-    if recombine:
-        for body, h in ((lower, h_lower), (upper, h_upper)):
+    if recombine not in (False, True, "lower", "upper"):
+        raise ValueError(f"stacked_blocks: recombine={recombine!r}: expected a bool, "
+                         "'lower' or 'upper'")
+    for name, body, h in (("lower", lower, h_lower), ("upper", upper, h_upper)):
+        if recombine is True or recombine == name:
             _transfinite(dim, body, h)
     top = z1 + height
     w = [width] * (dim - 1)
@@ -166,7 +195,8 @@ def stacked_blocks(dim: int = 2, h_lower: float = 0.1, h_upper: float = 0.17,
 
 def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
                   h_far: float = 1.0, R: float = 8.0, width: float = 20.0,
-                  height: float = 20.0, refine: float = 2.5) -> dict:
+                  height: float = 20.0, refine: float = 2.5,
+                  recombine: str | None = None) -> dict:
     """2D Hertz, half model: a quarter disk on a block, each meshed on its own.
 
     The geometry of :func:`dolfinx_feti.io.meshes.hertz2d` (disk of radius R centred at (0, R)
@@ -177,9 +207,15 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     Physical groups: "disk" (2, 1), "block" (2, 2), "disk_contact" (1, 11) = the whole arc,
     "block_contact" (1, 12) = the whole top of the block, "load" (1, 13) = the disk's flat top
     y = R, "symmetry" (1, 14) = the x = 0 edges, "bottom" (1, 15) = y = −height.
+
+    ``recombine``: ``"block"`` or ``"disk"`` meshes that body with quadrilaterals (a model of
+    two cell types), None both with triangles.
     """
     if not 0 < max(h_contact_disk, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("disk_on_block: need 0 < h_contact <= h_far and refine > 0")
+    if recombine not in (None, "block", "disk"):
+        raise ValueError(f"disk_on_block: recombine={recombine!r}: expected None, 'block' or "
+                         "'disk'")
     gmsh.model.add("disk_on_block")
     set_output_options()
     occ = gmsh.model.occ
@@ -211,13 +247,17 @@ def disk_on_block(h_contact_disk: float = 0.1, h_contact_block: float = 0.17,
     add_group(1, load, 13, "load")
     add_group(1, disk_sym + block_sym, 14, "symmetry")
     add_group(1, bottom, 15, "bottom")
+    if recombine is not None:  # all quadrilaterals (Blossom's full-quad recombination)
+        gmsh.option.setNumber("Mesh.RecombinationAlgorithm", 3)
+        gmsh.model.mesh.setRecombine(2, block if recombine == "block" else disk)
     gmsh.model.mesh.generate(2)
     return physical_groups()
 
 
 def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.25,
                     h_far: float = 2.0, R: float = 8.0, width: float = 16.0,
-                    height: float = 8.0, refine: float = 1.5) -> dict:
+                    height: float = 8.0, refine: float = 1.5,
+                    recombine: str | None = None) -> dict:
     """3D Hertz, quarter model: a hemisphere on a block, each meshed on its own.
 
     The lower half of the ball of radius R centred at (0, 0, R), cut to x, y >= 0, touches the
@@ -229,9 +269,16 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     spherical surface, "block_contact" (2, 12) = the whole top of the block, "load" (2, 13) =
     the flat top z = R of the hemisphere, "sym_x" (2, 14) = the faces x = 0, "sym_y" (2, 15)
     = the faces y = 0, "bottom" (2, 16) = z = −height.
+
+    ``recombine="block"``: the block of hexahedra instead (a model of two cell types), a
+    structured grid graded from h_contact_block at the planes x = 0, y = 0 and z = 0 by a
+    factor 1.15 per element.
     """
     if not 0 < max(h_contact_sphere, h_contact_block) <= h_far or refine <= 0:
         raise ValueError("sphere_on_block: need 0 < h_contact <= h_far and refine > 0")
+    if recombine not in (None, "block"):
+        raise ValueError(f"sphere_on_block: recombine={recombine!r}: expected None or "
+                         "'block'")
     gmsh.model.add("sphere_on_block")
     set_output_options()
     occ = gmsh.model.occ
@@ -264,6 +311,8 @@ def sphere_on_block(h_contact_sphere: float = 0.15, h_contact_block: float = 0.2
     add_group(2, sym_x, 14, "sym_x")
     add_group(2, sym_y, 15, "sym_y")
     add_group(2, bottom, 16, "bottom")
+    if recombine == "block":
+        _graded_hexahedra(block, h_contact_block, 1.15)
     gmsh.model.mesh.generate(3)
     return physical_groups()
 

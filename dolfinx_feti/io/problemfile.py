@@ -48,7 +48,7 @@ from mpi4py import MPI
 from ..errors import InputError, SolveError, collective
 from ..fem import Elasticity, Poisson
 from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
-from ..mesh import ByFunction, ByTags, MeshData, Parts, read_gmsh
+from ..mesh import ByFunction, ByTags, MeshData, MixedMesh, Parts, read_gmsh
 from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
 from ..problem.contact_problem import (
@@ -692,7 +692,17 @@ class _Reader:
             self.mesh = read_gmsh(mesh_path, self.comm)
         except (InputError, SolveError) as e:
             c.fault("mesh", f"cannot use the mesh {str(mesh_path)!r}: {e}")
+        self._one_cell_type(str(mesh_path))
         return str(mesh_path)
+
+    def _one_cell_type(self, source: str) -> None:
+        """Refuse a model of bodies of several cell types (a MixedMesh): not in problem files."""
+        if isinstance(self.mesh, MixedMesh):
+            self.c.fault("mesh", f"{source}: bodies of several cell types "
+                         f"({self.mesh.describe()}) are solved through the Python API "
+                         "(df.read_gmsh, df.ContactProblem, df.solve), not yet from a problem "
+                         "file")
+            self.mesh = None
 
     def _generated_mesh(self, t: dict) -> str:
         """A mesh built by a generator of :mod:`dolfinx_feti.io.meshes` (rank 0, collectively)."""
@@ -743,6 +753,7 @@ class _Reader:
                     pass
         if err is not None:
             c.fault("mesh", f"{source} failed: {err}")
+        self._one_cell_type(source)
         return source
 
     # --- model -------------------------------------------------------------------------

@@ -7,6 +7,7 @@ dependence on the number of ranks. Only rank 0 talks to gmsh; the arrays are bro
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ from mpi4py import MPI
 
 from ..errors import InputError, collective
 from .data import MeshData
+from .mixed import MixedMesh, mixed_mesh
 from .topology import row_keys
 
 #: gmsh element type → (cell name, geometry order, number of nodes): first-order cells and
@@ -59,13 +61,16 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
 
     Returns:
         The mesh data, identical on every rank of ``comm`` (or on rank 0, see ``replicate``;
-        or each rank's block, see ``distribute``).
+        or each rank's block, see ``distribute``). A model whose bodies are of several cell
+        types (each body of one type) gives a :class:`~.mixed.MixedMesh`: one mesh per type
+        (read replicated only).
 
     Raises:
         InputError: If the file is missing, the model has no physical groups of cells,
-            the cells are not triangles, quadrilaterals, tetrahedra or hexahedra of one type
-            and of order 1 or 2 (complete: 6, 9, 10 or 27 nodes), a cell is in two bodies, or
-            the data is not finite.
+            the cells are not triangles, quadrilaterals, tetrahedra or hexahedra of order 1
+            or 2 (complete: 6, 9, 10 or 27 nodes), a body mixes cell types or orders, bodies
+            of different types share nodes, a cell is in two bodies, or the data is not
+            finite.
     """
     data = None
     with collective(comm, "mesh"):
@@ -73,7 +78,12 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
             data = _extract(source, gdim)
             from .checks import check_mesh  # degenerate or inverted cells, empty bodies
 
-            check_mesh(data)
+            for part in data.parts if isinstance(data, MixedMesh) else (data,):
+                check_mesh(part)
+            if isinstance(data, MixedMesh) and (distribute or not replicate):
+                raise InputError("a model with bodies of several cell types "
+                                 f"({data.describe()}) is read with every rank holding it "
+                                 "(replicate=True, distribute=False)")
     if distribute:
         from .distributed import scatter_mesh
 
@@ -90,7 +100,8 @@ def read_gmsh(source, comm: MPI.Comm = MPI.COMM_WORLD, gdim: int | None = None,
     data = comm.bcast(data, root=0)
     from .checks import mark_checked  # rank 0 checked it: the received copy needs no re-check
 
-    mark_checked(data)
+    if not isinstance(data, MixedMesh):
+        mark_checked(data)
     return data
 
 
@@ -242,6 +253,19 @@ def _check_what_gmsh_kept(gmsh, path: Path, declared: tuple[int, int] | None,
                          "tags?)")
 
 
+def _facet_counts(gmsh, groups, tdim: int, kinds: list[tuple[str, int]]) -> dict[str, int]:
+    """The number of facets of each boundary group of a kind some body has (a mixed model)."""
+    types = {_GMSH_FACETS[ct][0][o - 1] for ct, o in kinds}
+    out = {}
+    for dim, tag in sorted(g for g in groups if g[0] == tdim - 1):
+        n = 0
+        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+            t, e, _ = gmsh.model.mesh.getElements(dim, ent)
+            n += sum(int(ei.size) for ti, ei in zip(t, e, strict=True) if int(ti) in types)
+        out[_group_name(gmsh, dim, tag)] = n
+    return out
+
+
 def _group_name(gmsh, dim: int, tag: int) -> str:
     return gmsh.model.getPhysicalName(dim, tag) or str(tag)
 
@@ -278,7 +302,7 @@ def _high_order_layout(gmsh, gmsh_type: int, cell_type: str) -> list[tuple[int, 
     return out
 
 
-def _extract_current(gmsh, gdim: int | None) -> MeshData:
+def _extract_current(gmsh, gdim: int | None) -> MeshData | MixedMesh:
     groups = gmsh.model.getPhysicalGroups()
     if not groups:
         raise InputError("the gmsh model has no physical groups: name the bodies (volumes, or "
@@ -289,36 +313,94 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
 
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     coords = coords.reshape(-1, 3)
-    gdim = tdim if gdim is None else gdim
-    tag_to_row = np.full(int(node_tags.max()) + 1 if node_tags.size else 1, -1, dtype=np.int64)
-    tag_to_row[node_tags] = np.arange(node_tags.size)
+    model = _Model(gmsh, groups, tdim, tdim if gdim is None else gdim, node_tags, coords)
+    bodies = [_body_of(gmsh, model, dim, tag) for dim, tag in
+              sorted(g for g in groups if g[0] == tdim)]
+    kinds = list(dict.fromkeys(b.kind for b in bodies if b.kind is not None))
+    if len(kinds) <= 1:
+        return _mesh_of(model, bodies, kinds[0] if kinds else None, whole=True)
+    # Bodies of several cell types: one mesh per type (mesh/mixed.py), empty bodies in the
+    # first (its checks refuse them by name).
+    parts = [_mesh_of(model, [b for b in bodies if b.kind == k or
+                              (b.kind is None and k == kinds[0])], k, whole=False)
+             for k in kinds]
+    return mixed_mesh(parts, _facet_counts(gmsh, groups, tdim, kinds),
+                      [b.name for b in bodies])
 
+
+@dataclass
+class _Model:
+    """What every mesh of a gmsh model reads: its groups and nodes."""
+
+    gmsh: object
+    groups: list
+    tdim: int
+    gdim: int
+    node_tags: np.ndarray
+    coords: np.ndarray
+
+    @property
+    def tag_to_row(self) -> np.ndarray:
+        t = self.node_tags
+        out = np.full(int(t.max()) + 1 if t.size else 1, -1, dtype=np.int64)
+        out[t] = np.arange(t.size)
+        return out
+
+
+@dataclass
+class _Body:
+    """One physical group of cells: its name, tag, (cell type, order) and element blocks."""
+
+    name: str
+    tag: int
+    kind: tuple[str, int] | None
+    blocks: list  # (gmsh element type, node tags (n, nodes per element))
+
+
+def _body_of(gmsh, model: _Model, dim: int, tag: int) -> _Body:
+    """A body's elements; a body of two cell types (or orders) is refused by name."""
+    name = _group_name(gmsh, dim, tag)
+    kind, blocks = None, []
+    for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
+        types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
+        for t, nd in zip(types, nodes, strict=True):
+            k = _cell_type(int(t), name)
+            if kind is not None and k != kind:
+                raise InputError(f"body {name!r} mixes {kind[0]} cells of order {kind[1]} and "
+                                 f"{k[0]} cells of order {k[1]}: each body must be of one "
+                                 "cell type and one order (bodies of different types may "
+                                 "meet in one model)")
+            kind = k
+            blocks.append((int(t), nd.astype(np.int64).reshape(-1, _GMSH_CELLS[int(t)][2])))
+    return _Body(name, tag, kind, blocks)
+
+
+def _mesh_of(model: _Model, bodies: list[_Body], kind: tuple[str, int] | None,
+             whole: bool) -> MeshData:
+    """The mesh of some bodies of one cell type and order.
+
+    ``whole``: the bodies are the whole model (every boundary facet must lie on them);
+    else they are the bodies of one type of a mixed model, and a boundary group keeps the
+    facets that lie on them (a group with none is left out).
+    """
+    gmsh, groups, tdim, gdim = model.gmsh, model.groups, model.tdim, model.gdim
+    node_tags, coords, tag_to_row = model.node_tags, model.coords, model.tag_to_row
+    cell_type, order = kind if kind is not None else (None, None)
     body_names, group_tags, cell_blocks, body_blocks = [], {}, [], []
-    cell_type = order = None
     high: dict[int, list] = {}  # dim → [(entity vertex rows, node rows)] of curved cells
-    for dim, tag in sorted(g for g in groups if g[0] == tdim):
-        name = _group_name(gmsh, dim, tag)
-        group_tags[name] = tag
-        body = len(body_names)
-        body_names.append(name)
-        for ent in gmsh.model.getEntitiesForPhysicalGroup(dim, tag):
-            types, _, nodes = gmsh.model.mesh.getElements(dim, ent)
-            for t, nd in zip(types, nodes, strict=True):
-                ct, o = _cell_type(int(t), name)
-                if cell_type is not None and (ct, o) != (cell_type, order):
-                    raise InputError(f"the mesh mixes {cell_type} cells of order {order} and "
-                                     f"{ct} cells of order {o} (body {name!r}): one cell type "
-                                     "and one order per mesh are supported")
-                cell_type, order = ct, o
-                rows = tag_to_row[nd.astype(np.int64).reshape(-1, _GMSH_CELLS[int(t)][2])]
-                nv = _NUM_VERTICES[ct]
-                block = rows[:, :nv][:, _GMSH_TO_DOLFINX[ct]]
-                if o == 2:
-                    for j, edim, ent_vertices in _high_order_layout(gmsh, int(t), ct):
-                        high.setdefault(edim, []).append((block[:, list(ent_vertices)],
-                                                          rows[:, j]))
-                cell_blocks.append(block)
-                body_blocks.append(np.full(block.shape[0], body, dtype=np.int32))
+    for body in bodies:
+        group_tags[body.name] = body.tag
+        index = len(body_names)
+        body_names.append(body.name)
+        for t, nd in body.blocks:
+            ct = _GMSH_CELLS[t][0]
+            rows = tag_to_row[nd]
+            block = rows[:, :_NUM_VERTICES[ct]][:, _GMSH_TO_DOLFINX[ct]]
+            if order == 2:
+                for j, edim, ent_vertices in _high_order_layout(gmsh, t, ct):
+                    high.setdefault(edim, []).append((block[:, list(ent_vertices)], rows[:, j]))
+            cell_blocks.append(block)
+            body_blocks.append(np.full(block.shape[0], index, dtype=np.int32))
     if not cell_blocks:
         raise InputError(f"the physical groups of dimension {tdim} hold no cells")
     cells_g = np.concatenate(cell_blocks)
@@ -372,6 +454,11 @@ def _extract_current(gmsh, gdim: int | None) -> MeshData:
                     blocks.append(nd.astype(np.int64).reshape(-1, per)[:, :nvf][:, fperm])
         f = np.concatenate(blocks) if blocks else np.empty((0, nvf), dtype=np.int64)
         f = new_index[tag_to_row[f]]
+        if not whole:  # a mixed model's group: its facets on these bodies (mixed_mesh checks)
+            f = f[np.all(f >= 0, axis=1)]
+            if f.shape[0] == 0:
+                del group_tags[name]
+                continue
         if np.any(f < 0):
             raise InputError(f"boundary group {name!r} has facets whose nodes belong to no cell "
                              "of any body")

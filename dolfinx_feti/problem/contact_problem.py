@@ -19,6 +19,7 @@ from ..mesh.checks import (
 from ..mesh.data import MeshData
 from ..mesh.decompose import ByFunction, ByTags, Parts
 from ..mesh.dofpoints import facet_weights
+from ..mesh.mixed import MixedMesh
 from ..validation import (
     Choice,
     Either,
@@ -435,8 +436,8 @@ Contact = NodeToNode | Mortar | RigidObstacle
 
 
 @dataclass
-@checked(mesh=Instance(MeshData, what="a MeshData (see read_gmsh; for a DOLFINx mesh, "
-                       "from_dolfinx(mesh, cell_tags, facet_tags))"),
+@checked(mesh=Instance(MeshData, MixedMesh, what="a MeshData (see read_gmsh; for a DOLFINx "
+                       "mesh, from_dolfinx(mesh, cell_tags, facet_tags))"),
          forms=Function("a function forms(V, sub) -> (a, L)"),
          value_size=Maybe(Integer(ge=1, le=3)), dirichlet=SequenceOf(Instance(Dirichlet)),
          contact=SequenceOf(Instance(object, what="a contact condition")),
@@ -451,7 +452,9 @@ class ContactProblem:
     Args:
         mesh: The mesh (see :func:`dolfinx_feti.read_gmsh`). For a mesh only rank 0 holds
             (``read_gmsh(..., replicate=False)``) create the problem on every rank of its
-            communicator: rank 0 checks it.
+            communicator: rank 0 checks it. A :class:`~dolfinx_feti.MixedMesh` (bodies of
+            several cell types) splits the problem into one per mesh and the Mortar and Tie
+            conditions between them (:mod:`.mixed_problem`; solved by ``df.solve``).
         forms: ``forms(V, sub) -> (a, L)``: the bilinear and linear UFL forms on a subdomain's
             function space ``V``; ``sub`` (:class:`dolfinx_feti.fem.Subdomain`) tells which
             body it belongs to and gives the tagged measures ``sub.dx(...)``, ``sub.ds(...)``.
@@ -481,8 +484,21 @@ class ContactProblem:
     ties: Sequence[Tie] = field(default_factory=list)
     degree: int | None = None
 
+    #: On a mesh of several cell types, the problem split per mesh
+    #: (:class:`~.mixed_problem.MixedParts`); None otherwise.
+    mixed = None
+
     def __post_init__(self) -> None:
         """Fill defaults and check what can be checked before any heavy work."""
+        if isinstance(self.mesh, MixedMesh):  # one problem per cell type, and what joins them
+            from .mixed_problem import split_problem
+
+            if self.value_size is None:
+                vs = getattr(self.forms, "value_size", None)
+                self.value_size = self.mesh.gdim if vs == "vector" else vs
+            self.mixed = split_problem(self)
+            self.degree = 1
+            return
         self.degree = _degree(self.degree, self.forms, self.mesh.geometry_degree)
         if self.mesh.geometry_degree == 2 and self.degree != 2:
             raise InputError("the mesh is of second order (curved cells): it needs a degree-2 "

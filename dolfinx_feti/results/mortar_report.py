@@ -79,14 +79,9 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
             M = facets_in_cell_order(mesh.cells, mesh.facets(info.master), mesh.cell_type)
         h = max(mean_facet_size(mesh.x, S), mean_facet_size(mesh.x, M))
         tol = PENETRATION_RTOL * h
-        worst = 0.0
-        count = 0
-        for a, b in ((S, M), (M, S)):
-            nodes, normals, _ = nodal_normals_and_areas(xd, mesh.cells, a, mesh.cell_type)
-            depth = penetration(xd[nodes], normals, xd, mesh.cells, b,
-                                info.coupling.search_distance, mesh.cell_type)
-            count += int((depth > tol).sum())
-            worst = max(worst, float(depth.max(initial=0.0)))
+        count, worst = _through([(xd, mesh.cells, S, mesh.cell_type),
+                                 (xd, mesh.cells, M, mesh.cell_type)],
+                                info.coupling.search_distance, tol)
         summary["max_penetration"] = worst
         if count:
             warnings.append(
@@ -94,3 +89,66 @@ def mortar_warnings(mesh, infos: list[MortarInfo], u: np.ndarray, spec: np.ndarr
                 f"{worst:.3g} (tolerance {tol:.3g}): the contact zone reaches nodes that no row "
                 "holds; name larger candidate surfaces or a larger search_distance")
     return warnings, summaries
+
+
+def between_meshes_warnings(meshes, nodal: list[np.ndarray], across, coupled
+                            ) -> tuple[list[str], list[dict]]:
+    """The checks of :func:`mortar_warnings` for the conditions between two meshes.
+
+    Every node of both surfaces of each contact condition between meshes of different cell
+    types (:mod:`dolfinx_feti.drivers.mixed_solve`) against the other deformed surface.
+
+    Args:
+        meshes: The meshes, one per cell type.
+        nodal: The displacement at the points of each mesh (degree 1: its vertices).
+        across: The conditions between meshes (:class:`.problem.mixed_problem.Across`).
+        coupled: Their rows (:class:`.results.mixed_solution.Coupled`).
+    """
+    warnings, summaries = [], []
+    for a, c in zip(across, coupled, strict=True):
+        summary = {"type": "tie" if a.tie else "mortar", "slave": a.spec.slave,
+                   "master": a.spec.master, "rows": c.rows, "uncoupled_slave_nodes":
+                   c.uncoupled, "facet_pairs": c.pairs, "search_distance": c.search_distance}
+        summaries.append(summary)
+        if a.tie or nodal[a.slave].shape[1] != meshes[a.slave].gdim:
+            continue
+        sides, h = [], 0.0
+        for k, group in ((a.slave, a.spec.slave), (a.master, a.spec.master)):
+            m = meshes[k]
+            f = facets_in_cell_order(m.cells, m.facets(group), m.cell_type)
+            sides.append((m.x + nodal[k][: m.x.shape[0]], m.cells, f, m.cell_type))
+            h = max(h, mean_facet_size(m.x, f))
+        tol = PENETRATION_RTOL * h
+        try:
+            count, worst = _through(sides, c.search_distance, tol)
+        except ValueError:  # a deformed surface folds onto itself
+            warnings.append(f"mortar contact {a.spec.slave!r} / {a.spec.master!r}: a deformed "
+                            "surface folds onto itself (displacements as large as the "
+                            "bodies: check the units); not checked")
+            continue
+        summary["max_penetration"] = worst
+        if count:
+            warnings.append(
+                f"mortar contact {a.spec.slave!r} (slave) / {a.spec.master!r} (master): "
+                f"{count} node(s) of the two surfaces penetrate the other one by up to "
+                f"{worst:.3g} (tolerance {tol:.3g}): the contact zone reaches nodes that no "
+                "row holds; name larger candidate surfaces or a larger search_distance")
+    return warnings, summaries
+
+
+def _through(sides: list[tuple], reach: float, tol: float) -> tuple[int, float]:
+    """The nodes of two deformed surfaces behind each other: (how many past ``tol``, deepest).
+
+    Args:
+        sides: Two surfaces, each ``(deformed coordinates, cells, facets in cell order,
+            cell type)`` of its mesh.
+        reach: The largest depth that counts (:func:`.constraints.mortar.penetration`).
+        tol: The depth that counts as penetration.
+    """
+    worst, count = 0.0, 0
+    for (xa, ca, fa, ta), (xb, cb, fb, tb) in (sides, sides[::-1]):
+        nodes, normals, _ = nodal_normals_and_areas(xa, ca, fa, ta)
+        depth = penetration(xa[nodes], normals, xb, cb, fb, reach, tb)
+        count += int((depth > tol).sum())
+        worst = max(worst, float(depth.max(initial=0.0)))
+    return count, worst

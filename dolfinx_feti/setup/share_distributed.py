@@ -145,7 +145,7 @@ def share_from_parts(problem, comm: MPI.Comm, timer: Timer | None = None, whole=
                 cell_ids, cell_points, local_points, pids, nodes, comm, whole)
         own, start, size = own_rows(pids, ptr, node_subs, fixed, values, bs, mesh.gdim,
                                     problem.gluing, sub_rank, comm, extra=extra)
-        cols = _columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
+        cols = columns(own, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm)
         rows = RankRows(own=own, cols=cols, start=start, size=size,
                         **_contact_rows(own, start, extra, comm))
     share = RankShare(mesh=local_mesh, points=points, point_ids=pids, cell_ids=cell_ids,
@@ -406,7 +406,7 @@ def _dirichlet_points(problem, local_mesh, points, local_f, f_group, names, pids
     return conditions
 
 
-def _columns(own: Rows, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm):
+def columns(own: Rows, pair_sub, pair_node, pids, num_points, sub_size, sub_rank, bs, comm):
     """The global primal column of every entry of this rank's rows.
 
     The column of (subdomain s, point p, component c) is bs · (the pairs of the subdomains

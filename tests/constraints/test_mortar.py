@@ -8,6 +8,7 @@ solve with the same rows (tests/support/reference.py), and Hertz's solutions in 
 from __future__ import annotations
 
 import gmsh
+import hertz_cases
 import numpy as np
 import pytest
 import reference as ref
@@ -293,11 +294,7 @@ P0_HERTZ = np.sqrt(P * E_STAR / (np.pi * R))
 
 
 def hertz_problem(mesh, slave="disk_contact", decomposition=None):
-    return df.ContactProblem(
-        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, -P / 2 / R)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("symmetry", components=[0])],
-        contact=[df.Mortar(slave, "block_contact")],
-        decomposition=decomposition or df.Parts(4))
+    return hertz_cases.disk_problem(mesh, slave, decomposition)
 
 
 @pytest.fixture(scope="module")
@@ -373,13 +370,7 @@ SPHERE_F, SPHERE_R = 20.0, 8.0
 
 def sphere_problem(mesh) -> tuple[df.ContactProblem, float]:
     """The quarter model of a sphere on a block under the force SPHERE_F, and its traction."""
-    t = SPHERE_F / 4 / (np.pi * SPHERE_R**2 / 4)
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
-                   df.Dirichlet("sym_y", components=[1])],
-        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(8))
-    return problem, t
+    return hertz_cases.sphere_problem(mesh)
 
 
 def test_sphere_on_block_3d():

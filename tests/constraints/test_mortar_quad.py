@@ -10,6 +10,7 @@ tetrahedral mortar result).
 from __future__ import annotations
 
 import gmsh
+import hertz_cases
 import numpy as np
 import pytest
 from test_mortar import check_contact_patch, check_tie_patch, occ_mesh, patch_problem
@@ -204,13 +205,7 @@ def test_hertz2d_on_quadrilaterals_converges():
 
 
 def sphere_problem(mesh):
-    F = 20.0
-    t = F / 4 / (np.pi * R**2 / 4)
-    problem = df.ContactProblem(
-        mesh, df.Elasticity(E_H, NU_H, tractions={"load": (0.0, 0.0, -t)}),
-        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("sym_x", components=[0]),
-                   df.Dirichlet("sym_y", components=[1])],
-        contact=[df.Mortar("sphere_contact", "block_contact")], decomposition=df.Parts(8))
+    problem, t = hertz_cases.sphere_problem(mesh)
     sol = df.solve(problem, rtol=1e-9)
     assert sol.report.converged and not sol.report.warnings, sol.report.warnings
     _, area = facet_normals(mesh.x, mesh.cells, mesh.facets("load"), mesh.cell_type)
