@@ -1,0 +1,90 @@
+"""Large-deformation mortar contact and ties under Newton (drivers/current_mortar.py).
+
+The patch test of two blocks meshed independently (non-matching interface): a neo-Hookean
+block [0, 2] × [1, 2] pressed onto a second one [0, 2] × [0, 1] of the same material, the top
+moved down by 2·strain, the bottom on rollers, the left sides on a symmetry plane, laterally
+free, frictionless. The exact solution is homogeneous, u = ((a − 1) x, −strain · y), with the
+lateral stretch a from the scalar equation P₁₁(a) = 0 (``test_newton.neo_hookean_exact``); the
+interface stays flat and both surfaces stretch by a, so the mortar rows of the deformed
+surfaces hold it exactly (a linear field is in both spaces; dual mortar reproduces it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hand_meshes import blocks
+from test_newton import LX, NU, E, neo_hookean_exact, nodal, residuals
+
+import dolfinx_feti as df
+from dolfinx_feti.constraints.mortar import mortar_coupling
+
+#: Both blocks' bottom/top/left; the upper block 5 cells across, the lower one 7: no node of
+#: the interface matches but its two ends.
+TWO_BLOCKS = [{"name": "lower", "n": (7, 4), "size": (LX, 1.0)},
+              {"name": "upper", "n": (5, 3), "origin": (0.0, 1.0), "size": (LX, 1.0)}]
+
+
+@pytest.fixture(scope="module")
+def two_blocks():
+    return blocks(TWO_BLOCKS)
+
+
+def stack(mesh, strain: float, interface, decomposition=None) -> df.ContactProblem:
+    kw = {"ties": [interface]} if isinstance(interface, df.Tie) else {"contact": [interface]}
+    return df.ContactProblem(
+        mesh, df.NeoHookean(E, NU),
+        dirichlet=[df.Dirichlet("lower_bottom", 0.0, components=[1]),
+                   df.Dirichlet("upper_top", -2 * strain, components=[1]),
+                   df.Dirichlet("lower_left", 0.0, components=[0]),
+                   df.Dirichlet("upper_left", 0.0, components=[0])],
+        decomposition=decomposition or df.ByTags(), **kw)
+
+
+def weighted_gaps(mesh, sol, slave: str, master: str) -> tuple[np.ndarray, np.ndarray]:
+    """The coupled slave nodes and their weighted gaps n·(Σ_k w_jk y_k − y_j) on the deformed
+    surfaces y = x + u of ``sol``, from its displacement alone."""
+    y = mesh.x[:, :2] + sol.nodal_values()
+    coupling = mortar_coupling(y, mesh.cells, mesh.facets(slave), mesh.facets(master), None,
+                               mesh.cell_type)
+    return coupling.slave_nodes[coupling.coupled], coupling.weighted_gap(y)
+
+
+def test_two_blocks_mortar_patch_test(two_blocks):
+    """20 % and 40 %: the exact homogeneous solution and contact force to 1e-8, quadratic
+    convergence, and the weighted gaps of the deformed surfaces zero. (One subdomain per body:
+    pieces of a body joined at one FETI-DP corner make K̃_t indefinite under compression, and
+    a mortar row, coupling two subdomains, gets no augmentation: docs/large_deformation.md.)"""
+    iface = df.Mortar("upper_bottom", "lower_top")
+    sols = df.solve_path(lambda t: stack(two_blocks, t, iface), [0.2, 0.4], rtol=1e-12,
+                         newton_rtol=1e-10, method="fetidp")
+    assert [s.report.converged for s in sols] == [True, True], \
+        [s.report.extra["newton"] for s in sols]
+    for sol, strain in zip(sols, (0.2, 0.4), strict=True):
+        a, p22 = neo_hookean_exact(strain)
+        X, U = nodal(sol)
+        assert np.abs(U - np.c_[(a - 1) * X[:, 0], -strain * X[:, 1]]).max() < 1e-8 * strain
+        assert abs(sol.contact.force.sum() + p22 * LX) < 1e-8 * abs(p22) * LX
+        assert np.all(sol.contact.force > 0)  # every slave node carries its share
+        assert max(sol.report.kkt.values()) < 1e-9
+        r = residuals(sol)
+        assert len(r) <= 8
+        for r0, r1 in zip(r, r[1:], strict=False):
+            if r1 > 1e-13:
+                assert r1 <= 10 * r0 ** 2, r
+        # the converged rows are those of the deformed surfaces: weighted gaps of x + u zero
+        nodes, gap = weighted_gaps(two_blocks, sol, "upper_bottom", "lower_top")
+        assert nodes.size == sol.contact.force.size
+        assert np.abs(gap).max() < 1e-10
+
+
+def test_two_blocks_tied_patch_test(two_blocks):
+    """A mortar tie under Newton glues material points (its rows of the reference surfaces,
+    on total displacements): the homogeneous solution at 40 % to 1e-8."""
+    iface = df.Tie("upper_bottom", "lower_top")
+    sol = df.solve(stack(two_blocks, 0.4, iface), rtol=1e-12, newton_rtol=1e-10,
+                   method="fetidp")
+    assert sol.report.converged, sol.report.extra["newton"]
+    a, _ = neo_hookean_exact(0.4)
+    X, U = nodal(sol)
+    assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.4 * X[:, 1]]).max() < 1e-8 * 0.4
