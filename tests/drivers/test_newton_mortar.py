@@ -18,6 +18,7 @@ from test_newton import LX, NU, E, neo_hookean_exact, nodal, residuals
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.io.meshes_occ import disk_on_block
 
 #: Both blocks' bottom/top/left; the upper block 5 cells across, the lower one 7: no node of
 #: the interface matches but its two ends.
@@ -88,3 +89,39 @@ def test_two_blocks_tied_patch_test(two_blocks):
     a, _ = neo_hookean_exact(0.4)
     X, U = nodal(sol)
     assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.4 * X[:, 1]]).max() < 1e-8 * 0.4
+
+
+@pytest.fixture(scope="module")
+def disk_block():
+    return df.build_mesh(disk_on_block, h_contact_disk=0.06, h_contact_block=0.1, h_far=0.5,
+                         R=1.0, width=3.0, height=1.5, refine=0.6, gdim=2)
+
+
+def test_rows_change_with_the_deformed_surfaces(disk_block):
+    """A neo-Hookean quarter disk (R = 1) pressed 0.2 into a neo-Hookean block, mortar contact
+    on the deformed surfaces: the set of coupled slave nodes grows with the flattening disk (the
+    rows' layout changes between iterates); the result does not depend on the load steps
+    taken, and its weighted gaps recomputed from the displacement alone are >= 0, zero where a
+    row carries force."""
+    def problem(t):
+        return df.ContactProblem(
+            disk_block, df.NeoHookean(1.0, 0.3),
+            dirichlet=[df.Dirichlet("load", -t, components=[1]),
+                       df.Dirichlet("symmetry", 0.0, components=[0]), df.Dirichlet("bottom")],
+            contact=[df.Mortar("disk_contact", "block_contact")])
+
+    opts = {"rtol": 1e-12, "newton_rtol": 1e-10, "method": "fetidp", "newton_max_it": 40}
+    path = df.solve_path(problem, [0.1, 0.2], **opts)
+    single = df.solve(problem(0.2), **opts)
+    assert all(s.report.converged for s in [*path, single])
+    first, last = path
+    assert first.contact.force.size != last.contact.force.size  # another layout of the rows
+    u_path, u_single = last.nodal_values(), single.nodal_values()
+    assert np.abs(u_path - u_single).max() < 1e-8 * np.abs(u_single).max()
+    nodes, gap = weighted_gaps(disk_block, last, "disk_contact", "block_contact")
+    c = last.contact
+    assert np.array_equal(np.sort(nodes), np.sort(c.node))
+    force = c.force[np.argsort(c.node)][np.argsort(np.argsort(nodes))]
+    assert gap.min() > -1e-9 and force.min() > -1e-9 * force.max()
+    assert np.abs(force * gap).max() < 1e-9 * force.max()
+    assert (force > 1e-6 * force.max()).sum() >= 4
