@@ -261,6 +261,32 @@ class DeformedMortar:
             v.destroy()
         return kkt
 
+    def quiet(self) -> None:
+        """No mortar check on the increments' QP solves.
+
+        Their u is an increment on the reference surfaces; :meth:`report` checks the total
+        displacement instead.
+        """
+        self.solver.qp.mortar = []
+
+    def report(self, sol) -> None:
+        """The mortar summaries and checks of ``sol`` (the total displacement; collective).
+
+        What a linear solve reports (``report.extra["mortar"]``, warnings on penetrating
+        nodes and active rim rows), with the search of the last iterate.
+        """
+        from ..results.mortar_report import mortar_warnings
+
+        comm, c = self.comm, sol.contact
+        nodal = sol.nodal_values_on_root()
+        found = None
+        with collective(comm, "constraints"):
+            if comm.rank == 0:
+                infos = [replace(i, rim_nodes=self._points[i.rim_nodes]) for i in self.infos]
+                found = mortar_warnings(sol.problem.mesh, infos, nodal, c.spec, c.node, c.force)
+        warn, sol.report.extra["mortar"] = comm.bcast(found, root=0)
+        sol.report.warnings.extend(warn)
+
     def warm_start(self, old: RankRows, lam: PETSc.Vec, new: RankRows) -> np.ndarray:
         """The last multipliers in the new layout (collective).
 

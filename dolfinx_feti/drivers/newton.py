@@ -208,6 +208,8 @@ class NewtonSolver:
         # mortar contact: the search and the integrals redone on every iterate's surfaces
         self.mortar = DeformedMortar(self.solver, problem, comm) if any(
             isinstance(c, Mortar) for c in problem.contact) else None
+        if self.mortar is not None:
+            self.mortar.quiet()
 
     def _at_state(self, problem: ContactProblem) -> ContactProblem:
         forms = problem.forms
@@ -234,6 +236,8 @@ class NewtonSolver:
         except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
             raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
                              f"factored ({e}): a singular or indefinite tangent") from e
+        if self.mortar is not None:
+            self.mortar.quiet()
 
     def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
                ) -> tuple[float, np.ndarray]:
@@ -398,6 +402,8 @@ class NewtonSolver:
         report.kkt, report.max_penetration = kkt_residuals(
             _Nonlinear(system.B, system.c, r, r_scale, self.comm), solver.qp.rows.own.scale,
             solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam)
+        if self.mortar is not None:
+            self.mortar.report(sol)
         return sol
 
     def save(self) -> np.ndarray:
