@@ -18,6 +18,7 @@ from test_newton import LX, NU, E, neo_hookean_exact, nodal, residuals
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.drivers.current_mortar import DeformedMortar
 from dolfinx_feti.io.meshes_occ import disk_on_block
 
 #: Both blocks' bottom/top/left; the upper block 5 cells across, the lower one 7: no node of
@@ -130,3 +131,38 @@ def test_rows_change_with_the_deformed_surfaces(disk_block):
     assert gap.min() > -1e-9 and force.min() > -1e-9 * force.max()
     assert np.abs(force * gap).max() < 1e-9 * force.max()
     assert (force > 1e-6 * force.max()).sum() >= 4
+
+
+def test_update_rows_takes_rows_of_another_number():
+    """FetiSolver.update_rows with mortar rows of another number of slave nodes: the rows of
+    the upper block moved 0.5 to the right (its slave nodes beyond the lower block's edge lose
+    their rows) give the linear solve of the mesh built with the upper block there."""
+    spec = [{"name": "lower", "n": (7, 4), "size": (LX, 1.0)},
+            {"name": "upper", "n": (5, 3), "origin": (0.0, 1.0), "size": (LX, 1.0)}]
+    moved = blocks([spec[0], {**spec[1], "origin": (0.5, 1.0)}])
+
+    def problem(mesh):
+        return df.ContactProblem(
+            mesh, df.Elasticity(E, NU),
+            dirichlet=[df.Dirichlet("lower_bottom"), df.Dirichlet("upper_left", 0.0, [0]),
+                       df.Dirichlet("upper_top", -0.01, [1])],
+            contact=[df.Mortar("upper_bottom", "lower_top")], decomposition=df.ByTags())
+
+    solver = df.FetiSolver(problem(blocks(spec)), method="fetidp", rtol=1e-12)
+    solver.solve()
+    shift = solver.qp.system.B.createVecRight()
+    data = solver.data
+    upper = data.local_subs[np.array([b == "upper" for b in data.bodies], dtype=bool)]
+    shift.array[:] = np.where((data.dof_comp == 0) & np.isin(data.dof_sub, upper), 0.5, 0.0)
+    mortar = DeformedMortar(solver, solver.problem, solver.comm)
+    rows, _, _ = mortar.relayout(solver.problem, solver.qp.rows, solver.qp.rows.own.rhs, shift)
+    before = solver.comm.allreduce(int(solver.qp.rows.own.size))
+    solver.update_rows(rows)
+    assert solver.comm.allreduce(int(solver.qp.rows.own.size)) < before
+    sol = solver.solve()
+    ref = df.solve(problem(moved), method="fetidp", rtol=1e-12)
+    assert sol.report.converged and ref.report.converged
+    u, r = sol.nodal_values(), ref.nodal_values()
+    assert np.abs(u - r).max() < 1e-8 * np.abs(r).max()
+    assert sol.contact.force.size == ref.contact.force.size
+    solver.destroy()
