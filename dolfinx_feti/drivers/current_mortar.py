@@ -10,10 +10,12 @@ along the surfaces, rank 0), and the rows of the increment's QP are
 with w_jk = M_jk / D_j, the averaged slave normal n_j and the scale s_j all of the
 configuration x + u_k, and B_j(u_k) their gradient with D, M and n frozen (the standard
 linearization of the weighted gap; the derivatives of D, M and n are not in the tangent). The
-residual's contact forces are B(u)ᵀλ with the D, M, n of the iterate, so a converged iterate
-(increment below the tolerance) satisfies the weighted non-penetration g̃(u) >= 0, λ >= 0 and
-λ_j g̃_j(u) = 0 of its own configuration to the Newton tolerance, not a linearized version
-of them.
+residual's contact forces are B(u)ᵀλ with the D, M, n of the iterate. Newton stops only when
+:meth:`DeformedMortar.kkt_at`, the search and the integrals redone at the last iterate u
+itself, finds the weighted non-penetration g̃(u) >= 0, λ >= 0, λ_j g̃_j(u) = 0 and the
+equilibrium r(u) = B(u)ᵀλ of that configuration within the Newton tolerance: not a
+linearized version of them (the rows of the iterate before give those only to first order in
+the last increment, since their D, M, n are frozen).
 
 The set of coupled slave nodes, so the number of rows and the master nodes of a row, may
 change from one iterate to the next: :meth:`DeformedMortar.relayout` gives the rank's rows in
@@ -25,7 +27,6 @@ the rows anyway).
 
 from __future__ import annotations
 
-import copy
 from dataclasses import replace
 
 import numpy as np
@@ -138,8 +139,6 @@ class DeformedMortar:
         x = layer.x.copy()
         x[:, : self._gdim] += U[:, : self._gdim]
         deformed = replace(layer, x=x)
-        surf = copy.copy(surface.problem)
-        object.__setattr__(surf, "mesh", deformed)
         n = self._points.size
         ptr = np.arange(n + 1)
         blocks, infos = [], []
