@@ -30,8 +30,9 @@ The choices:
 - **Gaps.** Every obstacle row takes the gap and the normal of its node's current position
   (for a plane exactly c − B u_k), with the obstacle's curvature term in the tangent near the
   solution; node-to-node pairs the normal of the deformed master surface and the gap of the
-  current positions. Mortar contact (the search and the integrals on the deformed surfaces),
-  ties and friction are refused by name.
+  current positions; mortar contact the search and the integrals redone on every iterate's
+  surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
+  reference surfaces (they glue material points). Friction is refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
