@@ -272,7 +272,8 @@ class DeformedMortar:
         """The mortar summaries and checks of ``sol`` (the total displacement; collective).
 
         What a linear solve reports (``report.extra["mortar"]``, warnings on penetrating
-        nodes and active rim rows), with the search of the last iterate.
+        nodes and active rim rows), with the search of the last iterate; a converged
+        solution's ``report.kkt`` are those of :meth:`kkt_at` (the rows of u itself).
         """
         from ..results.mortar_report import mortar_warnings
 
@@ -285,6 +286,9 @@ class DeformedMortar:
                 found = mortar_warnings(sol.problem.mesh, infos, nodal, c.spec, c.node, c.force)
         warn, sol.report.extra["mortar"] = comm.bcast(found, root=0)
         sol.report.warnings.extend(warn)
+        history = sol.report.extra.get("newton")
+        if sol.report.converged and history:  # the KKT residuals with the rows of u itself
+            sol.report.kkt = dict(history[-1]["kkt"])
 
     def warm_start(self, old: RankRows, lam: PETSc.Vec, new: RankRows) -> np.ndarray:
         """The last multipliers in the new layout (collective).
