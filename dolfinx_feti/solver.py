@@ -173,8 +173,9 @@ class FetiSolver:
         """Take new constraint rows on the same decomposition (e.g. after a new contact search).
 
         Args:
-            rows: This rank's rows (:class:`~dolfinx_feti.setup.share.RankRows`) in the layout of
-                the set-up's: the same rows, with new coefficients or right-hand sides.
+            rows: This rank's rows (:class:`~dolfinx_feti.setup.share.RankRows`): the set-up's
+                with new coefficients or right-hand sides, or rows of another number (a new
+                contact search: the next solve then starts cold).
 
         B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the
         subdomain factorizations are kept.
@@ -285,6 +286,11 @@ class FetiSolver:
         qp.share = replace(old.share, rows=rows) if old.share.rows is not rows else old.share
         self._shared = replace(self._shared, share=qp.share)
         self.qp = qp
+        # rows of another number (a new contact search): the last multipliers start nothing
+        if self._lam is not None and self.comm.allreduce(
+                self._lam.getSizes() != qp.b.getSizes(), op=MPI.LOR):
+            self._lam.destroy()
+            self._lam = None
 
     def _new_preconditioner(self) -> None:
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):

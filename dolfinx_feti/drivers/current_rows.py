@@ -149,7 +149,8 @@ class CurrentRows:
         own = rows0.own
         rhs = c0 - self.Bu(u)
         coef, normal = own.e_coef.copy(), own.normal.copy()
-        pairs = rows0.contact.kind == Kind.CONTACT
+        # node-to-node pairs (a mortar row has no partner: drivers/current_mortar.py)
+        pairs = (rows0.contact.kind == Kind.CONTACT) & (rows0.contact.partner >= 0)
         if np.any(pairs):  # the same on every rank (the contact rows are replicated)
             self._pairs_at(problem, rows0, u, rhs, coef, normal)
         obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
@@ -183,7 +184,7 @@ class CurrentRows:
         """
         own, contact, data = rows0.own, rows0.contact, self.solver.data
         mesh = problem.mesh
-        pairs = contact.kind == Kind.CONTACT
+        pairs = (contact.kind == Kind.CONTACT) & (contact.partner >= 0)
         points = np.unique(np.r_[contact.node[pairs], contact.partner[pairs]])
         mine = np.isin(data.dof_node, points)
         parts = self.comm.allgather((data.dof_node[mine], data.dof_comp[mine],
@@ -201,7 +202,7 @@ class CurrentRows:
             nodes, nrm, _ = surface_points(y, mesh.cells, facets, facets, weights,
                                            mesh.cell_type)
             n_at[nodes] = nrm
-        rows = np.flatnonzero(own.kind == Kind.CONTACT)
+        rows = np.flatnonzero((own.kind == Kind.CONTACT) & (own.partner >= 0))
         s_node, m_node = own.node[rows], own.partner[rows]
         n = n_at[m_node]
         pos = np.full(own.size, -1)

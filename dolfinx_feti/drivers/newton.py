@@ -30,8 +30,9 @@ The choices:
 - **Gaps.** Every obstacle row takes the gap and the normal of its node's current position
   (for a plane exactly c − B u_k), with the obstacle's curvature term in the tangent near the
   solution; node-to-node pairs the normal of the deformed master surface and the gap of the
-  current positions. Mortar contact (the search and the integrals on the deformed surfaces),
-  ties and friction are refused by name.
+  current positions; mortar contact the search and the integrals redone on every iterate's
+  surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
+  reference surfaces (they glue material points). Friction is refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
@@ -58,9 +59,10 @@ from petsc4py import PETSc
 from ..errors import InputError, NotConverged, SolveError
 from ..fem.hyperelastic import NewtonState
 from ..options import SolverOptions
-from ..problem.contact_problem import ContactProblem, NodeToNode, RigidObstacle
+from ..problem.contact_problem import ContactProblem, Mortar, NodeToNode, RigidObstacle
 from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
+from .current_mortar import DeformedMortar, check_mortar
 from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
 
@@ -112,7 +114,8 @@ def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
 
 #: The contact conditions the Newton driver takes, each with its check: the rows of the current
 #: configuration exist for these (drivers/current_rows.py). A new one is an entry here.
-NEWTON_CONDITIONS = {RigidObstacle: _check_obstacle, NodeToNode: _check_pair}
+NEWTON_CONDITIONS = {RigidObstacle: _check_obstacle, NodeToNode: _check_pair,
+                     Mortar: check_mortar}
 
 
 def check_newton_problem(problem: ContactProblem) -> None:
@@ -122,16 +125,12 @@ def check_newton_problem(problem: ContactProblem) -> None:
         if check is None:
             raise InputError(
                 f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
-                "driver yet (rigid obstacles and node-to-node contact only: mortar contact "
-                "needs the search and the integrals on the deformed surfaces)")
+                "driver yet (rigid obstacles, node-to-node and mortar contact only)")
         check(c, problem)
     for c in problem.contact:
         if c.friction is not None:
             raise InputError("large-deformation contact: friction is not supported by the "
                              "Newton driver yet")
-    if problem.ties:
-        raise InputError("large-deformation contact: mortar ties are not supported by the "
-                         "Newton driver yet")
     if not problem.dirichlet:
         raise InputError("large-deformation contact: every body needs a Dirichlet condition "
                          "(a body held by contact only leaves the tangent singular with a "
@@ -207,6 +206,11 @@ class NewtonSolver:
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
         self.rows = CurrentRows(self.solver, comm, self._kappa)
+        # mortar contact: the search and the integrals redone on every iterate's surfaces
+        self.mortar = DeformedMortar(self.solver, problem, comm) if any(
+            isinstance(c, Mortar) for c in problem.contact) else None
+        if self.mortar is not None:
+            self.mortar.quiet()
 
     def _at_state(self, problem: ContactProblem) -> ContactProblem:
         forms = problem.forms
@@ -233,6 +237,8 @@ class NewtonSolver:
         except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
             raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
                              f"factored ({e}): a singular or indefinite tangent") from e
+        if self.mortar is not None:
+            self.mortar.quiet()
 
     def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
                ) -> tuple[float, np.ndarray]:
@@ -271,8 +277,16 @@ class NewtonSolver:
             self.state.set(solver.data, self.u.array_r)
             rhs, coef, normal = self.rows.at(current, rows0, c0, self.u, keep=True)
             rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
-            if self._fresh and k == 0 and np.allclose(rows.own.rhs, solver.qp.rows.own.rhs,
-                                                      rtol=0, atol=0):
+            start, curved = None, False  # start: the last multipliers in a new layout
+            if self.mortar is not None:  # new mortar rows: maybe another layout
+                old, last = solver.qp.rows, lam if lam is not None else self._lam
+                rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
+                own0 = rows0.own
+                if last is not None and not self._cold:
+                    start = self.mortar.warm_start(old, last, rows)
+            same = rows.own.size == solver.qp.rows.own.size and np.array_equal(
+                rows.own.rhs, solver.qp.rows.own.rhs)
+            if self._fresh and k == 0 and comm.allreduce(same, op=MPI.LAND):
                 pass  # the set-up is the linearization at u = 0 with these rows
             else:
                 active = lam if lam is not None else self._lam
@@ -281,7 +295,10 @@ class NewtonSolver:
                 curved = bool(history) and history[-1]["residual"] < CURVATURE_FROM
                 self._factor(current, rows, active, curved, k)
             self._fresh = False
-            qp = solver.solve(COLD if self._cold else None)
+            x0 = None if self._cold else self._start(start)
+            qp = solver.solve(COLD if self._cold else x0)
+            if x0 is not None:
+                x0.destroy()
             self._cold = False
             if qp.report.reason == "unbounded" and curved:  # once more without the term
                 self._factor(current, rows, active, False, k)
@@ -330,10 +347,23 @@ class NewtonSolver:
             # quadratic convergence: the next increment would be of the order du_rel²
             if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged and self.rows.dropped <= opts.rtol:
-                converged = True
-                break
+                # mortar rows: checked again with the search and the integrals of u itself
+                exact = kkt if self.mortar is None else self.mortar.kkt_at(
+                    current, self.u, lam, c_now, r, r_scale)
+                if exact is not None and max(exact.values()) <= opts.rtol:
+                    history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}
+                    converged = True
+                    break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
         return sol, converged
+
+    def _start(self, full: np.ndarray | None) -> PETSc.Vec | None:
+        """The QP's start from multipliers of all rows (None: the solver's last ones)."""
+        if full is None:
+            return None
+        x0 = self.solver.qp.b.duplicate()
+        x0.array[:] = full[self.solver.qp.row_index]
+        return x0
 
     def _kkt(self, c0, r, r_scale, lam, own) -> dict[str, float]:
         system = self.solver.qp.system
@@ -373,6 +403,8 @@ class NewtonSolver:
         report.kkt, report.max_penetration = kkt_residuals(
             _Nonlinear(system.B, system.c, r, r_scale, self.comm), solver.qp.rows.own.scale,
             solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam)
+        if self.mortar is not None:
+            self.mortar.report(sol)
         return sol
 
     def save(self) -> np.ndarray:

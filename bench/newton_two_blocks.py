@@ -1,0 +1,90 @@
+"""Two neo-Hookean blocks pressed together under Newton: mortar against node-to-node.
+
+The two-block patch test of tests/drivers/test_newton_mortar.py (E = 10, ν = 0.3, blocks
+[0, 2] × [0, 1] and [0, 2] × [1, 2] meshed apart, the top moved down by 2·strain, the bottom
+on rollers, the left sides on a symmetry plane, one subdomain per body, FETI-DP):
+
+1. the smallest eigenvalues of the tangent K_t of the two blocks at the exact homogeneous
+   states, on the dofs their Dirichlet conditions leave free, and with the mortar rows held as
+   equalities besides (is the increment's QP convex?);
+2. the load path [0.2, 0.4] with mortar contact (7 × 4 and 5 × 3 cells: non-matching) and
+   with node-to-node contact (5 × 3 cells each: matching): converged or not, Newton
+   iterations and cut-backs per step, the error against the exact solution.
+
+Run (serial; small dense eigenproblems):
+
+    OMP_NUM_THREADS=1 python bench/newton_two_blocks.py
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import scipy.linalg as sl
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT / "tests" / "support"))
+sys.path.insert(0, str(ROOT / "tests" / "drivers"))
+
+from hand_meshes import blocks  # noqa: E402
+from test_newton import LX, neo_hookean_exact, nodal  # noqa: E402
+from test_newton_mortar import TWO_BLOCKS, stack  # noqa: E402
+
+import dolfinx_feti as df  # noqa: E402
+from dolfinx_feti.constraints.rows import Kind  # noqa: E402
+from dolfinx_feti.drivers.newton import NewtonSolver  # noqa: E402
+
+
+def smallest_eigenvalues(mesh, strain: float) -> tuple[float, float]:
+    """min eig of K_t at the exact state: Dirichlet dofs held; and mortar rows held too."""
+    problem = stack(mesh, strain, df.Mortar("upper_bottom", "lower_top"))
+    run = NewtonSolver(problem, method="fetidp", rtol=1e-12)
+    a, _ = neo_hookean_exact(strain)
+    data = run.solver.data
+    x = data.dof_x
+    run.u.array[:] = np.where(data.dof_comp == 0, (a - 1) * x[:, 0], -strain * x[:, 1])
+    current = run._at_state(problem)
+    run.state.set(data, run.u.array_r)
+    rows0 = run.solver.rows_of(current)
+    rows, _, _ = run.mortar.relayout(current, rows0, rows0.own.rhs.copy(), run.u)
+    run.solver.update_stiffness(current, rows=rows)
+    K = run.solver.data.K.toarray()
+    own = rows.own
+    B = np.zeros((own.size, K.shape[0]))
+    np.add.at(B, (own.e_row, rows.cols), own.e_coef)
+    out = []
+    for C in (B[own.kind == Kind.DIRICHLET], B[own.kind != Kind.GLUE]):
+        Z = sl.null_space(C)
+        out.append(float(np.linalg.eigvalsh(Z.T @ K @ Z)[0]))
+    run.destroy()
+    return out[0], out[1]
+
+
+def path(mesh, interface) -> list[str]:
+    sols = df.solve_path(lambda t: stack(mesh, t, interface), [0.2, 0.4], rtol=1e-12,
+                         newton_rtol=1e-10, method="fetidp", progress=False)
+    out = []
+    for sol, strain in zip(sols, (0.2, 0.4), strict=False):
+        a, p22 = neo_hookean_exact(strain)
+        X, U = nodal(sol)
+        err = np.abs(U - np.c_[(a - 1) * X[:, 0], -strain * X[:, 1]]).max() / strain
+        out.append(f"{strain:.0%}: {'converged' if sol.report.converged else 'FAILED'}, "
+                   f"{sol.report.extra['newton_iterations']} iterations, "
+                   f"{sol.report.extra['cutbacks']} cut-backs, error/strain {err:.1e}, "
+                   f"force {sol.contact.force.sum() / (-p22 * LX):.12f} of the exact")
+    return out
+
+
+if __name__ == "__main__":
+    nonmatching = blocks(TWO_BLOCKS)
+    print("strain | min eig K_t (Dirichlet held) | with the mortar rows held")
+    for strain in (0.1, 0.2, 0.3, 0.35, 0.4):
+        lo, hi = smallest_eigenvalues(nonmatching, strain)
+        print(f"{strain:.2f} | {lo:.3g} | {hi:.3g}")
+    print("mortar (non-matching):", *path(nonmatching, df.Mortar("upper_bottom", "lower_top")),
+          sep="\n  ")
+    matching = blocks([{**TWO_BLOCKS[0], "n": (5, 3)}, TWO_BLOCKS[1]])
+    print("node-to-node (matching):",
+          *path(matching, df.NodeToNode("upper_bottom", "lower_top")), sep="\n  ")

@@ -1,0 +1,341 @@
+"""Mortar contact rows of a Newton iterate: the search and the integrals on the deformed surfaces.
+
+At the iterate u_k the contact search and the segment-to-segment integrals D, M of every
+:class:`~dolfinx_feti.Mortar` condition are redone on the current surfaces x + u_k (the
+builders of the set-up, :func:`.constraints.mortar_rows.mortar_contact_rows`, on the cells
+along the surfaces, rank 0), and the rows of the increment's QP are
+
+    B_j(u_k) Δu <= g̃_j(u_k),   g̃_j = s_j n_j·((x_j + u_j) − Σ_k w_jk (x_k + u_k))
+
+with w_jk = M_jk / D_j, the averaged slave normal n_j and the scale s_j all of the
+configuration x + u_k, and B_j(u_k) their gradient with D, M and n frozen (the standard
+linearization of the weighted gap; the derivatives of D, M and n are not in the tangent). The
+residual's contact forces are B(u)ᵀλ with the D, M, n of the iterate. Newton stops only when
+:meth:`DeformedMortar.kkt_at`, the search and the integrals redone at the last iterate u
+itself, finds the weighted non-penetration g̃(u) >= 0, λ >= 0, λ_j g̃_j(u) = 0 and the
+equilibrium r(u) = B(u)ᵀλ of that configuration within the Newton tolerance: not a
+linearized version of them (the rows of the iterate before give those only to first order in
+the last increment, since their D, M, n are frozen).
+
+The set of coupled slave nodes, so the number of rows and the master nodes of a row, may
+change from one iterate to the next: :meth:`DeformedMortar.relayout` gives the rank's rows in
+a new layout (the other rows kept, each mortar row on the rank of its smallest subdomain, the
+order of the set-up: stable by smallest subdomain), which
+:meth:`~dolfinx_feti.FetiSolver.update_stiffness` takes with the tangent (it rebuilds B from
+the rows anyway).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..constraints.mortar_rows import mortar_contact_rows
+from ..constraints.rows import Kind, Rows
+from ..errors import InputError, collective
+from ..parallel.exchange import exclusive_scan
+from ..problem.contact_problem import ContactProblem, Mortar
+from ..setup.share import RankRows, row_subset
+
+
+def check_mortar(c: Mortar, problem: ContactProblem) -> None:
+    """Mortar contact under Newton: degree 1, a vector problem, two surfaces."""
+    if problem.value_size == 1 or problem.degree != 1:
+        raise InputError("large-deformation contact: mortar contact of degree-1 meshes and a "
+                         "vector problem only")
+    if c.slave == c.master:
+        raise InputError("large-deformation contact: mortar self-contact is not supported by "
+                         "the Newton driver")
+    if problem.mesh.part is not None:
+        raise InputError("large-deformation contact: mortar contact on a distributed mesh "
+                         "(distribute=True) is not supported by the Newton driver; read the "
+                         "mesh whole")
+
+
+def _permuted_cols(rows: Rows, cols: np.ndarray, order: np.ndarray) -> np.ndarray:
+    """The entries' columns in the order :meth:`Rows.permuted` gives the entries."""
+    new_of_old = np.full(rows.size, -1, dtype=np.int64)
+    new_of_old[order] = np.arange(order.size)
+    e_new = new_of_old[rows.e_row]
+    kept = np.flatnonzero(e_new >= 0)
+    return cols[kept[np.argsort(e_new[kept], kind="stable")]]
+
+
+class DeformedMortar:
+    """The mortar contact rows of the iterates of one Newton set-up (collective methods).
+
+    Args:
+        solver: The FetiSolver (its surfaces on rank 0, its subdomains).
+        problem: The problem (its :class:`~dolfinx_feti.Mortar` conditions).
+        comm: The ranks.
+
+    Attributes:
+        specs: The indices of the mortar conditions in ``problem.contact``.
+        infos: What the last search found, per condition (every rank).
+    """
+
+    def __init__(self, solver, problem: ContactProblem, comm: MPI.Comm) -> None:
+        self.solver, self.comm = solver, comm
+        self.specs = np.array([i for i, c in enumerate(problem.contact)
+                               if isinstance(c, Mortar)], dtype=np.int32)
+        self.infos: list = []
+        surface = solver.qp.surface
+        points = comm.bcast(surface.point_ids if comm.rank == 0 else None, root=0)
+        self._points = points  # the global dof points of the cells along the surfaces
+        data = solver.data
+        self._bs, self._gdim = data.bs, data.gdim
+        # every copy of a surface point, its subdomain and its global column
+        at = np.flatnonzero(np.isin(data.dof_node, points))
+        parts = comm.allgather((data.dof_node[at], data.dof_sub[at], data.dof_comp[at],
+                                data.primal_start + at))
+        node, sub, comp, col = (np.concatenate([p[i] for p in parts]) for i in range(4))
+        pos = np.searchsorted(points, node)
+        # the copy in the smallest subdomain of each point: where the set-up's rows sit
+        first = np.full(points.size, np.iinfo(np.int64).max)
+        np.minimum.at(first, pos, sub.astype(np.int64))
+        mine = sub == first[pos]
+        self._first = first
+        self._col = np.full((points.size, self._bs), -1, dtype=np.int64)
+        self._col[pos[mine], comp[mine]] = col[mine]
+        lo, hi = data.primal_start, data.primal_start + data.K.shape[0]
+        self._here = np.flatnonzero((self._col >= lo) & (self._col < hi))  # flat (point, comp)
+
+    def _displacement(self, u: PETSc.Vec) -> np.ndarray | None:
+        """The displacement of the surfaces' points (rank 0; None elsewhere), from u."""
+        data = self.solver.data
+        cols = self._col.ravel()[self._here]
+        parts = self.comm.gather((self._here, u.array_r[cols - data.primal_start]), root=0)
+        if self.comm.rank != 0:
+            return None
+        U = np.zeros(self._col.size)
+        for where, vals in parts:
+            U[where] = vals
+        return U.reshape(self._col.shape)
+
+    def rows_at(self, problem: ContactProblem, u: PETSc.Vec):
+        """The mortar rows of the configuration x + u (collective; every rank).
+
+        Returns:
+            ``(rows, cols, c)``: the rows in global dof points (the whole problem's), the
+            global column of every entry, and per row −B_j x (so that c − B_j u' is the gap
+            of any u' linearized with this iterate's D, M and n: the right-hand side of the
+            increment from u' and the violation of a trial point).
+        """
+        U = self._displacement(u)
+        out = None
+        with collective(self.comm, "constraints"):
+            if self.comm.rank == 0:
+                out = self._build(problem, U)
+        rows, cols, c, self.infos = self.comm.bcast(out, root=0)
+        return rows, cols, c
+
+    def _build(self, problem: ContactProblem, U: np.ndarray):
+        """Rank 0: the rows on the deformed cells along the surfaces."""
+        surface = self.solver.qp.surface
+        layer = surface.problem.mesh
+        x = layer.x.copy()
+        x[:, : self._gdim] += U[:, : self._gdim]
+        deformed = replace(layer, x=x)
+        n = self._points.size
+        ptr = np.arange(n + 1)
+        blocks, infos = [], []
+        for i in self.specs:
+            rows, info = mortar_contact_rows(deformed, problem.contact[int(i)], int(i), ptr,
+                                             self._first, self._bs)
+            blocks.append(rows)
+            infos.append(info)
+        rows = Rows.concatenate(blocks) if blocks else Rows.empty(self._gdim)
+        if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
+            raise InputError("large-deformation contact: non-finite mortar rows at the "
+                             "iterate (a surface turned inside out)")
+        Bu = np.zeros(rows.size)
+        np.add.at(Bu, rows.e_row, rows.e_coef * U[rows.e_node, rows.e_comp])
+        cols = self._col[rows.e_node, rows.e_comp]
+        gmap = self._points
+        rows = replace(rows, e_node=gmap[rows.e_node], node=gmap[rows.node])
+        return rows, cols, rows.rhs + Bu, infos
+
+    def relayout(self, problem: ContactProblem, rows: RankRows, c0: np.ndarray,
+                 u: PETSc.Vec) -> tuple[RankRows, RankRows, np.ndarray]:
+        """The rank's rows with the mortar rows of x + u (collective).
+
+        Args:
+            problem: The problem of the step.
+            rows: The rank's rows linearized at u (the right-hand sides of the increment), in
+                the solver's current layout.
+            c0: The problem's right-hand sides of the same rows (``c0 − B u`` is the value of
+                a row at u).
+            u: The iterate.
+
+        Returns:
+            ``(rows, rows0, c0)`` in the new layout: the rows of the increment (the mortar
+            rows' right-hand sides the weighted gaps of x + u), the same with the right-hand
+            sides ``c0``, and ``c0`` (the mortar rows' −B_j x).
+        """
+        comm = self.comm
+        new, new_cols, new_c = self.rows_at(problem, u)
+        own = rows.own
+        keep = np.flatnonzero(~((own.kind == Kind.CONTACT) & np.isin(own.spec, self.specs)))
+        sub_rank = self.solver.qp.share.dec.sub_rank
+        here = np.flatnonzero(np.asarray(sub_rank)[new.min_subdomain()] == comm.rank)
+        e_here = np.isin(new.e_row, here)
+        kept = Rows.concatenate([row_subset(own, keep), row_subset(new, here)])
+        cols = np.concatenate([rows.cols[np.isin(own.e_row, keep)], new_cols[e_here]])
+        rhs_new = np.r_[own.rhs[keep], new.rhs[here]]
+        c_new = np.r_[c0[keep], new_c[here]]
+        order = np.argsort(kept.min_subdomain(), kind="stable")
+        cols = _permuted_cols(kept, cols, order)
+        kept = kept.permuted(order)
+        rhs_new, c_new = rhs_new[order], c_new[order]
+        own_new = replace(kept, rhs=rhs_new)
+        start = exclusive_scan(comm, own_new.size)
+        size = comm.allreduce(own_new.size)
+        contact, index = self._contact(own_new, start)
+        out = RankRows(own=own_new, cols=cols, start=start, size=size, contact=contact,
+                       contact_index=index)
+        out0 = replace(out, own=replace(own_new, rhs=c_new))
+        return out, out0, c_new
+
+    def _contact(self, own: Rows, start: int) -> tuple[Rows, np.ndarray]:
+        """The contact and friction rows of every rank in global order, and their indices."""
+        mine = np.flatnonzero(own.inequality | own.tangential)
+        parts = self.comm.allgather((row_subset(own, mine), mine + start))
+        return (Rows.concatenate([p[0] for p in parts]),
+                np.concatenate([p[1] for p in parts]).astype(np.int64))
+
+    def kkt_at(self, problem: ContactProblem, u: PETSc.Vec, lam: PETSc.Vec, c_now: np.ndarray,
+               r: np.ndarray, r_scale: float) -> dict[str, float] | None:
+        """The KKT residuals of (u, λ) with the mortar rows of x + u itself (collective).
+
+        The last QP's rows (D, M, n of the iterate before) give u's gaps and forces only to
+        first order in the increment; here the search and the integrals are redone at u: the
+        weighted gaps g̃(u), and the forces B(u)ᵀλ (each row's physical force kept) in the
+        equilibrium r(u) − B(u)ᵀλ. None when the rows of u are not those of the QP (another
+        set of coupled slave nodes): not converged.
+
+        Args:
+            problem: The problem of the step.
+            u: The iterate.
+            lam: The multipliers of the last QP (its rows).
+            c_now: The last QP's rows' c at u (:meth:`.CurrentRows.c_at`).
+            r: r(u) on this rank.
+            r_scale: The equilibrium's reference.
+        """
+        from .kkt_stop import kkt_residuals
+
+        comm, rows = self.comm, self.solver.qp.rows
+        own = rows.own
+        new, _, _ = self.relayout(problem, rows, own.rhs, u)
+        mortar = (own.kind == Kind.CONTACT) & np.isin(own.spec, self.specs)
+        same = new.own.size == own.size and np.array_equal(new.own.node, own.node) and \
+            np.array_equal(new.own.spec, own.spec) and np.array_equal(new.own.kind, own.kind)
+        if not comm.allreduce(bool(same), op=MPI.LAND):
+            return None
+        B = self.solver.qp.system.B
+        w = B.createVecRight()
+        B.multTranspose(lam, w)
+        lam_phys = lam.array_r * own.scale  # the rows' nodal forces, kept
+        old_e = mortar[own.e_row]
+        new_e = mortar[new.own.e_row]
+        lam_new = lam_phys / new.own.scale
+        add = PETSc.InsertMode.ADD_VALUES  # the forces of the rows of u replace the QP's
+        w.setValues(rows.cols[old_e].astype(PETSc.IntType),
+                    -own.e_coef[old_e] * lam.array_r[own.e_row[old_e]], addv=add)
+        w.setValues(new.cols[new_e].astype(PETSc.IntType),
+                    new.own.e_coef[new_e] * lam_new[new.own.e_row[new_e]], addv=add)
+        w.assemble()
+        Bu = B.createVecLeft()
+        B.mult(u, Bu)
+        c = B.createVecLeft()
+        c.array[:] = c_now
+        # B u − c is each mortar row's −g̃(u), in the units of the QP's row (its scale)
+        c.array[mortar] = Bu.array_r[mortar] + new.own.rhs[mortar] / new.own.scale[mortar] * \
+            own.scale[mortar]
+        kkt, _ = kkt_residuals(_AtIterate(B, c, w, r, r_scale, comm), own.scale, own.kind,
+                               own.inequality, u, lam, Bu=Bu)
+        for v in (w, Bu, c):
+            v.destroy()
+        return kkt
+
+    def quiet(self) -> None:
+        """No mortar check on the increments' QP solves.
+
+        Their u is an increment on the reference surfaces; :meth:`report` checks the total
+        displacement instead.
+        """
+        self.solver.qp.mortar = []
+
+    def report(self, sol) -> None:
+        """The mortar summaries and checks of ``sol`` (the total displacement; collective).
+
+        What a linear solve reports (``report.extra["mortar"]``, warnings on penetrating
+        nodes and active rim rows), with the search of the last iterate; a converged
+        solution's ``report.kkt`` are those of :meth:`kkt_at` (the rows of u itself).
+        """
+        from ..results.mortar_report import mortar_warnings
+
+        comm, c = self.comm, sol.contact
+        nodal = sol.nodal_values_on_root()
+        found = None
+        with collective(comm, "constraints"):
+            if comm.rank == 0:
+                infos = [replace(i, rim_nodes=self._points[i.rim_nodes]) for i in self.infos]
+                found = mortar_warnings(sol.problem.mesh, infos, nodal, c.spec, c.node, c.force)
+        warn, sol.report.extra["mortar"] = comm.bcast(found, root=0)
+        sol.report.warnings.extend(warn)
+        history = sol.report.extra.get("newton")
+        if sol.report.converged and history:  # the KKT residuals with the rows of u itself
+            sol.report.kkt = dict(history[-1]["kkt"])
+
+    def warm_start(self, old: RankRows, lam: PETSc.Vec, new: RankRows) -> np.ndarray:
+        """The last multipliers in the new layout (collective).
+
+        A kept row takes its own, a mortar row that of its slave node's row before (0 for a
+        node that had none).
+        """
+        comm = self.comm
+        own_o, own_n = old.own, new.own
+        mortar_o = (own_o.kind == Kind.CONTACT) & np.isin(own_o.spec, self.specs)
+        mortar_n = (own_n.kind == Kind.CONTACT) & np.isin(own_n.spec, self.specs)
+        out = np.zeros(own_n.size)
+        out[~mortar_n] = lam.array_r[~mortar_o]  # kept rows: same rank, same order
+        parts = comm.allgather((own_o.spec[mortar_o], own_o.node[mortar_o],
+                                lam.array_r[mortar_o]))
+        spec = np.concatenate([p[0] for p in parts]).astype(np.int64)
+        node = np.concatenate([p[1] for p in parts]).astype(np.int64)
+        val = np.concatenate([p[2] for p in parts])
+        key = spec * (int(node.max(initial=0)) + 1) + node
+        sel = np.flatnonzero(mortar_n)
+        want = own_n.spec[sel].astype(np.int64) * (int(node.max(initial=0)) + 1) + \
+            own_n.node[sel]
+        order = np.argsort(key)
+        pos = np.searchsorted(key[order], want)
+        ok = (pos < key.size) & (key[order][np.minimum(pos, max(key.size - 1, 0))] == want) \
+            if key.size else np.zeros(sel.size, dtype=bool)
+        out[sel[ok]] = val[order][pos[ok]]
+        return out
+
+
+__all__ = ["DeformedMortar", "check_mortar"]
+
+
+class _AtIterate:
+    """The system kkt_residuals reads at an iterate u, with the mortar rows of x + u.
+
+    The last QP's B; ``c`` giving the mortar rows' weighted gaps of x + u; the equilibrium
+    r(u) − B(u)ᵀλ with the mortar rows' forces of the D, M, n of x + u (``Bt_lam``).
+    """
+
+    def __init__(self, B: PETSc.Mat, c: PETSc.Vec, Bt_lam: PETSc.Vec, r: np.ndarray,
+                 r_scale: float, comm: MPI.Comm) -> None:
+        self.B, self.c, self.comm = B, c, comm
+        self._w, self._r, self._scale = Bt_lam, r, r_scale
+
+    def residuals(self, u: PETSc.Vec, lam: PETSc.Vec) -> dict[str, float]:
+        """The equilibrium, relative to max(‖r at the step's start‖, ‖B(u)ᵀλ‖)."""
+        d = float(np.sum((self._r - self._w.array_r) ** 2))
+        res = np.sqrt(self.comm.allreduce(d, op=MPI.SUM))
+        return {"equilibrium": res / max(self._scale, self._w.norm(), 1e-300)}
