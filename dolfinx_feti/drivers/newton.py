@@ -30,8 +30,9 @@ The choices:
 - **Gaps.** Every obstacle row takes the gap and the normal of its node's current position
   (for a plane exactly c − B u_k), with the obstacle's curvature term in the tangent near the
   solution; node-to-node pairs the normal of the deformed master surface and the gap of the
-  current positions. Mortar contact (the search and the integrals on the deformed surfaces),
-  ties and friction are refused by name.
+  current positions; friction on rigid obstacles acts on the slip increment of the load step
+  in the current tangents (:mod:`.newton_friction`). Mortar contact (the search and the
+  integrals on the deformed surfaces), ties and friction on pairs are refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
@@ -63,6 +64,7 @@ from ..results.solution import Solution
 from ..solver import COLD, SOLVE_BY, FetiSolver
 from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
+from .newton_friction import IncrementalSlip
 
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
@@ -108,6 +110,9 @@ def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
     if problem.degree != 1:
         raise InputError("large-deformation contact: node-to-node contact of degree-1 "
                          "meshes only")
+    if c.friction is not None:
+        raise InputError("large-deformation contact: friction under Newton is built for rigid "
+                         "obstacles only (not node-to-node pairs)")
 
 
 #: The contact conditions the Newton driver takes, each with its check: the rows of the current
@@ -125,10 +130,6 @@ def check_newton_problem(problem: ContactProblem) -> None:
                 "driver yet (rigid obstacles and node-to-node contact only: mortar contact "
                 "needs the search and the integrals on the deformed surfaces)")
         check(c, problem)
-    for c in problem.contact:
-        if c.friction is not None:
-            raise InputError("large-deformation contact: friction is not supported by the "
-                             "Newton driver yet")
     if problem.ties:
         raise InputError("large-deformation contact: mortar ties are not supported by the "
                          "Newton driver yet")
@@ -207,6 +208,9 @@ class NewtonSolver:
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
         self.rows = CurrentRows(self.solver, comm, self._kappa)
+        self.slip = None if self.solver.qp.friction is None else \
+            IncrementalSlip(self.solver, comm)
+        self.rows.friction = self.slip
 
     def _at_state(self, problem: ContactProblem) -> ContactProblem:
         forms = problem.forms
@@ -257,6 +261,8 @@ class NewtonSolver:
         comm, opts, solver = self.comm, self.newton, self.solver
         check_newton_problem(problem)
         current = self._at_state(problem)
+        if self.slip is not None:
+            self.slip.begin(self.u, problem)
         rows0 = solver.rows_of(current)
         own0 = rows0.own
         c0 = own0.rhs.copy()
@@ -325,22 +331,26 @@ class NewtonSolver:
             du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
                 self.u.norm(PETSc.NormType.INFINITY), 1e-300)
             c_now = self.rows.c_at(current, rows0, c0, self.u)
-            kkt = self._kkt(c_now, r, r_scale, lam, own0)
+            kkt = self._kkt(c_now, r, r_scale, lam, own0, qp.friction)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
-            if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
+            # (Coulomb's |g − 𝓕λ_N| is bounded by the fixed point's own tolerance)
+            if max(v for key, v in kkt.items() if key != "coulomb_bound") <= opts.rtol and \
+                    du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged and self.rows.dropped <= opts.rtol:
                 converged = True
                 break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
+        if converged and self.slip is not None:
+            self.slip.converged(problem)
         return sol, converged
 
-    def _kkt(self, c0, r, r_scale, lam, own) -> dict[str, float]:
+    def _kkt(self, c0, r, r_scale, lam, own, friction=None) -> dict[str, float]:
         system = self.solver.qp.system
         c = system.B.createVecLeft()
         c.array[:] = c0
         kkt, _ = kkt_residuals(_Nonlinear(system.B, c, r, r_scale, self.comm), own.scale,
-                               own.kind, own.inequality, self.u, lam)
+                               own.kind, own.inequality, self.u, lam, friction=friction)
         c.destroy()
         return kkt
 
@@ -369,10 +379,12 @@ class NewtonSolver:
         report.extra["newton_iterations"] = len(history)
         report.hessian_mults = int(sum(h["hessian_mults"] for h in history))
         u, lam = self.u.copy(), qp.lam.copy()
-        sol = Solution(problem, system, solver.qp.share, u, lam, qp.alpha, report, self.comm)
+        sol = Solution(problem, system, solver.qp.share, u, lam, qp.alpha, report, self.comm,
+                       friction=qp.friction)
         report.kkt, report.max_penetration = kkt_residuals(
             _Nonlinear(system.B, system.c, r, r_scale, self.comm), solver.qp.rows.own.scale,
-            solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam)
+            solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam,
+            friction=qp.friction)
         return sol
 
     def save(self) -> np.ndarray:
