@@ -263,7 +263,7 @@ class NewtonSolver:
         current = self._at_state(problem)
         if self.slip is not None:
             self.slip.begin(self.u, problem)
-        rows0 = solver.rows_of(current)
+        rows0 = solver.rows_of(current, tangents_follow=True)
         own0 = rows0.own
         c0 = own0.rhs.copy()
         r = self._residual(current, self.u.array_r)

@@ -25,6 +25,7 @@ from mpi4py import MPI
 from path_files import check_xdmf_series
 
 import dolfinx_feti as df
+from dolfinx_feti.io.meshes_rubber import ironing_block
 
 E, NU, LX = 10.0, 0.3, 2.0
 PRESS = 0.1  # the top's downward travel (10 % of the height)
@@ -176,3 +177,29 @@ def test_path_output_of_a_newton_path(block, tmp_path_factory):
             assert s["cutbacks"] == 0 and s["substeps"] == [s["time"]]
         check_xdmf_series(folder, len(times))
     comm.barrier()
+
+
+def test_a_rigid_die_pressed_and_slid():
+    """A rigid disc die pressed into the block and slid along it (a small ironing problem,
+    bench/ironing.py): the tangents turn with the die's normals, the slip is taken relative
+    to the moving die. The Coulomb conditions hold at every step, and while it slides the die
+    drags the surface along (the friction force on the block points in its direction)."""
+    mesh = df.build_mesh(ironing_block, lx=6.0, ly=2.0, h_top=0.25, h_far=0.5, gdim=2)
+    R, depth = 1.0, 0.3
+
+    def problem(t):
+        x = 2.0 + max(t - 1.0, 0.0) * 0.5
+        return df.ContactProblem(
+            mesh, df.NeoHookean(1.0, NU), dirichlet=[df.Dirichlet("bottom")],
+            contact=[df.RigidObstacle("top", df.Sphere((x, 2.0 + R - min(t, 1.0) * depth), R),
+                                      friction=df.Coulomb(0.3, rtol=1e-10, max_steps=200))],
+            decomposition=df.Parts(2))
+
+    sols = df.solve_path(problem, [0.5, 1.0, 1.04, 1.08], **OPTS)
+    assert all(s.report.converged for s in sols)
+    for sol in sols:
+        check_coulomb(sol, 0.3)
+    for sol in sols[2:]:
+        c = sol.contact
+        assert np.count_nonzero(c.state[c.force > 0] == 2) > 0
+        assert c.tangential_force[:, 0].sum() > 0.05 * c.force.sum()
