@@ -101,6 +101,9 @@ class NewtonOptions:
 
 def _check_obstacle(c: RigidObstacle, problem: ContactProblem) -> None:
     """Rigid obstacles: the gap and normal of the current positions, any degree."""
+    if c.friction is not None and problem.mesh.gdim != 2:
+        raise InputError("large-deformation contact: friction under Newton is built and "
+                         "tested in 2D only (docs/large_deformation.md)")
 
 
 def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:

@@ -20,7 +20,7 @@ import json
 import numpy as np
 import pytest
 from coulomb_kkt import coulomb_violations
-from element_models import rectangle, stacked_blocks
+from element_models import box, rectangle, stacked_blocks
 from mpi4py import MPI
 from path_files import check_xdmf_series
 
@@ -144,13 +144,20 @@ def test_small_loads_tend_to_the_linear_coulomb_solution(block):
     assert np.all(np.abs(ratios - 4.0) < 0.1), ratios
 
 
-def test_friction_on_pairs_refused_by_name():
+def test_friction_on_pairs_and_in_3d_refused_by_name():
     mesh = df.build_mesh(stacked_blocks, gdim=2)
     problem = df.ContactProblem(
         mesh, df.NeoHookean(E, NU),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", -0.1, components=[1])],
         contact=[df.NodeToNode("upper_bottom", "lower_top", friction=df.Tresca(1.0))])
     with pytest.raises(df.InputError, match="rigid obstacles only"):
+        df.solve(problem)
+    cube = df.build_mesh(box, h=0.5, gdim=3)
+    problem = df.ContactProblem(
+        cube, df.NeoHookean(E, NU), dirichlet=[df.Dirichlet("z1", (0.0, 0.0, -0.1))],
+        contact=[df.RigidObstacle("z0", df.Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
+                                  friction=df.Coulomb(0.3))])
+    with pytest.raises(df.InputError, match="2D only"):
         df.solve(problem)
 
 
