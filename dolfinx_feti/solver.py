@@ -228,14 +228,15 @@ class FetiSolver:
         self._adopt(qp, rows)
         self._new_preconditioner()
 
-    def rows_of(self, problem: ContactProblem):
+    def rows_of(self, problem: ContactProblem, tangents_follow: bool = False):
         """This rank's rows with the right-hand sides of ``problem`` (collective).
 
         Dirichlet values and obstacle gaps in the reference configuration, in the set-up's
-        layout.
+        layout; ``tangents_follow``: the caller turns the friction rows of a moved curved
+        obstacle itself (:meth:`.LoadRows.rows`).
         """
         with self._timer.phase("constraints"):
-            rows, _ = self._loads.rows(problem, self.comm, self._tangential)
+            rows, _ = self._loads.rows(problem, self.comm, self._tangential, tangents_follow)
         return rows
 
     @property

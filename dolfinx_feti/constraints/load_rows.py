@@ -56,7 +56,7 @@ class LoadRows:
                                                    return_inverse=True)
 
     def rows(self, problem: ContactProblem, comm: MPI.Comm,
-             tangential: np.ndarray | None = None):
+             tangential: np.ndarray | None = None, tangents_follow: bool = False):
         """This rank's rows with the right-hand sides of ``problem`` (collective).
 
         Args:
@@ -64,6 +64,9 @@ class LoadRows:
             comm: The ranks of the set-up.
             tangential: The right-hand sides of this rank's tangential rows (in the order of
                 :attr:`tangential`); None for 0 (no slip before the load case).
+            tangents_follow: The caller turns the friction rows with the obstacle's new
+                normals itself (Newton: drivers/newton_friction.py), so a moved curved
+                obstacle with friction is not refused.
 
         Returns:
             The new :class:`~dolfinx_feti.setup.share.RankRows`, and whether B changed (an
@@ -105,7 +108,7 @@ class LoadRows:
             coef = own.e_coef.copy()
             entry = np.isin(own.e_row, self._obstacle)
             coef[entry] = -own_normal[own.e_row[entry], own.e_comp[entry]]
-        contact = self._contact(rows, gap, normal, comm, moved)
+        contact = self._contact(rows, gap, normal, comm, moved, tangents_follow)
         return replace(rows, own=replace(own, rhs=rhs, e_coef=coef, normal=own_normal),
                        contact=contact), moved
 
@@ -142,7 +145,8 @@ class LoadRows:
             gap[m], normal[m] = obstacle_gaps(problem.contact[int(spec)], x[m])
         return gap, normal
 
-    def _contact(self, rows, gap: np.ndarray, normal: np.ndarray, comm: MPI.Comm, moved: bool):
+    def _contact(self, rows, gap: np.ndarray, normal: np.ndarray, comm: MPI.Comm, moved: bool,
+                 tangents_follow: bool = False):
         """The contact rows every rank keeps, with the new obstacle gaps and normals."""
         index = rows.start + self._obstacle
         parts = comm.allgather((index, gap, normal))
@@ -155,7 +159,8 @@ class LoadRows:
         rhs[pos] = np.concatenate([p[1] for p in parts])
         if not moved:
             return replace(contact, rhs=rhs)
-        if np.any(np.isin(contact.spec[contact.kind == Kind.TANGENT], contact.spec[pos])):
+        if not tangents_follow and np.any(np.isin(contact.spec[contact.kind == Kind.TANGENT],
+                                                  contact.spec[pos])):
             raise InputError("update: a rigid obstacle with friction moved so that its normals "
                              "changed; friction rows on a moving curved obstacle are not "
                              "supported by update (create a new FetiSolver)")

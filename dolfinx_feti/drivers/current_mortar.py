@@ -53,6 +53,9 @@ def check_mortar(c: Mortar, problem: ContactProblem) -> None:
         raise InputError("large-deformation contact: mortar contact on a distributed mesh "
                          "(distribute=True) is not supported by the Newton driver; read the "
                          "mesh whole")
+    if c.friction is not None:
+        raise InputError("large-deformation contact: friction under Newton is built for rigid "
+                         "obstacles only (not mortar pairs)")
 
 
 def _permuted_cols(rows: Rows, cols: np.ndarray, order: np.ndarray) -> np.ndarray:

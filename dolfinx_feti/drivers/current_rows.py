@@ -66,6 +66,7 @@ class CurrentRows:
         self.solver, self.comm, self.kappa = solver, comm, kappa
         self.geometry = None
         self.dropped = 0.0
+        self.friction = None  # the tangential rows' hook (drivers/newton_friction.py)
 
     def augmentation(self, lam: PETSc.Vec | None, curved: bool = True):
         """κ Σ b_r b_rᵀ over the rows active in the last QP (λ_r > 0), b_r in physical units.
@@ -174,6 +175,8 @@ class CurrentRows:
             self.geometry = (obst, x, problem)
         coef[ent] = -n[pos[own.e_row[ent]], own.e_comp[ent]] * own.scale[own.e_row[ent]]
         normal[obst] = n
+        if self.friction is not None:
+            self.friction.at(u, rhs, coef, normal)
         return rhs, coef, normal
 
     def _pairs_at(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
@@ -233,6 +236,7 @@ class CurrentRows:
     def violation(self, rhs: np.ndarray, own) -> np.ndarray:
         """The violation of the rows (physical units) given their right-hand sides at u."""
         v = -rhs / own.scale
+        v[own.kind == Kind.TANGENT] = 0.0  # a slip, not a violation
         ineq = own.inequality
         v[ineq] = np.maximum(v[ineq], 0.0)
         return v

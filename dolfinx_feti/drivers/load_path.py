@@ -28,7 +28,7 @@ from ..options import SolverOptions
 from ..problem.contact_problem import ContactProblem
 from ..results.solution import Solution
 from ..solver import COLD, FetiSolver
-from .path_output import History, TimeSeries, setup_seconds
+from .path_output import History, PathOutput, setup_seconds
 
 #: How :func:`solve_path` steps a problem whose forms say ``solve_by = key`` (a nonlinear
 #: material: ``"newton"``, registered by :mod:`dolfinx_feti.drivers.newton`).
@@ -78,7 +78,8 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
             tangential traction and the stick/slip state) of every step to this XDMF file, with
             the step's time (None: no file).
         history: Write the per-step history (iterations, F-multiplications, times, contact
-            forces, stick/slip counts) to this JSON file (None: no file).
+            forces, stick/slip counts; of a hyperelastic path also the Newton history, sub-steps
+            and cut-backs) to this JSON file (None: no file).
         progress: One line per step on rank 0 (through the ``dolfinx_feti`` logger).
         **kwargs: Fields of :class:`~dolfinx_feti.SolverOptions`.
 
@@ -100,14 +101,10 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
         if by not in PATH_BY:
             raise InputError(f"solve_path: the forms ask to be solved by {by!r}, which is not "
                              f"registered (known: {sorted(PATH_BY)})")
-        if xdmf is not None or history is not None:
-            raise InputError("solve_path: xdmf and history files are not written for "
-                             f"{by!r} paths yet; write each Solution's fields instead")
         return PATH_BY[by](problem_at, t, first, comm=comm, options=options,
-                           progress=progress, **kwargs)
+                           progress=progress, xdmf=xdmf, history=history, **kwargs)
     line = Progress(comm, 1 if progress else 0)
-    series = TimeSeries(xdmf, comm) if xdmf is not None else None
-    log = History(history, comm) if history is not None else None
+    out = PathOutput(xdmf, history, comm)
     solver, sols = None, []
     try:
         for k, tk in enumerate(t):
@@ -116,8 +113,7 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
                 with collective(comm):  # user code: a failure on one rank stops every rank
                     problem = problem_at_time(problem_at, tk)
             if solver is None:
-                if series is not None:
-                    series.check(problem)
+                out.check(problem)
                 solver = FetiSolver(problem, comm=comm, options=options, **kwargs)
             else:
                 solver.update(problem, slip_from=sols[-1])
@@ -126,17 +122,10 @@ def solve_path(problem_at: Callable[[float], ContactProblem], times: Sequence[fl
             sols.append(sol)
             record = History.record(sol)
             line.info(_step_line(k, t.size, tk, record))
-            if series is not None:
-                series.write(sol, float(tk))
-            if log is not None:
-                log.append(record)
-        if series is not None:
-            series.close()
-        if log is not None:
-            log.close()
+            out.write(sol, float(tk), record)
+        out.close()
     finally:
-        if series is not None:
-            series.abort()
+        out.abort()
         if solver is not None:
             solver.destroy()
     return sols

@@ -32,7 +32,9 @@ The choices:
   solution; node-to-node pairs the normal of the deformed master surface and the gap of the
   current positions; mortar contact the search and the integrals redone on every iterate's
   surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
-  reference surfaces (they glue material points). Friction is refused by name.
+  reference surfaces (they glue material points); friction on rigid obstacles acts on the slip
+  increment of the load step in the current tangents (:mod:`.newton_friction`). Friction on
+  pairs (node-to-node, mortar) is refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
@@ -65,6 +67,7 @@ from ..solver import COLD, SOLVE_BY, FetiSolver
 from .current_mortar import DeformedMortar, check_mortar
 from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
+from .newton_friction import IncrementalSlip
 
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
@@ -101,6 +104,9 @@ class NewtonOptions:
 
 def _check_obstacle(c: RigidObstacle, problem: ContactProblem) -> None:
     """Rigid obstacles: the gap and normal of the current positions, any degree."""
+    if c.friction is not None and problem.mesh.gdim != 2:
+        raise InputError("large-deformation contact: friction under Newton is built and "
+                         "tested in 2D only (docs/large_deformation.md)")
 
 
 def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
@@ -110,6 +116,9 @@ def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
     if problem.degree != 1:
         raise InputError("large-deformation contact: node-to-node contact of degree-1 "
                          "meshes only")
+    if c.friction is not None:
+        raise InputError("large-deformation contact: friction under Newton is built for rigid "
+                         "obstacles only (not node-to-node pairs)")
 
 
 #: The contact conditions the Newton driver takes, each with its check: the rows of the current
@@ -127,10 +136,6 @@ def check_newton_problem(problem: ContactProblem) -> None:
                 f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
                 "driver yet (rigid obstacles, node-to-node and mortar contact only)")
         check(c, problem)
-    for c in problem.contact:
-        if c.friction is not None:
-            raise InputError("large-deformation contact: friction is not supported by the "
-                             "Newton driver yet")
     if not problem.dirichlet:
         raise InputError("large-deformation contact: every body needs a Dirichlet condition "
                          "(a body held by contact only leaves the tangent singular with a "
@@ -211,6 +216,9 @@ class NewtonSolver:
             isinstance(c, Mortar) for c in problem.contact) else None
         if self.mortar is not None:
             self.mortar.quiet()
+        self.slip = None if self.solver.qp.friction is None else \
+            IncrementalSlip(self.solver, comm)
+        self.rows.friction = self.slip
 
     def _at_state(self, problem: ContactProblem) -> ContactProblem:
         forms = problem.forms
@@ -263,7 +271,9 @@ class NewtonSolver:
         comm, opts, solver = self.comm, self.newton, self.solver
         check_newton_problem(problem)
         current = self._at_state(problem)
-        rows0 = solver.rows_of(current)
+        if self.slip is not None:
+            self.slip.begin(self.u, problem)
+        rows0 = solver.rows_of(current, tangents_follow=True)
         own0 = rows0.own
         c0 = own0.rhs.copy()
         r = self._residual(current, self.u.array_r)
@@ -342,10 +352,12 @@ class NewtonSolver:
             du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
                 self.u.norm(PETSc.NormType.INFINITY), 1e-300)
             c_now = self.rows.c_at(current, rows0, c0, self.u)
-            kkt = self._kkt(c_now, r, r_scale, lam, own0)
+            kkt = self._kkt(c_now, r, r_scale, lam, own0, qp.friction)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
-            if max(kkt.values()) <= opts.rtol and du_rel <= math.sqrt(opts.rtol) and \
+            # (Coulomb's |g − 𝓕λ_N| is bounded by the fixed point's own tolerance)
+            if max(v for key, v in kkt.items() if key != "coulomb_bound") <= opts.rtol and \
+                    du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged and self.rows.dropped <= opts.rtol:
                 # mortar rows: checked again with the search and the integrals of u itself
                 exact = kkt if self.mortar is None else self.mortar.kkt_at(
@@ -355,6 +367,8 @@ class NewtonSolver:
                     converged = True
                     break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
+        if converged and self.slip is not None:
+            self.slip.converged(problem)
         return sol, converged
 
     def _start(self, full: np.ndarray | None) -> PETSc.Vec | None:
@@ -365,12 +379,12 @@ class NewtonSolver:
         x0.array[:] = full[self.solver.qp.row_index]
         return x0
 
-    def _kkt(self, c0, r, r_scale, lam, own) -> dict[str, float]:
+    def _kkt(self, c0, r, r_scale, lam, own, friction=None) -> dict[str, float]:
         system = self.solver.qp.system
         c = system.B.createVecLeft()
         c.array[:] = c0
         kkt, _ = kkt_residuals(_Nonlinear(system.B, c, r, r_scale, self.comm), own.scale,
-                               own.kind, own.inequality, self.u, lam)
+                               own.kind, own.inequality, self.u, lam, friction=friction)
         c.destroy()
         return kkt
 
@@ -399,10 +413,12 @@ class NewtonSolver:
         report.extra["newton_iterations"] = len(history)
         report.hessian_mults = int(sum(h["hessian_mults"] for h in history))
         u, lam = self.u.copy(), qp.lam.copy()
-        sol = Solution(problem, system, solver.qp.share, u, lam, qp.alpha, report, self.comm)
+        sol = Solution(problem, system, solver.qp.share, u, lam, qp.alpha, report, self.comm,
+                       friction=qp.friction)
         report.kkt, report.max_penetration = kkt_residuals(
             _Nonlinear(system.B, system.c, r, r_scale, self.comm), solver.qp.rows.own.scale,
-            solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam)
+            solver.qp.rows.own.kind, solver.qp.rows.own.inequality, u, lam,
+            friction=qp.friction)
         if self.mortar is not None:
             self.mortar.report(sol)
         return sol

@@ -7,6 +7,7 @@ in :data:`.load_path.PATH_BY`); the Newton iteration itself is :mod:`.newton`.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
@@ -18,13 +19,15 @@ from ..problem.contact_problem import ContactProblem
 from ..results.solution import Solution
 from .load_path import PATH_BY, problem_at_time
 from .newton import NewtonOptions, NewtonSolver, StepFailed
+from .path_output import History, PathOutput
 
 
 def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.ndarray,
                       first: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
                       options: SolverOptions | Sequence[str] | None = None,
-                      progress: bool = True, max_cutbacks: int = 8, **kwargs
-                      ) -> list[Solution]:
+                      progress: bool = True, max_cutbacks: int = 8,
+                      xdmf: str | Path | None = None, history: str | Path | None = None,
+                      **kwargs) -> list[Solution]:
     """A load path of a hyperelastic problem, one Newton solve per step (collective).
 
     What :func:`dolfinx_feti.solve_path` runs for forms with ``solve_by = "newton"``. Each
@@ -34,7 +37,9 @@ def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.n
     halved (``problem_at`` at the intermediate times), at most ``max_cutbacks`` times per
     step; the sub-steps then go on at the halved interval to the step's end. The
     unloaded state is taken to be t = 0 (the first step's cut-back starts there if
-    ``times[0] > 0``).
+    ``times[0] > 0``). ``xdmf`` and ``history`` write the files of
+    :func:`dolfinx_feti.solve_path` (the total displacement and the contact fields of every
+    step; per step the record of :class:`.path_output.History` with the Newton history).
 
     Returns:
         One Solution per time; ``report.extra`` holds ``step``, ``time``, ``substeps`` (the
@@ -45,6 +50,8 @@ def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.n
     newton = NewtonOptions.pop(kwargs)
     raise_if = bool(kwargs.get("error_if_not_converged", False))
     line = Progress(comm, 1 if progress else 0)
+    out = PathOutput(xdmf, history, comm)
+    out.check(first)
     run = NewtonSolver(first, comm=comm, options=options, newton=newton, **kwargs)
     sols: list[Solution] = []
     t_done = 0.0 if times[0] > 0 else None
@@ -60,15 +67,33 @@ def solve_path_newton(problem_at: Callable[[float], ContactProblem], times: np.n
                       f"{'converged' if sol.report.converged else 'NOT converged'}, "
                       f"{len(substeps)} sub-step(s), {cuts} cut-back(s), "
                       f"{sol.report.extra['newton_iterations']} Newton iterations")
+            out.write(sol, float(tk), newton_record(sol))
             if not sol.report.converged:
                 if raise_if:
                     raise NotConverged(f"solve_path: Newton failed at t = {tk:g} after {cuts} "
                                        "cut-backs", sol)
                 break
             t_done = float(tk)
+        out.close()
     finally:
+        out.abort()
         run.destroy()
     return sols
+
+
+def newton_record(sol: Solution) -> dict:
+    """The history record of a Newton step.
+
+    :meth:`.path_output.History.record` with the Newton iterations (residuals, steps, QP
+    counts, seconds), the sub-steps and the cut-backs.
+    """
+    rec = History.record(sol)
+    ex = sol.report.extra
+    rec.update({"newton_iterations": int(ex["newton_iterations"]),
+                "newton_seconds": float(sum(h["seconds"] for h in ex["newton"])),
+                "substeps": [float(t) for t in ex.get("substeps", [])],
+                "cutbacks": int(ex.get("cutbacks", 0)), "newton": ex["newton"]})
+    return rec
 
 
 def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutbacks: int,
@@ -110,4 +135,4 @@ def _path_step(run: NewtonSolver, problem_at, first, t_done, tk: float, max_cutb
 
 PATH_BY["newton"] = solve_path_newton
 
-__all__ = ["solve_path_newton"]
+__all__ = ["newton_record", "solve_path_newton"]

@@ -160,4 +160,43 @@ class History:
         """Nothing left to write (each step rewrote the file)."""
 
 
-__all__ = ["SOLVE_PHASES", "History", "TimeSeries", "setup_seconds"]
+class PathOutput:
+    """The outputs of a load path: the XDMF time series and the JSON history (either optional).
+
+    Args:
+        xdmf: The XDMF file, or None.
+        history: The JSON file, or None.
+        comm: The ranks of the solve.
+    """
+
+    def __init__(self, xdmf: str | Path | None, history: str | Path | None,
+                 comm: MPI.Comm) -> None:
+        self.series = TimeSeries(xdmf, comm) if xdmf is not None else None
+        self.log = History(history, comm) if history is not None else None
+
+    def check(self, problem: ContactProblem) -> None:
+        """Refuse, before any solve, a problem the XDMF file cannot hold."""
+        if self.series is not None:
+            self.series.check(problem)
+
+    def write(self, sol: Solution, t: float, record: dict) -> None:
+        """Add a step: its fields at time ``t`` and its history ``record``."""
+        if self.series is not None:
+            self.series.write(sol, t)
+        if self.log is not None:
+            self.log.append(record)
+
+    def close(self) -> None:
+        """Finish both files (after the last step)."""
+        if self.series is not None:
+            self.series.close()
+        if self.log is not None:
+            self.log.close()
+
+    def abort(self) -> None:
+        """After a failure: remove the unfinished XDMF file (no-op once closed)."""
+        if self.series is not None:
+            self.series.abort()
+
+
+__all__ = ["SOLVE_PHASES", "History", "PathOutput", "TimeSeries", "setup_seconds"]

@@ -1,4 +1,4 @@
-"""gmsh generators of soft bodies for large-deformation contact (rubber cylinder, hemisphere)."""
+"""gmsh generators of soft bodies for large-deformation contact (cylinder, hemisphere, ironing)."""
 
 from __future__ import annotations
 
@@ -83,4 +83,32 @@ def quarter_hemisphere(R: float = 1.0, h_contact: float = 0.06, h_far: float = 0
     return physical_groups()
 
 
-__all__ = ["quarter_disk", "quarter_hemisphere"]
+def ironing_block(lx: float = 9.0, ly: float = 3.0, h_top: float = 0.15, h_far: float = 0.6
+                  ) -> dict[str, tuple[int, int]]:
+    """The soft block of the ironing problem: [0, lx] × [0, ly], finer towards its top.
+
+    Elements of size ``h_top`` along the top (where the die slides), growing linearly to
+    ``h_far`` at the bottom.
+
+    Physical groups: "body" (2, 1); "bottom" (1, 11), "right" (1, 12), "top" (1, 13),
+    "left" (1, 14).
+    """
+    if not 0 < h_top <= h_far < min(lx, ly):
+        raise ValueError(f"ironing_block: need 0 < h_top <= h_far < min(lx, ly), got {h_top}, "
+                         f"{h_far}, {lx}, {ly}")
+    gmsh.model.add("ironing_block")
+    set_output_options()
+    geo = gmsh.model.geo
+    p = [geo.addPoint(x, y, 0, h_far if y == 0 else h_top)
+         for x, y in ((0, 0), (lx, 0), (lx, ly), (0, ly))]
+    lines = [geo.addLine(p[i], p[(i + 1) % 4]) for i in range(4)]
+    surface = geo.addPlaneSurface([geo.addCurveLoop(lines)])
+    geo.synchronize()
+    add_group(2, [surface], 1, "body")
+    for k, name in enumerate(("bottom", "right", "top", "left")):
+        add_group(1, [lines[k]], 11 + k, name)
+    gmsh.model.mesh.generate(2)
+    return physical_groups()
+
+
+__all__ = ["ironing_block", "quarter_disk", "quarter_hemisphere"]

@@ -1,0 +1,125 @@
+"""Friction under Newton: tangential rows in the current configuration on the incremental slip.
+
+A rigid obstacle's contact node with friction has, next to its normal row, gdim − 1 tangential
+rows t·u (constraints/friction.py). Under large deformation (:mod:`.newton`) each Newton
+iterate u_k takes
+
+- the tangents of the current normal n(x + u_k) (2D: t = (n_y, −n_x); 3D: the basis of
+  :func:`~dolfinx_feti.constraints.friction.tangent_basis`); for a plane they never change;
+- the right-hand side of the **slip increment of the load step**: the row of the increment
+  Δu is t·Δu = t·(u_0 + Δd) − t·u_k, u_0 the node's displacement at the end of the last
+  converged step and Δd the obstacle's translation since then (a moved
+  :class:`~dolfinx_feti.Plane`'s ``point``, a moved :class:`~dolfinx_feti.Sphere`'s
+  ``center``: :data:`ORIGIN`). So B_t u − c_t = t·(u − u_0 − Δd) is the slip relative to the
+  obstacle in the step, a node that sticks keeps its position on the obstacle, and the
+  friction law (Tresca's bound, or Coulomb's fixed point over Tresca solves that every
+  :meth:`FetiSolver.solve` runs) is that of the small-deformation load paths, per step.
+
+The multipliers of the increment QP are the total forces, so at Δu = 0 its friction
+conditions are those of the nonlinear step. Not in the tangent: the derivative of the tangents
+(λ_T ∂t/∂y, zero for a plane): on a curved obstacle with friction Newton converges
+linearly, not quadratically, near the solution.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..constraints.friction import tangent_basis
+from ..constraints.rows import Kind
+from ..errors import InputError
+from ..problem.contact_problem import ContactProblem, Cylinder, Plane, Sphere
+
+#: Obstacle type → the point that moves with it (its translation is the obstacle's motion
+#: between two load steps). An obstacle type missing here is taken to stand still.
+ORIGIN = {Plane: lambda o: o.point, Sphere: lambda o: o.center, Cylinder: lambda o: o.point}
+
+
+def obstacle_origins(problem: ContactProblem, gdim: int) -> np.ndarray:
+    """Per contact condition, the point that moves with its rigid obstacle (zeros otherwise)."""
+    out = np.zeros((len(problem.contact), gdim))
+    for i, c in enumerate(problem.contact):
+        at = ORIGIN.get(type(getattr(c, "obstacle", None)))
+        if at is not None:
+            out[i] = np.asarray(at(c.obstacle), dtype=float)[:gdim]
+    return out
+
+
+class IncrementalSlip:
+    """The tangential rows of a Newton iterate (module docstring), for one FetiSolver.
+
+    Args:
+        solver: The FetiSolver (its rows' layout and subdomains).
+        comm: The ranks.
+
+    Attributes:
+        t: Local indices of the rank's tangential rows.
+        n_of: The local normal (obstacle) row of each.
+        k_of: Which tangent of its node each one is (0, or 0 and 1 in 3D).
+    """
+
+    def __init__(self, solver, comm: MPI.Comm) -> None:
+        self.solver, self.comm = solver, comm
+        own = solver.qp.rows.own
+        tang = own.kind == Kind.TANGENT
+        pair = tang & (own.partner >= 0)
+        if comm.allreduce(bool(np.any(pair)), op=MPI.LOR):
+            raise InputError("large-deformation contact: friction under Newton is built for "
+                             "rigid obstacles only (not node-to-node pairs)")
+        self.t = np.flatnonzero(tang)
+        # the rows of one node are consecutive, its normal row first
+        last_ineq = np.maximum.accumulate(np.where(own.inequality, np.arange(own.size), -1))
+        self.n_of = last_ineq[self.t]
+        self.k_of = self.t - self.n_of - 1
+        self.gdim = own.normal.shape[1]
+        # the entries of each row's node, all components (the normal row keeps every one)
+        pos = np.full(own.size, -1)
+        pos[self.n_of] = self.n_of
+        ent = np.flatnonzero(pos[own.e_row] >= 0)
+        cols = np.full((own.size, self.gdim), -1, dtype=np.int64)
+        cols[own.e_row[ent], own.e_comp[ent]] = solver.qp.rows.cols[ent] - solver.data.primal_start
+        self._cols = cols[self.n_of]  # (t rows, gdim) local columns of the node
+        tent = np.flatnonzero(tang[own.e_row])
+        self._t_ent = tent
+        self._t_row = np.searchsorted(self.t, own.e_row[tent])
+        if np.any(self._cols < 0) or not np.array_equal(self.t[self._t_row], own.e_row[tent]):
+            raise AssertionError("a tangential row's node has no entry for every component")
+        self._u0 = np.zeros((self.t.size, self.gdim))
+        self._d = np.zeros((self.t.size, self.gdim))
+        self._done: ContactProblem | None = None  # the problem of the last converged step
+
+    def begin(self, u: PETSc.Vec, problem: ContactProblem) -> None:
+        """Start a load step from the converged state ``u`` towards ``problem``."""
+        self._u0 = u.array_r[self._cols]
+        own = self.solver.qp.rows.own
+        if self._done is None:  # from the unloaded state: no slip history, no motion
+            self._d = np.zeros_like(self._u0)
+            return
+        d = obstacle_origins(problem, self.gdim) - obstacle_origins(self._done, self.gdim)
+        self._d = d[own.spec[self.t]]
+
+    def converged(self, problem: ContactProblem) -> None:
+        """The step to ``problem`` converged: the next one starts from it."""
+        self._done = problem
+
+    def at(self, u: PETSc.Vec, rhs: np.ndarray, coef: np.ndarray, normal: np.ndarray) -> None:
+        """The tangential rows at u, in place (after the normal rows took the current normals).
+
+        Right-hand sides of the increment t·(u_0 + Δd − u), coefficients scale·t, normals t.
+        """
+        if not self.t.size:
+            return
+        own = self.solver.qp.rows.own
+        T = tangent_basis(normal[self.n_of])  # (rows, gdim − 1, gdim)
+        t = T[np.arange(self.t.size), self.k_of]
+        s = own.scale[self.t]
+        U = u.array_r[self._cols]
+        rhs[self.t] = s * np.einsum("ij,ij->i", t, self._u0 + self._d - U)
+        normal[self.t] = t
+        ent = self._t_ent
+        coef[ent] = s[self._t_row] * t[self._t_row, own.e_comp[ent]]
+
+
+__all__ = ["ORIGIN", "IncrementalSlip", "obstacle_origins"]
