@@ -69,6 +69,14 @@ from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
 from .newton_friction import IncrementalSlip
 
+
+def _met(kkt: dict[str, float], rtol: float) -> bool:
+    """Whether Newton's KKT residuals are within ``rtol`` (Coulomb's |g − 𝓕λ_N| is bounded by
+    the fixed point's own tolerance, not Newton's).
+    """
+    return max((v for key, v in kkt.items() if key != "coulomb_bound"), default=0.0) <= rtol
+
+
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
 
@@ -355,14 +363,12 @@ class NewtonSolver:
             kkt = self._kkt(c_now, r, r_scale, lam, own0, qp.friction)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             # quadratic convergence: the next increment would be of the order du_rel²
-            # (Coulomb's |g − 𝓕λ_N| is bounded by the fixed point's own tolerance)
-            if max(v for key, v in kkt.items() if key != "coulomb_bound") <= opts.rtol and \
-                    du_rel <= math.sqrt(opts.rtol) and \
+            if _met(kkt, opts.rtol) and du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged and self.rows.dropped <= opts.rtol:
                 # mortar rows: checked again with the search and the integrals of u itself
                 exact = kkt if self.mortar is None else self.mortar.kkt_at(
                     current, self.u, lam, c_now, r, r_scale)
-                if exact is not None and max(exact.values()) <= opts.rtol:
+                if exact is not None and _met(exact, opts.rtol):
                     history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}
                     converged = True
                     break
