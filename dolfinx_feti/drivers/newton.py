@@ -71,8 +71,9 @@ from .newton_friction import IncrementalSlip
 
 
 def _met(kkt: dict[str, float], rtol: float) -> bool:
-    """Whether Newton's KKT residuals are within ``rtol`` (Coulomb's |g − 𝓕λ_N| is bounded by
-    the fixed point's own tolerance, not Newton's).
+    """Whether Newton's KKT residuals are within ``rtol``.
+
+    Coulomb's |g − 𝓕λ_N| is left out: the fixed point bounds it by its own tolerance.
     """
     return max((v for key, v in kkt.items() if key != "coulomb_bound"), default=0.0) <= rtol
 
