@@ -219,7 +219,7 @@ class FetiSolver:
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
-                         dual_operator=self.options.dual_operator)
+                         dual_operator=self.options.dual_operator, nearby=self.qp)
         self._adopt(qp, rows)
         self._new_preconditioner()
 

@@ -239,6 +239,8 @@ class DualQP:
         """
         self.destroy_load()
         self.proj.A.destroy()
+        if self.proj.top is not None:
+            self.proj.top.destroy()
         self.feti.destroy(operators=True)
         last = self.steps[-1].child if self.steps else self.system
         last.destroy_factors()
@@ -249,7 +251,7 @@ class DualQP:
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
              dec=None, rows=None, info: dict | None = None,
-             dual_operator: str = "implicit") -> DualQP:
+             dual_operator: str = "implicit", norm_guess: PETSc.Vec | None = None) -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 
     Args:
@@ -264,6 +266,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         rows: The constraint rows behind ``total``, if any.
         info: Sizes of the method for the report.
         dual_operator: How F is applied (:class:`.dualize.Dualization`).
+        norm_guess: Where the estimate of ``||P F P||`` starts (:class:`.homogenize.Project`).
     """
     timer = Timer() if timer is None else timer
     comm = total.comm
@@ -281,7 +284,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))
         warnings = check_balance(ocon, feti)
         hom = Homogenize(feti, ocon, ineq)
-        proj = Project(hom, norm_rtol)
+        proj = Project(hom, norm_rtol, norm_guess)
     return DualQP(feti=feti, system=total, steps=steps, method=method, dec=dec, rows=rows,
                   row_index=row_index, hom=hom, proj=proj, ineq=ineq, warnings=warnings,
                   info=info or {})
