@@ -1,13 +1,13 @@
 """Set up once, solve many: what a second solve on one ``FetiSolver`` costs.
 
-For each case: set up and solve the problem at load 1; ``update`` to load ``--scale`` and
-solve again (warm-started from the first multipliers); then a cold ``df.solve`` of the same new
-problem. Reported, in one run: the first solve's set-up time (every phase but the iterations
-and the recovery), the update's (the phases before the second solve's iterations) and their
-ratio; the F-multiplications of the warm and of the cold solve and their ratio; the largest
-difference of u and of the nodal contact forces between warm and cold, relative to their
-maxima. Then ``--cases`` load cases (loads spread over [0.5, 1.5]) on one set-up against as
-many separate ``df.solve`` calls: the wall time per case both ways.
+For each case: set up and solve the problem at load 1; ``update`` to load ``--scale`` and solve
+again (warm-started from the first multipliers); then a cold ``df.solve`` of the same new
+problem. Reported, in one run: the first solve's set-up time (every phase but the iterations,
+the KKT checks and the recovery), the update's (the phases before the second solve's
+iterations) and their ratio; the F-multiplications of the warm and of the cold solve and their
+ratio; the largest difference of u and of the nodal contact forces between warm and cold,
+relative to their maxima. Then ``--cases`` load cases (loads spread over [0.5, 1.5]) on one
+set-up against as many separate ``df.solve`` calls: the wall time per case both ways.
 
 Cases: ``hertz2d`` (the main demo's problem: disk on block, mortar contact, the load),
 ``sphere3d`` (a rigid sphere pressed into a quarter block, docs/peers.md level S3: the load is
@@ -41,8 +41,9 @@ import common as C  # noqa: E402  (bench/peers/common.py)
 import problems as P  # noqa: E402
 
 ROOT = HERE.parent
-#: Phases of a solve that are not set-up: what the QP solver and the way back cost.
-SOLVE_PHASES = ("iterations", "recovery", "total")
+#: Phases of a solve that are not set-up: what the QP solver, the way back and the KKT test's
+#: checks cost.
+SOLVE_PHASES = ("iterations", "recovery", "stopping test", "total")
 
 
 def hertz2d(mesh, scale: float) -> df.ContactProblem:

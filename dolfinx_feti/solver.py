@@ -101,6 +101,11 @@ class FetiSolver:
         self.preconditioner = None
         self._new_preconditioner()
         self._lam: PETSc.Vec | None = None
+        # the predictor's data: d of the last solve's case; λ and d of the case before
+        self._d_last: PETSc.Vec | None = None
+        self._before: tuple[PETSc.Vec, PETSc.Vec, np.ndarray | None] | None = None
+        self._new_case = False  # an update since the last solve
+        self._M: float | None = None  # SMALBE's last inner precision factor, relative to ‖A‖
         self._mu: np.ndarray | None = None
         self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
         self._normal_force: np.ndarray | None = None  # of the last friction solve
@@ -153,6 +158,7 @@ class FetiSolver:
         if check_stiffness:
             self._check_stiffness(problem)
         self._tangential = self._slip_of(slip_from)
+        self._new_case = True
         self._new_friction_values(problem)
         f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
         with self._timer.phase("constraints"):
@@ -190,6 +196,7 @@ class FetiSolver:
         self._adopt(qp, rows)
         self._new_preconditioner()
         self._mu = None  # the multiplier of another G̃
+        self._new_case = True
 
     def update_stiffness(self, problem: ContactProblem | None = None, *,
                          rows=None, shift=None) -> None:
@@ -224,9 +231,11 @@ class FetiSolver:
         self._loads = LoadRows(self._shared.share, self.problem.value_size)
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
-                         dual_operator=self.options.dual_operator)
+                         dual_operator=self.options.dual_operator, nearby=self.qp)
         self._adopt(qp, rows)
         self._new_preconditioner()
+        self._forget_before()  # of another stiffness: no predictor
+        self._M = None
 
     def rows_of(self, problem: ContactProblem, tangents_follow: bool = False):
         """This rank's rows with the right-hand sides of ``problem`` (collective).
@@ -354,18 +363,19 @@ class FetiSolver:
         fdata = qp.friction
         friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
         mults0 = qp.feti.hessian_mults
-        start, scale = self._start(x0)
+        start, scale, omega = self._start(x0)
         if friction is not None and start is not None:
             friction.start_from(self._normal_force * scale if x0 is None and
                                 self._normal_force is not None else None)
-        mu = self._mu * scale if x0 is None and start is not None and self._mu is not None \
-            else None
+        mu = self._mu_start(scale, omega) if x0 is None and start is not None else None
         start_mults = qp.feti.hessian_mults - mults0
-        out = solve_qp(qp, opts, report=report, progress=progress, timer=timer,
+        warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
+        out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
                        multiplier0=mu)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
+        report.extra["warm_start_secant"] = omega
         if start is not None:
             start.destroy()
         self._remember(out)
@@ -384,12 +394,15 @@ class FetiSolver:
                                f"{report.converged_reason}); see error.solution.report", sol)
         return sol
 
-    def _start(self, x0) -> tuple[PETSc.Vec | None, float]:
-        """The QP iterate to start from (None: the default start) and the warm start's scale."""
+    def _start(self, x0) -> tuple[PETSc.Vec | None, float, float | None]:
+        """The QP iterate to start from (None: the default start), its scale and secant step.
+
+        The scale and the step as :meth:`.DualQP.warm_start` returns them.
+        """
         if isinstance(x0, str):
             if x0 != COLD:
                 raise InputError(f"x0 must be None, {COLD!r}, a Solution or a Vec, got {x0!r}")
-            return None, 1.0
+            return None, 1.0, None
         lam = self._lam if x0 is None else x0
         if isinstance(lam, Solution):
             if lam.feti.B.getSize() != self.qp.system.B.getSize():
@@ -398,23 +411,56 @@ class FetiSolver:
             lam = self.qp.b.duplicate()
             lam.array[:] = full.array_r[self.qp.row_index]
         if lam is None:
-            return None, 1.0
+            return None, 1.0, None
         if lam.getSizes() != self.qp.b.getSizes():
             raise InputError(f"x0: {lam.getSize()} multipliers for a QP of {self.qp.b.getSize()} "
                              "rows")
         x = self.qp.b.duplicate()
-        scale = self.qp.warm_start(lam, x)
+        earlier = (*self._before[:2], self._d_last) if x0 is None and self._new_case and \
+            self._before is not None else None
+        scale, omega = self.qp.warm_start(lam, x, earlier)
         if lam is not x0 and lam is not self._lam:
             lam.destroy()
-        return x, scale
+        return x, scale, omega
+
+    def _mu_start(self, scale: float, omega: float | None) -> np.ndarray | None:
+        """SMALBE's multiplier of a warm start: the last one scaled, or by the secant."""
+        if self._mu is None:
+            return None
+        before = None if self._before is None else self._before[2]
+        if omega is None or before is None or before.shape != self._mu.shape:
+            return self._mu * scale
+        return self._mu + omega * (self._mu - before)
 
     def _remember(self, out) -> None:
-        """Keep λ = λ̂ + x and SMALBE's multiplier of this solve as the next one's start."""
+        """Keep λ = λ̂ + x and SMALBE's multiplier of this solve as the next one's start.
+
+        The last solve of the load case before is kept too, with ``d`` of both cases (the
+        warm start's predictor, :meth:`.DualQP.warm_start`); another solve of the same case
+        only replaces the last.
+        """
         if self._lam is not None:
-            self._lam.destroy()
+            if self._new_case and self._d_last is not None:
+                self._forget_before()
+                self._before = (self._lam, self._d_last, self._mu)
+            else:
+                self._lam.destroy()
+                if self._d_last is not None:
+                    self._d_last.destroy()
         self._lam = self.qp.multipliers(out.x)
+        self._d_last = self.qp.feti.d.copy()
+        self._new_case = False
+        # SMALBE-M only lowers M; a warm solve continues from where the last one left it
+        last = out.result.history[-1] if out.result.history else {}
+        self._M = last["M"] / self.qp.norm_A if "M" in last and self.qp.norm_A > 0 else None
         mu = out.result.multiplier
         self._mu = None if mu is None else np.array(mu, dtype=float)
+
+    def _forget_before(self) -> None:
+        if self._before is not None:
+            for v in self._before[:2]:
+                v.destroy()
+            self._before = None
 
     def _solution(self, out, report: Report, friction) -> Solution:
         """The Solution of a QP solve, with its report filled (collective)."""
@@ -492,9 +538,11 @@ class FetiSolver:
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
             self.preconditioner.destroy()
             self.preconditioner = None
-        if self._lam is not None:
-            self._lam.destroy()
-            self._lam = None
+        self._forget_before()
+        for v in (self._lam, self._d_last):
+            if v is not None:
+                v.destroy()
+        self._lam = self._d_last = None
         if self.qp is not None:
             self.qp.destroy()
             self.qp = None

@@ -86,6 +86,34 @@ def test_new_traction_equals_cold_solve(hertz_mesh, method):
                       rtol=1e-3)
 
 
+@pytest.mark.parametrize("method", ("tfeti", "fetidp"))
+def test_secant_predictor_on_a_load_path(hertz_mesh, method):
+    """From the third load case on, the start extrapolates the last two cases' multipliers.
+
+    The step ω is measured on d (affine in the load here: f ∝ load, the gaps fixed), so loads
+    10, 11, 13 give ω = 2 whatever the parameter of the path; the solution is a cold solve's.
+    """
+    solver = df.FetiSolver(hertz(hertz_mesh, load=10.0), rtol=RTOL, method=method)
+    first = solver.solve()
+    assert first.report.extra["warm_start_secant"] is None
+    solver.update(hertz(hertz_mesh, load=11.0))
+    second = solver.solve()
+    assert second.report.extra["warm_start_secant"] is None  # one case before: scaled
+    again = solver.solve()  # the same case again: the case before stays the load 10 one
+    assert again.report.extra["warm_start_secant"] is None
+    solver.update(hertz(hertz_mesh, load=13.0))
+    third = solver.solve()
+    assert third.report.extra["warm_start_secant"] == pytest.approx(2.0, rel=1e-8)
+    assert_same(third, df.solve(hertz(hertz_mesh, load=13.0), rtol=RTOL, method=method))
+    solver.update(hertz(hertz_mesh, load=13.0))  # the same load twice: a step of zero
+    fourth = solver.solve()
+    assert fourth.report.extra["warm_start_secant"] == pytest.approx(0.0, abs=1e-8)
+    assert_same(fourth, third)
+    solver.update(hertz(hertz_mesh, load=14.0))  # the last step was zero: no secant
+    assert solver.solve().report.extra["warm_start_secant"] is None
+    solver.destroy()
+
+
 def test_cold_start_repeats_the_first_solve(hertz_mesh):
     solver = df.FetiSolver(hertz(hertz_mesh), rtol=RTOL)
     first = solver.solve()
@@ -138,10 +166,15 @@ def test_moving_circle_updates_rows(hertz_mesh, method):
     solver.solve()
     solver.update(on_obstacle(hertz_mesh, circle(0.3, 0.001)))
     b = solver.solve()
-    cold = df.solve(on_obstacle(hertz_mesh, circle(0.3, 0.001)), rtol=RTOL, method=method)
+    fresh = df.FetiSolver(on_obstacle(hertz_mesh, circle(0.3, 0.001)), rtol=RTOL, method=method)
+    cold = fresh.solve()
     assert_same(b, cold)
     assert np.allclose(b.contact.normal, cold.contact.normal, atol=1e-14)
     assert "factorization" not in b.report.timings  # B changed, the subdomain factors did not
+    # ‖P F P‖ from the last Ritz vector: the fresh set-up's estimate, in fewer F-multiplications
+    assert solver.qp.norm_A == pytest.approx(fresh.qp.norm_A, rel=3e-4)
+    assert solver.qp.proj.norm_mults <= fresh.qp.proj.norm_mults - (method != "fetidp")
+    fresh.destroy()
 
 
 def test_old_solution_survives_update(hertz_mesh):

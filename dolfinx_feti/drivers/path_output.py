@@ -23,8 +23,9 @@ from ..problem.contact_problem import ContactProblem
 from ..results.output import publish_xdmf
 from ..results.solution import Solution
 
-#: Phases of a report's timings that are the solve itself; the rest is set-up or update.
-SOLVE_PHASES = ("iterations", "recovery")
+#: Phases of a report's timings that are the solve itself (the KKT test's checks too); the rest
+#: is set-up or update.
+SOLVE_PHASES = ("iterations", "recovery", "stopping test")
 
 
 def setup_seconds(sol: Solution) -> float:

@@ -81,6 +81,9 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None) -> QPSolve:
     """Run the QP solver the dual QP needs and map its solution back (collective).
 
+    Under the KKT stopping test a converged run is recovered and checked in physical units; a
+    failed check continues the solve warm from where it stopped (:class:`_KKTRuns`).
+
     Args:
         qp: The dual QP (:func:`.dual.dual_qp`, or built from a hand-made primal system).
         opts: The solver options.
@@ -95,26 +98,33 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
         multiplier0: SMALBE's start for the multiplier of G̃ x = 0 (e.g. an earlier solve's
             ``result.multiplier`` on the same G̃); None for zeros.
     """
-    feti, ineq = qp.feti, qp.ineq
-    comm = feti.comm
     report = Report() if report is None else report
-    progress = Progress(comm, 0) if progress is None else progress
     timer = Timer() if timer is None else timer
-    n_ineq = comm.allreduce(int(ineq.sum()))
-    # the QP's rows are a subset of the problem's (FETI-1 and FETI-DP remove some)
-    qp_row = np.full(qp.system.dual_size[0], -1, dtype=np.int64)
-    qp_row[qp.row_index] = np.arange(qp.row_index.size)
-    if friction is not None:
-        friction.relabel(qp_row)
-
     own_precond = preconditioner is None
     if own_precond:
         with timer.phase("preconditioner"):
             preconditioner = make_preconditioner(opts.preconditioner, qp.primal, opts.factor,
                                                  opts.preconditioner_scaling,
-                                                 explicit=feti.operator == "explicit")
-    precond = preconditioner
-    report.warnings.extend(getattr(precond, "notes", []))
+                                                 explicit=qp.feti.operator == "explicit")
+    report.warnings.extend(getattr(preconditioner, "notes", []))
+    runs = _KKTRuns(qp, opts, report, Progress(qp.feti.comm, 0) if progress is None else
+                    progress, timer, friction, preconditioner, x0, multiplier0)
+    out = runs.solve()
+    if own_precond and preconditioner is not None and hasattr(preconditioner, "destroy"):
+        preconditioner.destroy()
+    return out
+
+
+def _qp_rows(qp: DualQP) -> np.ndarray:
+    """Local row of the QP of each local row of the problem (-1: removed by FETI-1/FETI-DP)."""
+    qp_row = np.full(qp.system.dual_size[0], -1, dtype=np.int64)
+    qp_row[qp.row_index] = np.arange(qp.row_index.size)
+    return qp_row
+
+
+def _start(qp: DualQP, x0: PETSc.Vec | None, n_ineq: int,
+           friction: FrictionSolve | None) -> PETSc.Vec:
+    """The first iterate: a copy of ``x0``, or the default start (friction sets its own)."""
     x = qp.b.duplicate()
     if x0 is None:
         x.set(0.0)
@@ -122,89 +132,148 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
             qp.start(x)
     else:
         x0.copy(x)
-    mults0 = feti.hessian_mults
-    kkt_test = opts.stop_test == "kkt"
-    penalty = opts.qp == "penalty"
-    rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
-    stop = KKTStop(qp, opts.rtol) if kkt_test else None
-    runs: list[QPResult] = []
-    check_mults = kplus = 0
-    done = False
+    return x
 
-    def rescale(res: QPResult) -> None:
+
+def _unmet_warning(kkt: dict, rtol: float, stop: KKTStop) -> str:
+    """The warning of a KKT test that ended without every residual below rtol."""
+    why = "more iterations did not lower it: the round-off floor of this dual problem " \
+        "(e.g. eps times the gaps of contact rows far out of reach)" \
+        if stop.stalled else f"after {stop.checks} checks"
+    return (f"the KKT residuals did not all reach rtol {rtol:.0e}: the largest is "
+            f"{max(kkt.values()):.1e} ({why})")
+
+
+def _penalty_growth(kkt: dict, rtol: float) -> float:
+    """Factor on ρ after a failed KKT check of ``qp="penalty"``.
+
+    The penalty leaves ‖G̃x‖ = O(1/ρ), and with it the balance of the floating subdomains and
+    the gluing: the residuals fall like 1/ρ, not with the gradient.
+    """
+    return min(PENALTY_GROWTH[1], max(PENALTY_GROWTH[0], 2.0 * max(kkt.values()) / rtol))
+
+
+class _KKTRuns:
+    """The runs of the QP solver of one :func:`solve_qp` and the KKT checks between them."""
+
+    def __init__(self, qp: DualQP, opts: SolverOptions, report: Report, progress: Progress,
+                 timer: Timer, friction: FrictionSolve | None, precond,
+                 x0: PETSc.Vec | None, multiplier0: np.ndarray | None):
+        self.qp, self.opts, self.report, self.progress, self.timer = \
+            qp, opts, report, progress, timer
+        self.friction, self.precond, self.multiplier0 = friction, precond, multiplier0
+        self.n_ineq = qp.feti.comm.allreduce(int(qp.ineq.sum()))
+        # the QP's rows are a subset of the problem's (FETI-1 and FETI-DP remove some)
+        self.qp_row = _qp_rows(qp)
+        if friction is not None:
+            friction.relabel(self.qp_row)
+        self.x = _start(qp, x0, self.n_ineq, friction)
+        self.stop = KKTStop(qp, opts.rtol) if opts.stop_test == "kkt" else None
+        self.rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
+        self.runs: list[QPResult] = []
+        self.check_mults = self.kplus = 0
+        self.done = False
+
+    def solve(self) -> QPSolve:
+        """Run, recover and check until the test holds or gives up; the last recovery."""
+        feti, stop = self.qp.feti, self.stop
+        mults0 = feti.hessian_mults
+        while True:
+            res = self.run()
+            m0 = feti.hessian_mults
+            with self.timer.phase("recovery"):
+                u, lam_all, alpha, Glam = _recover(self.qp, res, self.x, self.friction)
+            self.kplus += 1
+            if stop is None or not res.converged:
+                break
+            with self.timer.phase("stopping test"):
+                kkt = self.check(u, lam_all, res)
+            if self.finished(kkt):
+                break
+            self.continue_after(kkt, res)
+            self.check_mults += feti.hessian_mults - m0
+            u.destroy()
+            lam_all.destroy()
+        res = _merge(self.runs)
+        self.report.hessian_mults = m0 - mults0  # the iterations and the checks before the last
+        self.report.stopping = self.record()
+        return QPSolve(result=res, x=self.x, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
+
+    def run(self) -> QPResult:
+        """One run of the QP solver (with Coulomb friction: its fixed point) from ``x``."""
+        used = sum(r.iterations for r in self.runs)
+        with self.timer.phase("iterations"):
+            def run_qp(mu=self.multiplier0, used=used, loosen=1.0,
+                       rho_factor=self.rho_factor):
+                return self._run_qp(mu, used, loosen, rho_factor)
+            res = run_qp() if self.friction is None else self.friction.run(
+                run_qp, self.x, self.qp.lam_hat, self.qp.ineq, self.progress, self.opts.rtol,
+                self._rescale)
+        self.runs.append(res)
+        return res
+
+    def _run_qp(self, mu, used: int, loosen: float, rho_factor: float) -> QPResult:
+        # loosen: Coulomb's early fixed-point steps are solved to loosen·rtol
+        opts, stop = self.opts, self.stop
+        o = opts if loosen == 1.0 or stop is not None else opts.replace(rtol=opts.rtol * loosen)
+        return _run_qp(o, self.report, self.progress, self.qp, self.x, self.n_ineq,
+                       self.precond, self.friction, mu, max_it=opts.max_it - used,
+                       test=None if stop is None else stop.make_test(loosen),
+                       rho_factor=rho_factor)
+
+    def _rescale(self, res: QPResult) -> None:
         # the scales of the KKT test from the first friction step's solution (one recovery)
-        nonlocal kplus
-        if stop is None or stop.checks or kplus:
+        stop = self.stop
+        if stop is None or stop.checks or self.kplus:
             return
-        u1, lam1, _, _ = _recover(qp, res, x, friction)
-        friction.relabel(qp_row)
-        lam_qp1 = qp.multipliers(x)
+        u1, lam1, _, _ = _recover(self.qp, res, self.x, self.friction)
+        self.friction.relabel(self.qp_row)
+        lam_qp1 = self.qp.multipliers(self.x)
         stop.rescale(u1, lam_qp1)
-        kplus += 1
+        self.kplus += 1
         for v in (u1, lam1, lam_qp1):
             v.destroy()
 
-    while True:
-        used = sum(r.iterations for r in runs)
-        with timer.phase("iterations"):
-            def run_qp(mu=multiplier0, used=used, loosen=1.0, rho_factor=rho_factor):
-                # loosen: Coulomb's early fixed-point steps are solved to loosen·rtol
-                o = opts if loosen == 1.0 or stop is not None else \
-                    opts.replace(rtol=opts.rtol * loosen)
-                return _run_qp(o, report, progress, qp, x, n_ineq, precond, friction, mu,
-                               max_it=opts.max_it - used,
-                               test=None if stop is None else stop.make_test(loosen),
-                               rho_factor=rho_factor)
-            res = run_qp() if friction is None else friction.run(
-                run_qp, x, qp.lam_hat, ineq, progress, opts.rtol, rescale)
-        runs.append(res)
-        m0 = feti.hessian_mults
-        with timer.phase("recovery"):
-            u, lam_all, alpha, Glam = _recover(qp, res, x, friction)
-        kplus += 1
-        if stop is None or not res.converged:
-            break
-        with timer.phase("stopping test"):
-            scale, kind, ineq_all = row_data(qp)
-            kkt, _ = kkt_residuals(qp.system, scale, kind, ineq_all, u, lam_all,
-                                   friction=friction)
-            lam_qp = qp.multipliers(x)
-            done = stop.accept(kkt, u, lam_qp, res.Dx_norm)
-            lam_qp.destroy()
-        used = sum(r.iterations for r in runs)
-        if done or stop.stalled or stop.checks >= MAX_CHECKS or used >= opts.max_it:
-            if not done:
-                worst = max(kkt.values())
-                why = "more iterations did not lower it: the round-off floor of this dual " \
-                    "problem (e.g. eps times the gaps of contact rows far out of reach)" \
-                    if stop.stalled else f"after {stop.checks} checks"
-                report.warnings.append(
-                    f"the KKT residuals did not all reach rtol {opts.rtol:.0e}: the largest is "
-                    f"{worst:.1e} ({why})")
-            break
-        if penalty:
-            # the penalty leaves ‖G̃x‖ = O(1/ρ), and with it the balance of the floating
-            # subdomains and the gluing: the residuals fall like 1/ρ, not with the gradient
-            rho_factor *= min(PENALTY_GROWTH[1], max(PENALTY_GROWTH[0],
-                                                     2.0 * max(kkt.values()) / opts.rtol))
-        check_mults += feti.hessian_mults - m0
-        progress.info(f"stopping test: KKT residuals above rtol ({max(kkt.values()):.1e}); "
-                      "continuing")
-        u.destroy()
-        lam_all.destroy()
-        multiplier0 = res.multiplier
-        if friction is not None:  # back to the QP's rows (the recovery left the problem's)
-            friction.relabel(qp_row)
-    res = _merge(runs)
-    report.hessian_mults = m0 - mults0  # the iterations and the checks before the last
-    report.stopping = {"test": "kkt" if stop is not None else "dual",
-                       "met": None if stop is None else done,
-                       "checks": 0 if stop is None else stop.checks,
-                       "check_hessian_mults": check_mults, "check_kplus_solves": kplus - 1,
-                       "history": [] if stop is None else stop.history}
-    if own_precond and precond is not None and hasattr(precond, "destroy"):
-        precond.destroy()
-    return QPSolve(result=res, x=x, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
+    def check(self, u: PETSc.Vec, lam_all: PETSc.Vec, res: QPResult) -> dict:
+        """The KKT residuals of the recovered solution; sets :attr:`done` when they hold."""
+        scale, kind, ineq_all = row_data(self.qp)
+        kkt, _ = kkt_residuals(self.qp.system, scale, kind, ineq_all, u, lam_all,
+                               friction=self.friction)
+        lam_qp = self.qp.multipliers(self.x)
+        self.done = self.stop.accept(kkt, u, lam_qp, res.Dx_norm)
+        lam_qp.destroy()
+        return kkt
+
+    def finished(self, kkt: dict) -> bool:
+        """Whether to stop after this check (met, stalled, out of checks or iterations)."""
+        stop = self.stop
+        used = sum(r.iterations for r in self.runs)
+        if not (self.done or stop.stalled or stop.checks >= MAX_CHECKS
+                or used >= self.opts.max_it):
+            return False
+        if not self.done:
+            self.report.warnings.append(_unmet_warning(kkt, self.opts.rtol, stop))
+        return True
+
+    def continue_after(self, kkt: dict, res: QPResult) -> None:
+        """Prepare the next run after a failed check: ρ, SMALBE's multiplier, the rows."""
+        if self.opts.qp == "penalty":
+            self.rho_factor *= _penalty_growth(kkt, self.opts.rtol)
+        self.progress.info(f"stopping test: KKT residuals above rtol ({max(kkt.values()):.1e});"
+                           " continuing")
+        self.multiplier0 = res.multiplier
+        if self.friction is not None:  # back to the QP's rows (the recovery left the problem's)
+            self.friction.relabel(self.qp_row)
+
+    def record(self) -> dict:
+        """The report's ``stopping`` entry."""
+        stop = self.stop
+        return {"test": "kkt" if stop is not None else "dual",
+                "met": None if stop is None else self.done,
+                "checks": 0 if stop is None else stop.checks,
+                "check_hessian_mults": self.check_mults,
+                "check_kplus_solves": self.kplus - 1,
+                "history": [] if stop is None else stop.history}
 
 
 def _recover(qp: DualQP, res: QPResult, x: PETSc.Vec, friction: FrictionSolve | None):

@@ -80,21 +80,31 @@ class Project:
     Args:
         hom: The homogenized problem.
         norm_rtol: Relative tolerance of the Lanczos estimate of ‖P F P‖.
+        norm_guess: The top Ritz vector of a nearby P F P (:attr:`top` of the chain this one
+            replaces: the same rows with new coefficients, or a new stiffness); the Lanczos
+            estimate starts from it plus its random start (:func:`~dolfinx_feti.qp.
+            estimate_norm`): 4 F-multiplications instead of 10 on a moving sphere's rows.
 
     Attributes:
         projector: P = I − G̃ᵀ G̃.
         A: P F P (a PETSc shell).
         b: P (d − F λ̂).
         norm_A: The estimate of ‖P F P‖.
+        norm_mults: The F-multiplications the estimate took.
+        top: Its Ritz vector (unit length; the next chain's ``norm_guess``).
     """
 
-    def __init__(self, hom: Homogenize, norm_rtol: float = 1e-4) -> None:
+    def __init__(self, hom: Homogenize, norm_rtol: float = 1e-4,
+                 norm_guess: PETSc.Vec | None = None) -> None:
         self.hom = hom
         self.projector = Projector(hom.constraint)
         self.b = hom.rhs.duplicate()
         self.projector.apply(hom.rhs, self.b)
         self.A = projected_operator(hom.dual.F, hom.constraint)
-        self.norm_A = float(estimate_norm(self.A, self.b, rtol=norm_rtol).value)
+        if norm_guess is not None and norm_guess.getSizes() != self.b.getSizes():
+            norm_guess = None  # another layout of rows: nothing to start from
+        est = estimate_norm(self.A, self.b, rtol=norm_rtol, guess=norm_guess, ritz=True)
+        self.norm_A, self.norm_mults, self.top = float(est.value), est.iterations, est.vector
 
     def for_load(self, hom: Homogenize) -> Project:
         """This step for a new load case: only b; P, P F P and ‖P F P‖ are shared."""

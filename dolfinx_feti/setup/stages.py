@@ -130,13 +130,15 @@ def share_problem(problem: ContactProblem, comm: MPI.Comm, method: str, timer: T
 def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                 factor: str | None = None, norm_rtol: float = 1e-4,
                 timer: Timer | None = None, factors_of: DualQP | None = None,
-                dual_operator: str = "implicit") -> DualQP:
+                dual_operator: str = "implicit", nearby: DualQP | None = None) -> DualQP:
     """Chain the method's transforms on this rank's assembled subdomains (collective).
 
     ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
-    are taken over instead of factoring again. Total BETI (``data`` None) builds its own
-    boundary element subdomains (:mod:`.bem.tbeti`).
+    are taken over instead of factoring again. ``nearby`` (default ``factors_of``): a dual QP
+    on the same rows' layout whose ‖P F P‖ estimate's Ritz vector starts this one's. Total
+    BETI (``data`` None) builds its own boundary element subdomains (:mod:`.bem.tbeti`).
     """
+    nearby = factors_of if nearby is None else nearby
     timer = Timer() if timer is None else timer
     if shared.method == "tbeti":
         from ..bem.tbeti import tbeti_qp
@@ -152,7 +154,8 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                   norm_rtol=norm_rtol, timer=timer, dec=shared.share.dec,
                   rows=shared.share.rows,
                   info=shared.share.extra["info"] if shared.method == "fetidp" else None,
-                  dual_operator=dual_operator)
+                  dual_operator=dual_operator,
+                  norm_guess=None if nearby is None else nearby.proj.top)
     qp.mortar, qp.friction = shared.mortar, shared.friction
     qp.share, qp.surface = shared.share, shared.surface
     qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)

@@ -45,6 +45,38 @@ def test_lanczos_norm(case):
     assert est.residual >= 0.0
 
 
+@pytest.mark.parametrize("case", ["perturbed", "new_top"])
+def test_lanczos_from_a_nearby_ritz_vector(case):
+    """A start from the Ritz vector of a nearby operator: fewer steps, the same estimate.
+
+    ``perturbed``: a small symmetric change (as new rows of B with turned normals give P F P);
+    ``new_top``: the change adds an eigenvalue above the old top, along a direction orthogonal
+    to the guess — still found (the random start is in the start too).
+    """
+    rng = np.random.default_rng(14)
+    n = 200
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    lam = np.r_[np.linspace(0.01, 0.6, n - 1), 1.0]
+    A0 = (Q * lam) @ Q.T
+    first = estimate_norm(make_mat(A0), make_vec(np.zeros(n)), rtol=1e-4, ritz=True)
+    y = gather(first.vector)
+    assert np.linalg.norm(y) == pytest.approx(1.0, rel=1e-10)
+    assert abs(y @ Q[:, -1]) > 0.99  # it is the top eigenvector
+    if case == "perturbed":
+        E = rng.standard_normal((n, n)) * 1e-3
+        A1 = A0 + (E + E.T) / 2
+    else:
+        A1 = A0 + 1.5 * np.outer(Q[:, 0], Q[:, 0])  # λ = 1.51 where the guess has none
+    lmax = np.linalg.eigvalsh(A1).max()
+    cold = estimate_norm(make_mat(A1), make_vec(np.zeros(n)), rtol=1e-4)
+    Ac, ctx = counting(make_mat(A1))
+    warm = estimate_norm(Ac, make_vec(np.zeros(n)), rtol=1e-4, guess=first.vector)
+    assert warm.iterations == ctx.calls
+    assert lmax * (1 - 3e-4) <= warm.value <= lmax * (1 + 1e-12)
+    if case == "perturbed":
+        assert warm.iterations < cold.iterations
+
+
 def test_lanczos_same_on_self_and_world():
     A = laplacian_2d(12).toarray()
     vals = []
