@@ -301,6 +301,10 @@ class FetiSolver:
                 self._lam.getSizes() != qp.b.getSizes(), op=MPI.LOR):
             self._lam.destroy()
             self._lam = None
+            self._forget_before()  # the secant predictor's history is of the old rows too
+            if self._d_last is not None:
+                self._d_last.destroy()
+                self._d_last = None
 
     def _new_preconditioner(self) -> None:
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
@@ -447,6 +451,8 @@ class FetiSolver:
                 self._lam.destroy()
                 if self._d_last is not None:
                     self._d_last.destroy()
+        elif self._d_last is not None:  # a cold start after the rows changed
+            self._d_last.destroy()
         self._lam = self.qp.multipliers(out.x)
         self._d_last = self.qp.feti.d.copy()
         self._new_case = False

@@ -21,6 +21,7 @@ from __future__ import annotations
 import copy
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..qp import Projector, estimate_norm, homogenize, projected_operator
@@ -101,8 +102,9 @@ class Project:
         self.b = hom.rhs.duplicate()
         self.projector.apply(hom.rhs, self.b)
         self.A = projected_operator(hom.dual.F, hom.constraint)
-        if norm_guess is not None and norm_guess.getSizes() != self.b.getSizes():
-            norm_guess = None  # another layout of rows: nothing to start from
+        if norm_guess is not None and self.b.getComm().tompi4py().allreduce(
+                norm_guess.getSizes() != self.b.getSizes(), op=MPI.LOR):
+            norm_guess = None  # another layout of rows (on any rank): nothing to start from
         est = estimate_norm(self.A, self.b, rtol=norm_rtol, guess=norm_guess, ritz=True)
         self.norm_A, self.norm_mults, self.top = float(est.value), est.iterations, est.vector
 
