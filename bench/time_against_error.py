@@ -5,7 +5,7 @@ sphere S3/S4 of docs/peers.md, the graded DOLFINx box of bench/graded_box.py (a 
 ``create_box`` mesh through ``df.from_dolfinx``, a rigid sphere pressed in) at ``boxN`` = N
 cells a side — one process runs back to back:
 
-- the exact discrete reference: SNES VI (vinewtonrsls + MUMPS) at rtol 1e-12 on the same
+- the exact discrete reference: SNES VI (vinewtonrsls + MUMPS) at rtol 1e-10 on the same
   discrete constraint (the contact rows turned into bounds, bench/exact_discrete.py; an
   active-set method, exact once its set is right), with its KKT residuals;
 - each FETI configuration (``tfeti``, ``feti1``, ``fetidp`` and ``auto`` = method="auto", all on
@@ -58,9 +58,10 @@ FETI = {"tfeti": {"method": "tfeti"}, "feti1": {"method": "feti1"},
         "fetidp": {"method": "fetidp"}, "auto": {"method": "auto"}}
 FLOORS = ("mumps", "gamg")
 HERTZ_E, HERTZ_NU, HERTZ_R, HERTZ_P = 200.0, 0.3, 8.0, 10.0
-#: The reference: SNES VI at this rtol (1e-14 ends in a failed line search on 2D Hertz), its
-#: KKT residuals (relative, :func:`kkt`) at most REF_KKT.
-REF_RTOL, REF_KKT = 1e-12, 1e-10
+#: The reference: SNES VI at this rtol, accepted when its KKT residuals (relative, :func:`kkt`)
+#: are at most REF_KKT whatever SNES's reason (on 2D Hertz rtol 1e-14 ends in a failed line
+#: search, 1e-12 at its iteration limit on H2, both with the KKT residuals at round-off).
+REF_RTOL, REF_KKT = 1e-10, 1e-10
 
 
 class Case:
@@ -198,7 +199,7 @@ def reference(case: Case, out: Path, comm) -> dict:
                 "kkt": json.loads(str(z["kkt"]))}
     r = X.snes_vi(case.bounded, REF_RTOL, comm, case.start_closed)
     cert = kkt(case, r["w"])
-    if r["reason"] <= 0 or max(cert.values()) > REF_KKT:
+    if max(cert.values()) > REF_KKT:
         raise RuntimeError(f"{case.name}: the reference SNES VI failed (reason {r['reason']}, "
                            f"KKT {cert})")
     if comm.rank == 0:
@@ -299,7 +300,7 @@ def run_case(name: str, configs: list[str], rtols: list[float], args, comm, log)
 def markdown(results: list[dict], ranks: int, load: list[float]) -> str:
     out = [f"{ranks} rank(s); load average (1 min) during the runs {min(load):.1f}–"
            f"{max(load):.1f}; time = median wall time [s] (runs), error = max(u, f) "
-           "relative max-norm against SNES VI at rtol 1e-12", "",
+           "relative max-norm against SNES VI at rtol 1e-10 (KKT residuals at round-off)", "",
            "| case | free dofs | config | rtol | time [s] (runs) | ÷ best floor | error u | "
            "error f | F-mults | method / subdomains |", "|---|---|---|---|---|---|---|---|---|---|"]
     for res in results:
