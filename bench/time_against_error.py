@@ -24,6 +24,7 @@ the median is reported (once otherwise). Under ``mpirun -n 2`` everything runs o
 ``<out>.png`` (time against error per case and method).
 
     python bench/time_against_error.py --cases H1 --rtols 1e-6            # smallest, ~1 min
+    python bench/time_against_error.py --merge a.json,b.json --out output/bench/tae_all
     python bench/time_against_error.py --cases H1,H2,H3,S3,S4,box31
     mpirun -n 2 python bench/time_against_error.py --cases H1,S3 --out output/bench/tae_np2
 """
@@ -329,6 +330,53 @@ def markdown(results: list[dict], ranks: int, load: list[float]) -> str:
     return "\n".join(out)
 
 
+def condensed(results: list[dict]) -> str:
+    """One row per case and configuration: each rtol's time (÷ best floor), errors, counts."""
+    rtols = sorted({r["rtol"] for res in results for r in res["rows"]
+                    if r["rtol"] is not None and r["config"] != "snes"}, reverse=True)
+    head = "| case | free dofs | floors MUMPS / GAMG [s] | config | " + " | ".join(
+        f"rtol {t:.0e}: s (÷ floor), error u / f, F" for t in rtols) + " |"
+    out = [head, "|---|---|---|---|" + "---|" * len(rtols)]
+    for res in results:
+        fl = " / ".join(f"{res['floors'][k]:.2f}" if k in res["floors"] else "–"
+                        for k in FLOORS)
+        for cfg in [c for c in (*FETI, "snes") if any(r["config"] == c for r in res["rows"])]:
+            cells = []
+            for t in rtols:
+                rs = [r for r in res["rows"] if r["config"] == cfg and (
+                    r["rtol"] == t or (cfg == "snes" and r["rtol"] is not None))]
+                if cfg == "snes":
+                    rs = sorted(rs, key=lambda r: abs(np.log(r["rtol"] / t)))[:1]
+                if not rs:
+                    cells.append("–")
+                    continue
+                r = rs[0]
+                xf = f" ({r['x_floor']:.1f}×)" if r.get("x_floor") else ""
+                cnt = (f"{r['its']} Newton" if cfg == "snes" else
+                       f"{r['mults']} ({r['method_used']}, {r['subdomains']} sub.)")
+                rt = f" [rtol {r['rtol']:.0e}]" if cfg == "snes" and r["rtol"] != t else ""
+                cells.append(f"{r['t']:.2f}{xf}, {r['err_u']:.1e} / {r['err_f']:.1e}, "
+                             f"{cnt}{rt}")
+            out.append(f"| {res['case']} | {res['ndofs']} | {fl} | {cfg} | "
+                       + " | ".join(cells) + " |")
+    return "\n".join(out)
+
+
+def merge(paths: list[str], out: Path) -> None:
+    """The results of several runs (same rank count) as one table and one plot."""
+    results, loads, ranks = [], [], set()
+    for p in paths:
+        data = json.loads(Path(p).read_text())
+        results += data["results"]
+        loads += data["meta"]["load"]
+        ranks.add(data["meta"]["ranks"])
+    text = (f"{'/'.join(map(str, sorted(ranks)))} rank(s), load average (1 min) "
+            f"{min(loads):.1f}–{max(loads):.1f}\n\n" + condensed(results))
+    out.with_suffix(".md").write_text(text + "\n")
+    plot(results, out.with_suffix(".png"))
+    print(text)
+
+
 def plot(results: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -366,7 +414,12 @@ def main() -> None:
     ap.add_argument("--snes-ref", action="store_true",
                     help="the SNES VI row is the reference's run (a large case: one SNES VI)")
     ap.add_argument("--out", default=str(ROOT / "output" / "bench" / "time_against_error"))
+    ap.add_argument("--merge", default=None,
+                    help="comma-separated JSON files of earlier runs: one table and plot")
     args = ap.parse_args()
+    if args.merge:
+        merge(args.merge.split(","), Path(args.out))
+        return
     comm = MPI.COMM_WORLD
     out = Path(args.out)
     if comm.size > 1 and not args.out.endswith(f"_np{comm.size}"):
