@@ -343,6 +343,9 @@ def condensed(results: list[dict]) -> str:
         for cfg in [c for c in (*FETI, "snes") if any(r["config"] == c for r in res["rows"])]:
             cells = []
             for t in rtols:
+                if not any(r["rtol"] == t for r in res["rows"] if r["config"] in FETI):
+                    cells.append("–")  # this rtol was not run on this case
+                    continue
                 rs = [r for r in res["rows"] if r["config"] == cfg and (
                     r["rtol"] == t or (cfg == "snes" and r["rtol"] is not None))]
                 if cfg == "snes":
