@@ -387,9 +387,13 @@ def plot(results: list[dict], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     n = len(results)
-    fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 3.8), squeeze=False)
+    ncol = min(n, 4)
+    nrow = -(-n // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.8 * nrow), squeeze=False)
+    for ax in axes.ravel()[n:]:
+        ax.set_visible(False)
     marks = {"tfeti": "o-", "feti1": "s-", "fetidp": "^-", "auto": "D-", "snes": "x"}
-    for ax, res in zip(axes[0], results, strict=True):
+    for ax, res in zip(axes.ravel(), results, strict=False):
         for cfg, mk in marks.items():
             pts = [(r["err"], r["t"]) for r in res["rows"] if r["config"] == cfg]
             if pts:
