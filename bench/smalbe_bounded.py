@@ -7,7 +7,10 @@ seed scales b by 1/‖PFP‖) and variants: a larger ρ, a smaller M, a larger �
 acceleration, the Dirichlet preconditioner. Each cell: outer·F-mults; the last column the
 growth of the default's F-mults per halving of H.
 
-Run: ``python bench/smalbe_bounded.py --ratio 8`` (~1 min); ``--ratio 16`` (~5 min).
+Run: ``python bench/smalbe_bounded.py --ratio 8`` (~1 min); ``--ratio 16`` (~5 min);
+``--variants rho`` for ρ of order 10–1000 with M, η and the Dirichlet preconditioner;
+``--stop-test kkt`` for the library's default stopping test; ``--method`` (default tfeti,
+passed explicitly: the library's default method may change).
 Writes ``output/bench/smalbe_bounded_<ratio>.md`` and ``.json``.
 """
 
@@ -28,6 +31,12 @@ ROOT = Path(__file__).resolve().parent.parent
 VARIANTS = {"default": {}, "ρ = 10": {"smalbe_rho": 10.0}, "M = 0.1": {"smalbe_M": 0.1},
             "η = ‖b‖": {"smalbe_eta": 1.0}, "no Anderson": {"smalbe_acceleration": "none"},
             "Dirichlet": {"preconditioner": "dirichlet"}}
+#: More scalings of SMALBE (``--variants rho``): ρ of order 10–1000 ‖PFP‖, with M and η.
+RHO_VARIANTS = {"default": {}, "ρ = 10": {"smalbe_rho": 10.0},
+                "ρ = 100": {"smalbe_rho": 100.0}, "ρ = 1000": {"smalbe_rho": 1000.0},
+                "ρ = 100, M = 10": {"smalbe_rho": 100.0, "smalbe_M": 10.0},
+                "ρ = 10, η = 0.01": {"smalbe_rho": 10.0, "smalbe_eta": 0.01},
+                "ρ = 10, Dirichlet": {"smalbe_rho": 10.0, "preconditioner": "dirichlet"}}
 
 
 def main() -> None:
@@ -35,15 +44,20 @@ def main() -> None:
     parser.add_argument("--ratio", type=int, default=8, help="H/h")
     parser.add_argument("--levels", default="4,8,16", help="1/H of each level")
     parser.add_argument("--out", type=Path, default=None)
+    parser.add_argument("--method", default="tfeti", help="FETI method (passed explicitly)")
+    parser.add_argument("--stop-test", default="dual", help="'dual' (the seed's) or 'kkt'")
+    parser.add_argument("--variants", default="issue", help="'issue' or 'rho' (RHO_VARIANTS)")
     args = parser.parse_args()
+    variants = RHO_VARIANTS if args.variants == "rho" else VARIANTS
     out = args.out or ROOT / f"output/bench/smalbe_bounded_{args.ratio}.md"
     comm = MPI.COMM_WORLD
     rows, last = [], None
     for inv_H in (int(v) for v in args.levels.split(",")):
         problem = P.b1(args.ratio * inv_H, 1.0 / inv_H)
         row = {"H": f"1/{inv_H}", "dofs": None}
-        for name, kw in VARIANTS.items():
-            r = df.solve(problem, comm=comm, rtol=1e-6, stop_test="dual", **kw).report
+        for name, kw in variants.items():
+            r = df.solve(problem, comm=comm, rtol=1e-6, stop_test=args.stop_test,
+                         method=args.method, **kw).report
             row["dofs"] = r.sizes["primal"]
             row[name] = (r.outer_iterations, r.hessian_mults)
         mults = row["default"][1]
@@ -54,11 +68,12 @@ def main() -> None:
             print(row, flush=True)
     if comm.rank != 0:
         return
-    lines = [f"B1, H/h = {args.ratio}, rtol 1e-6 (dual test), {comm.size} rank(s): outer·F-mults",
-             "", "| H | primal dofs | " + " | ".join(VARIANTS) + " | default's growth |",
-             "|---|---|" + "---|" * (len(VARIANTS) + 1)]
+    lines = [f"B1, H/h = {args.ratio}, rtol 1e-6 ({args.stop_test} test), {args.method}, "
+             f"{comm.size} rank(s): outer·F-mults",
+             "", "| H | primal dofs | " + " | ".join(variants) + " | default's growth |",
+             "|---|---|" + "---|" * (len(variants) + 1)]
     lines += [f"| {r['H']} | {r['dofs']} | "
-              + " | ".join(f"{r[v][0]}·{r[v][1]}" for v in VARIANTS)
+              + " | ".join(f"{r[v][0]}·{r[v][1]}" for v in variants)
               + f" | {r['growth'] or '–'} |" for r in rows]
     P.write_outputs(out, lines, rows)
 
