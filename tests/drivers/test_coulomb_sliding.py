@@ -114,7 +114,8 @@ def punch_mesh():
     return df.build_mesh(punch_on_block, h_punch=0.3, h_block=0.5)
 
 
-def punch_problem(mesh, ratio, scale=1.0, half=False):
+def punch_problem(mesh, ratio, scale=1.0, half=False, friction="coulomb"):
+    """The punch pressed by p and pushed by ratio·𝓕·p; ``friction`` None: frictionless."""
     p = scale * PRESSURE
     dirichlet = [df.Dirichlet("bottom")]
     if half:
@@ -123,7 +124,8 @@ def punch_problem(mesh, ratio, scale=1.0, half=False):
         mesh, df.Elasticity({"punch": 210.0, "block": 70.0}, {"punch": 0.3, "block": 0.33},
                             tractions={"load": (ratio * MU * p, 0.0, -p)}),
         dirichlet=dirichlet,
-        contact=[df.Mortar("punch_contact", "block_contact", friction=df.Coulomb(MU))],
+        contact=[df.Mortar("punch_contact", "block_contact",
+                           friction=df.Coulomb(MU) if friction else None)],
         decomposition=df.Parts(2))
 
 
