@@ -58,7 +58,7 @@ def main() -> None:
     parser.add_argument("--max-it", type=int, default=100000)
     parser.add_argument("--rho", type=float, default=None, help="SMALBE's smalbe_rho")
     parser.add_argument("--rho-growth", type=float, default=None,
-                        help="SMALBE's smalbe_rho_growth (default: the friction solves' own)")
+                        help="SMALBE's smalbe_rho_growth (default: none, ρ fixed)")
     parser.add_argument("--tresca", type=float, default=None,
                         help="Tresca bound (a traction) instead of Coulomb")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/coulomb_sliding.md")

@@ -44,11 +44,6 @@ ETA_MIN_FACTOR = 0.5
 #: A Coulomb residual above STALL times the one before counts as stalled: the inner accuracy
 #: is cut tenfold.
 STALL = 0.7
-#: SMALBE's ρ grows by this after a slow outer iteration of a friction solve (the option
-#: ``smalbe_rho_growth`` unless given): near gross sliding the few sticking rows must carry
-#: the bodies' balance and ‖G̃x‖ falls by a few per cent per outer iteration at the default ρ
-#: (bench/coulomb_sliding.py: 2 against 4 and a fixed ρ of 3 or 10 on the coarse punch).
-RHO_GROWTH = 2.0
 
 
 class FrictionSolve:
@@ -116,12 +111,6 @@ class FrictionSolve:
                               * np.maximum(normal_force, 0.0), self.tresca)
 
     # --- the QP ----------------------------------------------------------------------------
-    @staticmethod
-    def tune(solver) -> None:
-        """The friction solves' choices of the QP solver: SMALBE's ρ grows (:data:`RHO_GROWTH`)."""
-        if getattr(solver, "rho_growth", 1.0) is None:
-            solver.rho_growth = RHO_GROWTH
-
     def bounds(self, lb: PETSc.Vec, lam_hat: PETSc.Vec):
         """Set the tangential entries of ``lb``; return ``(ub, discs, multiplier)``."""
         lh = lam_hat.array_r[self.t]

@@ -298,8 +298,6 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
         lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
     solver = qp_solver(opts, dual, n_ineq, discs is not None, progress)
-    if friction is not None:
-        friction.tune(solver)
     report.solver = solver.name if not isinstance(solver, SMALBE) else \
         f"smalbe{' (mpgp)' if discs is not None else ''}"
     if isinstance(solver, CG):

@@ -53,8 +53,8 @@ OPTIONS = OptionSet(
     depth=Option(3, Integer(ge=1, le=100), "the memory of the Anderson acceleration (number "
                  "of past updates)"),
     rho_growth=Option(None, Maybe(Real(ge=1)), "ρ is multiplied by this (up to rho_max) after "
-                      "an outer iteration that cut ||Dx|| by less than half (None: the "
-                      "caller's choice, 1 unless friction bounds the multipliers; 1: ρ fixed)"),
+                      "an outer iteration that cut ||Dx|| by less than half (None or 1: ρ "
+                      "fixed, SMALBE-M)"),
     rho_max=Option(100.0, Real(gt=0), "the largest ρ of rho_growth, relative to ||A||"))
 
 #: An outer iteration whose ||Dx|| is above this fraction of the one before counts as slow
@@ -146,7 +146,10 @@ class SMALBE(QPSolver):
             preconditioner and the carried gradient are updated with ``rho`` (no extra
             multiplication); the Anderson memory is cleared and the step-4 test skipped once.
             Not covered by SMALBE-M's theory, which keeps ``rho`` fixed (Dostál 2009 keeps
-            such a growth for the SMALBE variant that adapts ``rho`` instead of ``M``).
+            such a growth for the SMALBE variant that adapts ``rho`` instead of ``M``). Off by
+            default: on the punch's fine mesh, with the curvature scaling of MPGP's
+            preconditioner in face, the stiffer inner problems cost more than the outer
+            iterations saved (bench/coulomb_sliding.py ``--rho-growth 2``).
         rho_max: The cap of ``rho_growth``, relative to ``||A||`` (or :class:`Absolute`).
         inner_norm_A: ``||A + rho D^T D||`` for the inner solver; default ``max(||A||, rho)``.
         preconditioner_form: ``'projected'`` or ``'plain'``, see above.
