@@ -97,6 +97,6 @@ def surface_rows(problem: ContactProblem, node_ptr: np.ndarray, node_subs: np.nd
                                        (spec.slave,) if info is not None else spec.groups,
                                        own_only=info is not None)
             if getattr(spec, "friction", None) is not None:  # tangential rows beside normal
-                block = with_tangential_rows(block)
+                block = with_tangential_rows(block, fixed)
             blocks.append(block)
     return blocks

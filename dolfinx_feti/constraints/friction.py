@@ -11,6 +11,17 @@ multiplier λ_T (physical value scale·λ, a nodal force) is bounded: |λ_T| <= 
 ||(λ_T1, λ_T2)|| <= g in 3D (a disc), g the nodal slip bound. The rows of one node are
 consecutive in B (normal row first) and are owned by the same rank.
 
+On a symmetry plane (a contact node with exactly one displacement component held by a Dirichlet
+condition, u_j, and a contact normal nearly in that plane) the friction force has no component
+normal to the plane (the mirror image of the problem cancels it), and the tangential row along
+it is nearly a combination of the Dirichlet rows u_j = 0 of the slave and the plane's master
+nodes: kept, it makes the dual problem nearly singular in that row and the disc couples the
+ill-determined multiplier with the one that carries the load (measured: tens to hundreds of
+times the F-multiplications). Such a node's tangents are the in-plane tangent t1 ∝ n × e_j and
+t2 = n × t1 (the plane's normal, made tangent), and its t2 row is *pinned*: its multiplier is
+held at zero, so the disc becomes the interval |λ_T1| <= g (2D: the one tangent lies along
+e_j and is pinned). :data:`SYMMETRY_NORMAL` bounds |n·e_j|.
+
 Sign convention (Lagrangian ½uᵀKu − fᵀu + λᵀ(Bu − c)): the friction force on the slave node is
 −Σ_k λ_T,k t_k; where a node slips, its slip s = Σ_k ((u_s − u_m)·t_k) t_k is parallel to
 Σ_k λ_T,k t_k, i.e. opposite to the friction force; where it sticks (|λ_T| < g), s = 0.
@@ -32,13 +43,40 @@ from .rows import Kind, Rows
 #: Values of ``ContactData.state``.
 FRICTIONLESS, STICK, SLIP = 0, 1, 2
 
+#: A contact node with one Dirichlet-held component j is on a symmetry plane when its normal
+#: has |n_j| at most this (a normal averaged over the facets on one side of the plane tilts
+#: by about h / (2 × the radius of curvature)).
+SYMMETRY_NORMAL = 0.5
 
-def tangent_basis(normal: np.ndarray) -> np.ndarray:
+
+def symmetry_axes(fixed: np.ndarray | None, node: np.ndarray, normal: np.ndarray
+                  ) -> np.ndarray:
+    """Per contact node: the axis j of the symmetry plane it lies on, or −1 (module docstring).
+
+    Args:
+        fixed: (points, bs) mask of the Dirichlet-held components, or None (no plane).
+        node: The contact nodes (points).
+        normal: Their unit contact normals, (k, gdim).
+    """
+    k, d = np.shape(normal)
+    axis = np.full(k, -1, dtype=np.int64)
+    if fixed is None or k == 0:
+        return axis
+    held = np.asarray(fixed)[np.asarray(node), :d]
+    one = held.sum(axis=1) == 1
+    j = np.argmax(held, axis=1)
+    flat = np.abs(np.asarray(normal)[np.arange(k), j]) <= SYMMETRY_NORMAL
+    axis[one & flat] = j[one & flat]
+    return axis
+
+
+def tangent_basis(normal: np.ndarray, plane_axis: np.ndarray | None = None) -> np.ndarray:
     """Unit tangents orthogonal to unit normals, shape (k, gdim − 1, gdim).
 
     2D: t = (n_y, −n_x), so that (t, n) is right-handed. 3D: t1 is the coordinate axis least
     aligned with n (the first one in a tie) made orthogonal to n by Gram–Schmidt, t2 = n × t1,
-    so that (t1, t2, n) is right-handed.
+    so that (t1, t2, n) is right-handed. A node on a symmetry plane of axis j
+    (``plane_axis`` >= 0, :func:`symmetry_axes`) gets t1 ∝ n × e_j instead (in the plane).
     """
     n = np.asarray(normal, dtype=float)
     k, d = n.shape
@@ -49,12 +87,21 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     e[np.arange(k), axis] = 1.0
     t1 = e - np.einsum("ij,ij->i", e, n)[:, None] * n
     t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    on = np.flatnonzero(plane_axis >= 0) if plane_axis is not None else np.zeros(0, int)
+    if on.size:
+        ej = np.zeros((on.size, 3))
+        ej[np.arange(on.size), plane_axis[on]] = 1.0
+        t = np.cross(n[on], ej)
+        t1[on] = t / np.linalg.norm(t, axis=1)[:, None]
     t2 = np.cross(n, t1)
     return np.stack([t1, t2], axis=1)
 
 
-def with_tangential_rows(normal: Rows) -> Rows:
+def with_tangential_rows(normal: Rows, fixed: np.ndarray | None = None) -> Rows:
     """The normal rows of one contact condition with their tangential rows interleaved.
+
+    ``fixed``: the (points, bs) mask of the Dirichlet-held components; the nodes on a symmetry
+    plane get the tangents of :func:`tangent_basis` (the pinned one last).
 
     A normal row is Σ_k w_k n·u_k over its nodes (node-to-node: the slave and its master;
     mortar: the slave and the weighted master nodes; obstacle: the node alone), so each
@@ -64,7 +111,7 @@ def with_tangential_rows(normal: Rows) -> Rows:
     """
     k, d = normal.normal.shape
     nt = d - 1
-    T = tangent_basis(normal.normal)  # (k, nt, d)
+    T = tangent_basis(normal.normal, symmetry_axes(fixed, normal.node, normal.normal))
     # The weight of each (row, node): entries of one node in one row are summed.
     key = normal.e_row.astype(np.int64) * (int(normal.e_node.max(initial=0)) + 1) + normal.e_node
     uniq, first_entry, inv = np.unique(key, return_index=True, return_inverse=True)
@@ -109,6 +156,8 @@ class FrictionData:
         area: Lumped area (length in 2D) of the contact node on its surface, per row.
         rtol: The Coulomb residual max|g − 𝓕λ_N| / max λ_N that ends the Coulomb fixed point.
         max_steps: Budget of Coulomb fixed-point steps.
+        pinned: Per row: the row along the normal of a symmetry plane, whose multiplier is
+            held at zero (the module docstring); None: none.
     """
 
     rows: np.ndarray
@@ -119,6 +168,7 @@ class FrictionData:
     area: np.ndarray
     rtol: float
     max_steps: int
+    pinned: np.ndarray | None = None
 
     @property
     def coulomb(self) -> bool:
@@ -126,8 +176,13 @@ class FrictionData:
         return bool(np.any(~np.isnan(self.coefficient)))
 
 
-def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
-    """Collect the friction rows of built (and ordered) rows; None without friction."""
+def friction_data(problem: ContactProblem, rows: Rows, fixed: np.ndarray | None = None
+                  ) -> FrictionData | None:
+    """Collect the friction rows of built (and ordered) rows; None without friction.
+
+    ``fixed`` is the mask the rows were built with (:func:`with_tangential_rows`): the rows
+    pinned on symmetry planes follow from it.
+    """
     t = np.flatnonzero(rows.tangential)
     if t.size == 0:
         return None
@@ -165,11 +220,13 @@ def friction_data(problem: ContactProblem, rows: Rows) -> FrictionData | None:
         fr = c.friction
         tresca[m], coefficient[m] = NODAL_VALUES[type(fr)](fr, problem.dof_points.x[node],
                                                            group, area[m])
-        if (fixed := fr.fixed_point()) is not None:
-            rtol, max_steps = min(rtol, fixed[0]), max(max_steps, fixed[1])
+        if (point := fr.fixed_point()) is not None:
+            rtol, max_steps = min(rtol, point[0]), max(max_steps, point[1])
+    axis = symmetry_axes(fixed, rows.node[t], rows.normal[normal_row])
+    pinned = (axis >= 0) & (np.arange(t.size) % nt == nt - 1)  # the last tangent of the node
     return FrictionData(rows=t, normal_row=normal_row, per_node=nt, tresca=tresca,
                         coefficient=coefficient, area=area, rtol=float(rtol),
-                        max_steps=int(max_steps))
+                        max_steps=int(max_steps), pinned=pinned if pinned.any() else None)
 
 
 def _tresca_values(fr: Tresca, x: np.ndarray | None, group: str, area: np.ndarray

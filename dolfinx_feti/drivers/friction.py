@@ -8,9 +8,12 @@ With λ = μ + λ̂ (homogenization) the bounds of the tangential multipliers mo
   MPGP (:mod:`dolfinx_feti.qp.mpgp`);
 
 g the physical nodal slip bound and s the row scale (1/√2 for node-to-node rows, 1 for
-obstacles), since the physical multiplier is s·λ. Coulomb friction iterates g = 𝓕 λ_N
-(physical normal forces) over warm-started Tresca solves. Only built when a contact condition
-has friction.
+obstacles), since the physical multiplier is s·λ. A row pinned on a symmetry plane
+(:mod:`dolfinx_feti.constraints.friction`) is held at λ = 0 (the interval of bound 0), and its
+node's other row gets the box −g/s <= λ_T1 <= g/s instead of a disc; the residuals, the
+recovery and the output leave the pinned row out (its slip is that of the mirror image).
+Coulomb friction iterates g = 𝓕 λ_N (physical normal forces) over warm-started Tresca
+solves. Only built when a contact condition has friction.
 
 On a load path (:func:`dolfinx_feti.solve_path`) a step starts warm: the QP from the last
 step's multipliers (projected onto the new bounds by the QP solver), Coulomb's fixed point from
@@ -71,6 +74,10 @@ class FrictionSolve:
         self.coef = data.coefficient[lo:hi]
         self.coulomb_rows = ~np.isnan(self.coef)
         self.nt = data.per_node
+        self.pinned = np.zeros(self.t.size, dtype=bool) if data.pinned is None else \
+            np.asarray(data.pinned[lo:hi], dtype=bool)
+        # per local node: the disc is an interval of its first row (the other one pinned)
+        self._flat = self.pinned.reshape(-1, self.nt).any(axis=1)
         self.g = np.where(self.coulomb_rows, np.inf, self.tresca)
         self.at_bound = np.zeros(self.t.size, dtype=bool)
         self.normal_force = np.zeros(self.t.size)
@@ -107,18 +114,22 @@ class FrictionSolve:
     def bounds(self, lb: PETSc.Vec, lam_hat: PETSc.Vec):
         """Set the tangential entries of ``lb``; return ``(ub, discs, multiplier)``."""
         lh = lam_hat.array_r[self.t]
-        r = self.g / self.scale  # the bound on the scaled multiplier
-        if self.nt == 1:
-            lb.array[self.t] = -r - lh
+        r = np.where(self.pinned, 0.0, self.g / self.scale)  # the bound on the scaled multiplier
+        box = np.repeat(self._flat, self.nt) if self.nt == 2 else np.ones(self.t.size, bool)
+        lb.array[self.t] = np.where(box, -r - lh, -np.inf)
+        ub = None
+        if self.comm.allreduce(bool(box.any()), op=MPI.LOR):
             if self._ub is None:
                 self._ub = lb.duplicate()
             self._ub.set(np.inf)
-            self._ub.array[self.t] = r - lh
-            return self._ub, None, self.multiplier
-        lb.array[self.t] = -np.inf
-        pairs = self.t.reshape(-1, 2)
-        discs = Discs(pairs, -lh.reshape(-1, 2), r.reshape(-1, 2)[:, 0])
-        return None, discs, self.multiplier
+            self._ub.array[self.t[box]] = r[box] - lh[box]
+            ub = self._ub
+        if self.nt == 1:
+            return ub, None, self.multiplier
+        pairs = self.t.reshape(-1, 2)[~self._flat]
+        discs = Discs(pairs, -lh.reshape(-1, 2)[~self._flat],
+                      r.reshape(-1, 2)[~self._flat, 0])
+        return ub, discs, self.multiplier
 
     def run(self, run_qp: Callable[..., QPResult], x: PETSc.Vec, lam_hat: PETSc.Vec,
             ineq: np.ndarray, progress, rtol: float = 1e-6,
@@ -218,17 +229,27 @@ class FrictionSolve:
 
     # --- the recovery ----------------------------------------------------------------------
     def snap(self, lam: PETSc.Vec, at_bound: np.ndarray) -> None:
-        """Put the tangential multipliers that are on their bound exactly on it."""
+        """Put the tangential multipliers that are on their bound exactly on it.
+
+        A pinned row is 0; its node slips or sticks as its other row does.
+        """
         self.at_bound = at_bound[self.t].copy()
         la = lam.array
         r = self.g / self.scale
-        if self.nt == 1:
-            on = self.at_bound & np.isfinite(r)
+        la[self.t[self.pinned]] = 0.0
+        if self.nt == 2:
+            ab = self.at_bound.reshape(-1, 2)
+            ab[self._flat, 1] = ab[self._flat, 0]
+        if self.nt == 1 or self._flat.any():
+            box = np.repeat(self._flat, self.nt) & ~self.pinned if self.nt == 2 else \
+                ~self.pinned
+            on = box & self.at_bound & np.isfinite(r)
             la[self.t[on]] = np.sign(la[self.t[on]]) * r[on]
-            return
+            if self.nt == 1:
+                return
         pairs = self.t.reshape(-1, 2)
         rr = r.reshape(-1, 2)[:, 0]
-        on = self.at_bound.reshape(-1, 2)[:, 0] & np.isfinite(rr)
+        on = self.at_bound.reshape(-1, 2)[:, 0] & np.isfinite(rr) & ~self._flat
         Y = la[pairs[on]]
         nrm = np.linalg.norm(Y, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -239,12 +260,15 @@ class FrictionSolve:
         """Rows on which B u = c holds: equalities, pressed contact rows, sticking friction rows."""
         tang = np.zeros(ineq.size, dtype=bool)
         tang[self.t] = True
-        return (~ineq & ~tang) | ~at_bound
+        active = (~ineq & ~tang) | ~at_bound
+        active[self.t[self.pinned]] = False  # the dropped direction: no constraint on u
+        return active
 
     # --- residuals and output --------------------------------------------------------------
     def _per_node(self, lam_phys: np.ndarray, viol: np.ndarray):
-        lt = lam_phys[self.t].reshape(-1, self.nt)
-        r = viol[self.t].reshape(-1, self.nt)
+        keep = ~self.pinned  # a pinned row is no constraint: neither force nor slip counts
+        lt = (lam_phys[self.t] * keep).reshape(-1, self.nt)
+        r = (viol[self.t] * keep).reshape(-1, self.nt)
         g = self.g.reshape(-1, self.nt)[:, 0]
         return lt, r, g
 
@@ -290,8 +314,8 @@ class FrictionSolve:
         def gather(a):
             return np.concatenate(comm.allgather(np.asarray(a)))
 
-        lt = gather(lam_phys[self.t])
-        s = gather(viol[self.t])
+        lt = gather(lam_phys[self.t] * ~self.pinned)
+        s = gather(viol[self.t] * ~self.pinned)
         g = gather(self.g)
         slip_state = gather(self.at_bound)
         sel = rows.inequality_index

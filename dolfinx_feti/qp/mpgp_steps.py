@@ -33,6 +33,11 @@ _DESCENT_RTOL = 1e-12
 # p^T A p below this fraction of ||A|| p^T p is treated as zero curvature: rounding makes the
 # curvature of a PSD operator along a null direction tiny but positive, not zero.
 CURVATURE_RTOL = 1e-14
+# The curvature term ξ/r of a rotating disc pair is compared with this fraction of ||A|| (a
+# stand-in for the diagonal of A, which the preconditioner does not expose) in the scaling of
+# the preconditioner in face: bench/coulomb_sliding.py, the punch at 0.7 𝓕N, h = 0.15/0.25:
+# 0.005: 2 417, 0.02: 1 514, 0.05: 1 434, 0.1: 1 678 F-multiplications (11 618 unscaled).
+CURVATURE_SCALE = 0.05
 # A step along the circles is rejected when it raises the energy by more than this times
 # Σ|x||g| (the round-off level of the energy differences).
 _ENERGY_NOISE = 64 * np.finfo(float).eps
@@ -77,6 +82,7 @@ class MPGPSolve:
         self.phi, self.beta, self.p, self.Ap = (x.duplicate() for _ in range(4))
         self.Hp = x.duplicate() if self.tangent else self.Ap  # (A + curvature) p on circles
         self.z = self.phi if self.prec is None else x.duplicate()
+        self.w = x.duplicate() if self.prec is not None and self.tangent else None
         self.history: list[dict] = []
         self.it, self.kind = 0, "init"
         self.cg_pending = False  # p holds a CG direction to be continued (else restart)
@@ -188,13 +194,26 @@ class MPGPSolve:
         """The CG direction ``p`` in the face from the (preconditioned) free gradient.
 
         Preconditioning in face: ``z = D_F M^{-1} D_F phi`` (``phi = D_F g`` already), kept if
-        a descent direction. ``p = r - (r^T H p / p^T H p) p`` continues the conjugate
-        direction, else ``p = r``; lost descent (the face changed under rounding) restarts.
+        a descent direction. With curved faces the face's Hessian is ``A + C`` (``C`` the
+        curvature terms ξ/r of the rotating pairs, :meth:`.discs.SeparableSet.rotating`), which
+        ``M^{-1} ≈ A^{-1}`` does not see: ξ is the pair's slip and r its slip bound, a nodal
+        force, so C/||A|| grows like 1/h and reached 140 on the punch near gross sliding.
+        ``z = S M^{-1} S phi`` with ``S = diag(1/sqrt(1 + c_i/(κ ||A||)))`` (κ =
+        :data:`CURVATURE_SCALE`), the symmetric Jacobi-like scaling of ``(A + C)^{-1}``;
+        ``S = I`` off the rotating pairs. ``p = r - (r^T H p / p^T H p) p`` continues the
+        conjugate direction, else ``p = r``; lost descent (the face changed under rounding)
+        restarts.
         """
         x, p, phi, z, S = self.x, self.p, self.phi, self.z, self.S
         r = phi
         if self.prec is not None:
-            self.prec.apply(phi, z)
+            if self.tangent:  # every rank applies M^{-1} once either way (collective)
+                s = 1.0 / np.sqrt(1.0 + self.curv / (CURVATURE_SCALE * self.scale_A))
+                self.w.array[:] = phi.array_r * s
+                self.prec.apply(self.w, z)
+                z.array[:] = z.array_r * s
+            else:
+                self.prec.apply(phi, z)
             z.array[fixed] = 0.0
             if self.tangent:
                 z.array[:] = S.tangential(x.array_r, z.array_r, self.rot)
@@ -309,4 +328,4 @@ class MPGPSolve:
                         objective=self.energy())
 
 
-__all__ = ["CURVATURE_RTOL", "MPGPSolve"]
+__all__ = ["CURVATURE_RTOL", "CURVATURE_SCALE", "MPGPSolve"]

@@ -51,7 +51,15 @@ OPTIONS = OptionSet(
                         "update μ += ρDx of the theory) or 'anderson' (Anderson acceleration of "
                         "that update, memory reset when the active set changes)"),
     depth=Option(3, Integer(ge=1, le=100), "the memory of the Anderson acceleration (number "
-                 "of past updates)"))
+                 "of past updates)"),
+    rho_growth=Option(None, Maybe(Real(ge=1)), "ρ is multiplied by this (up to rho_max) after "
+                      "an outer iteration that cut ||Dx|| by less than half (None or 1: ρ "
+                      "fixed, SMALBE-M)"),
+    rho_max=Option(100.0, Real(gt=0), "the largest ρ of rho_growth, relative to ||A||"))
+
+#: An outer iteration whose ||Dx|| is above this fraction of the one before counts as slow
+#: (``rho_growth``).
+SLOW_OUTER = 0.5
 
 
 @dataclass(frozen=True)
@@ -128,6 +136,21 @@ class SMALBE(QPSolver):
             test are unchanged, and the returned multiplier is always the plain update of the
             final ``x``, i.e. the KKT multiplier).
         depth: Memory of the Anderson acceleration.
+        rho_growth: After an outer iteration that left ``||D x||`` above :data:`SLOW_OUTER`
+            times the one before, ``rho`` is multiplied by this, up to ``rho_max`` (None or 1:
+            ``rho`` fixed). Near gross sliding of friction the multiplier update contracts
+            ``||D x||`` by a few per cent per outer iteration at the default ``rho``: the few
+            free (sticking) rows must carry the equality. A larger ``rho`` contracts it faster,
+            at the price of a stiffer inner problem where it is not needed; growing it only on
+            slow iterations keeps the easy cases at the default. The inner operator, its
+            preconditioner and the carried gradient are updated with ``rho`` (no extra
+            multiplication); the Anderson memory is cleared and the step-4 test skipped once.
+            Not covered by SMALBE-M's theory, which keeps ``rho`` fixed (Dostál 2009 keeps
+            such a growth for the SMALBE variant that adapts ``rho`` instead of ``M``). Off by
+            default: on the punch's fine mesh, with the curvature scaling of MPGP's
+            preconditioner in face, the stiffer inner problems cost more than the outer
+            iterations saved (bench/coulomb_sliding.py ``--rho-growth 2``).
+        rho_max: The cap of ``rho_growth``, relative to ``||A||`` (or :class:`Absolute`).
         inner_norm_A: ``||A + rho D^T D||`` for the inner solver; default ``max(||A||, rho)``.
         preconditioner_form: ``'projected'`` or ``'plain'``, see above.
         monitor: Called as ``monitor(k, record)`` after each outer iteration with the record
@@ -149,15 +172,16 @@ class SMALBE(QPSolver):
                  max_it: int = 10000, rho: float | Absolute | None = None,
                  M: float | Absolute | None = None, eta: float | Absolute | None = None,
                  beta: float | None = None, acceleration: str | None = None,
-                 depth: int | None = None, inner_norm_A: float | None = None,
+                 depth: int | None = None, rho_growth: float | None = None,
+                 rho_max: float | Absolute | None = None, inner_norm_A: float | None = None,
                  preconditioner_form: str = "projected",
                  monitor: Callable[[int, dict], None] | None = None,
                  options_prefix: str | None = None) -> None:
-        scaled = {"rho": rho, "M": M, "eta": eta}
+        scaled = {"rho": rho, "M": M, "eta": eta, "rho_max": rho_max}
         absolute = {k: float(v.value) for k, v in scaled.items() if isinstance(v, Absolute)}
         scaled = {k: None if k in absolute else v for k, v in scaled.items()}
         self._set_options(options_prefix, beta=beta, acceleration=acceleration, depth=depth,
-                          **scaled)
+                          rho_growth=rho_growth, **scaled)
         for k, v in absolute.items():
             setattr(self, k, v)
         #: The names among rho, M, eta that hold absolute values.
@@ -185,6 +209,10 @@ class SMALBE(QPSolver):
                 return v
             return (default if v is None else v) * scale
         return value("rho", norm_A, 1.1), value("M", norm_A, 1.0), value("eta", b_norm, 0.1)
+
+    def rho_cap(self, norm_A: float) -> float:
+        """The largest ``rho`` of ``rho_growth`` in absolute units."""
+        return self.rho_max if "rho_max" in self.absolute else self.rho_max * norm_A
 
     def solve(self, qp: QP, x: PETSc.Vec, *, multiplier: np.ndarray | None = None,
               test=None) -> QPResult:
@@ -240,7 +268,10 @@ class _SMALBESolve:
         if not (rho > 0 and self.M > 0 and (eta > 0 or (eta == 0 and b_norm == 0))):
             raise ValueError(f"smalbe: need rho, M, eta > 0 (got {rho}, {self.M}, {eta}); "
                              "eta = 0 only for a zero b")
-        self.rho, self.eta = rho, eta
+        self.rho, self.rho0, self.eta = rho, rho, eta
+        self.growth = solver.rho_growth or 1.0
+        self.rho_cap = max(solver.rho_cap(norm_A), rho)
+        self.norm_A, self.qp = norm_A, qp
         self.tol_g = solver.rtol * b_norm
         self.tol_e = solver.eq_rtol * b_norm / solver.eq_scale
         self.mu = np.zeros(self.D.m) if multiplier is None else \
@@ -255,6 +286,7 @@ class _SMALBESolve:
         self.prev_active: np.ndarray | None = None
         self.history: list[dict] = []
         self.total_it, self.L_prev = 0, None
+        self.dx_prev = math.inf
 
     def _inner_qp(self, qp: QP, norm_A: float) -> QP:
         """The QP of the augmented Lagrangian: ``A + rho D^T D``, ``b - D^T mu``, the set."""
@@ -340,7 +372,31 @@ class _SMALBESolve:
         self.L_prev = L
         if final:
             return "converged"
+        if self.growth > 1.0 and dx > SLOW_OUTER * self.dx_prev and self.rho < self.rho_cap:
+            self._grow_rho(min(self.rho * self.growth, self.rho_cap))
+        self.dx_prev = dx
         return None if res.converged else res.reason
+
+    def _grow_rho(self, rho: float) -> None:
+        """Raise ρ: the inner operator and preconditioner anew, ``g += (ρ' − ρ) DᵀD x``.
+
+        The multiplier and ``b − Dᵀμ`` are unchanged; the Anderson memory (a map of the old
+        ρ) is cleared and the step-4 test, whose L is of the old ρ, skipped once.
+        """
+        old, s = self.inner_qp, self.s
+        self.D.mult_transpose(self.D.mult(self.x), self.tmp)
+        self.g.axpy(rho - self.rho, self.tmp)
+        inner_norm = max(self.norm_A, rho) if s.inner_norm_A is None else \
+            s.inner_norm_A + rho - self.rho0
+        if isinstance(old.preconditioner, ProjectedPreconditioner):
+            old.preconditioner.rho = rho
+        self.rho = rho
+        self.inner_qp = old.child(A=penalized_operator(self.qp.A, self.D, rho),
+                                  norm_A=inner_norm)
+        old.A.destroy()
+        if self.anderson is not None:
+            self.anderson.reset()
+        self.L_prev = None
 
     def _update_multiplier(self, Dx: np.ndarray, res: QPResult, final: bool) -> None:
         """``mu += rho D x`` (accelerated unless final), and ``b - D^T mu``, ``g`` with it.
@@ -383,11 +439,13 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
            max_it: int = 10000, monitor: Callable[[int, dict], None] | None = None,
            eq_scale: float = 1.0, multiplier: np.ndarray | None = None,
            preconditioner=None, preconditioner_form: str = "projected",
-           acceleration: str = "none", depth: int = 5) -> QPResult:
+           acceleration: str = "none", depth: int = 5, rho_growth: float | None = None,
+           rho_max: float | None = None) -> QPResult:
     """Solve ``min f(x)`` s.t. ``lb <= x <= ub``, ``D x = 0`` by SMALBE-M (collective).
 
     The function form of :class:`SMALBE` (see there for the algorithm and the result), with
-    ``rho``, ``M``, ``eta`` absolute (defaults ``1.1 ||A||``, ``100 ||A||``, ``0.1 ||b||``).
+    ``rho``, ``M``, ``eta``, ``rho_max`` absolute (defaults ``1.1 ||A||``, ``100 ||A||``,
+    ``0.1 ||b||``, ``100 ||A||``).
 
     ``inner`` is ``'mprgp'`` (:class:`.mprgp.MPRGP`, bounds ``lb``, ``ub``) or ``'mpgp'``
     (:class:`.mpgp.MPGP`: bounds and disc constraints, given as
@@ -412,7 +470,8 @@ def smalbe(A: PETSc.Mat, b: PETSc.Vec, D: EqualityConstraint, x: PETSc.Vec, *, l
         INNER[inner](**opts), rtol=rtol, eq_rtol=eq_rtol, eq_scale=eq_scale,
         max_outer=max_outer, max_it=max_it, rho=1.1 if rho is None else Absolute(rho),
         M=100.0 if M is None else Absolute(M), eta=None if eta is None else Absolute(eta),
-        beta=beta, acceleration=acceleration, depth=depth, inner_norm_A=inner_norm_A,
+        beta=beta, acceleration=acceleration, depth=depth, rho_growth=rho_growth,
+        rho_max=None if rho_max is None else Absolute(rho_max), inner_norm_A=inner_norm_A,
         preconditioner_form=preconditioner_form, monitor=monitor)
     qp = QP.create(A, b, lb=lb, ub=ub, discs=discs, eq=D, norm_A=norm_A,
                    preconditioner=preconditioner)

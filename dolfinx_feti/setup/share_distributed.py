@@ -254,10 +254,13 @@ class Surface:
     Attributes:
         problem: The problem on the mesh of those cells (its points numbered compactly).
         point_ids: Global dof point of each of its points (ascending).
+        fixed: (points, bs) mask of its points' Dirichlet-held components (the rows were
+            built with it: the symmetry planes of the friction rows).
     """
 
     problem: object
     point_ids: np.ndarray
+    fixed: np.ndarray | None = None
 
     def local(self, points: np.ndarray) -> np.ndarray:
         """The surface mesh's point of each global point."""
@@ -325,7 +328,7 @@ def gather_surface(problem, facets, names, local_mesh, cell_ids, cell_points, lo
             rows = replace(rows, e_node=gmap[rows.e_node], node=np.where(
                 rows.node >= 0, gmap[np.maximum(rows.node, 0)], -1), partner=np.where(
                 rows.partner >= 0, gmap[np.maximum(rows.partner, 0)], -1))
-            surface = Surface(surf, gmap)
+            surface = Surface(surf, gmap, fixed_s)
             out = (rows, mortar)
     rows, mortar = comm.bcast(out, root=0)
     return surface, rows, mortar
@@ -338,7 +341,8 @@ def surface_friction(surface: Surface, rows: RankRows):
     with the points of the surface mesh; its row indices then become global ones.
     """
     c = rows.contact
-    found = friction_data(surface.problem, replace(c, node=surface.local(c.node)))
+    found = friction_data(surface.problem, replace(c, node=surface.local(c.node)),
+                          surface.fixed)
     if found is None:
         return None
     index = rows.contact_index

@@ -59,7 +59,8 @@ DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
             "preconditioner_scaling": "stiffness",
-            "smalbe_depth": 3, "error_if_not_converged": False, "method": "tfeti",
+            "smalbe_depth": 3, "smalbe_rho_growth": None, "smalbe_rho_max": 100.0,
+            "error_if_not_converged": False, "method": "tfeti",
             "dual_operator": "implicit"}
 
 

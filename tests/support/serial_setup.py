@@ -282,7 +282,7 @@ def serial_share_problem(problem: ContactProblem, comm: MPI.Comm, method: str = 
             if method == "fetidp":
                 extra = fetidp_parts(problem, dec, rows, comm.size)
             common = (method, mortar)
-            fdata = friction_data(problem, rows)
+            fdata = friction_data(problem, rows, dirichlet_mask(problem, problem.mesh)[0])
     method, mortar = comm.bcast(common, root=0)
     fdata = comm.bcast(fdata, root=0)
     share = share_out(problem.mesh, problem.dof_points if comm.rank == 0 else None, dec,
