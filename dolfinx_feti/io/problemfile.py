@@ -463,7 +463,8 @@ class ProblemFile:
         path: The problem file.
         title: Its title (the file name when none is given).
         model: ``"elasticity"``, ``"neo-hookean"``, ``"svk"`` or ``"poisson"``.
-        mesh: The mesh, on every rank.
+        mesh: The mesh, on every rank (a :class:`~dolfinx_feti.MixedMesh` for bodies of
+            several cell types: the problem is then solved by the mixed solve).
         mesh_source: The mesh file, or the generator call that built the mesh.
         problem: The :class:`~dolfinx_feti.ContactProblem`.
         solver: The ``[solver]`` table (fields of :class:`~dolfinx_feti.SolverOptions`).
@@ -477,7 +478,7 @@ class ProblemFile:
     path: Path
     title: str
     model: str
-    mesh: MeshData
+    mesh: MeshData | MixedMesh
     mesh_source: str
     problem: ContactProblem
     solver: dict[str, Any]
