@@ -169,3 +169,14 @@ def test_refused_method_named(folder, where):
     out = folder / "method_out"
     assert main([str(toml), "-o", str(out), "-q", *line]) == 2
     assert files_in(out) == []
+
+
+def test_plot_option_refused(folder, capsys):
+    """--plot asks for a pressure plot, which bodies of several cell types do not have."""
+    toml = write_text(folder / "plot.toml", _toml(folder))
+    out = folder / "plot_out"
+    assert main([str(toml), "-o", str(out), "-q", "--plot"]) == 2
+    assert files_in(out) == []
+    if COMM.rank == 0:
+        assert "--plot: a pressure plot on bodies of several cell types" in \
+            capsys.readouterr().err
