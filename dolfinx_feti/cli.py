@@ -234,10 +234,16 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
         _error(f"{args.problem}: {e}")
         return EXIT_USAGE
     progress = Progress(comm, opts.verbose)
-    m = pf.mesh
-    progress.info(f"{pf.path}: {pf.model}, {m.gdim}D mesh {pf.mesh_source} ({m.num_nodes} nodes, "
-                  f"{m.cells.shape[0]} cells, bodies {list(m.body_names)}), {comm.size} rank(s)")
+    m = pf.summary()
+    types = f", cell types {m['cell_types']}" if "cell_types" in m else ""
+    progress.info(f"{pf.path}: {pf.model}, {m['gdim']}D mesh {pf.mesh_source} ({m['nodes']} "
+                  f"nodes, {m['cells']} cells{types}, bodies {m['bodies']}), {comm.size} "
+                  "rank(s)")
     progress.phase("problem file", time.perf_counter() - t0)
+    if args.plot and hasattr(pf.mesh, "parts"):
+        _error(f"{PROG}: {pf.path}: --plot: a pressure plot on bodies of several cell types is "
+               "not implemented (the forces between meshes are in the report)")
+        return EXIT_USAGE
     if args.check:
         progress.info(f"{pf.path}: the problem file is valid")
         return EXIT_OK
@@ -270,11 +276,13 @@ def _run(args, feti: list[str], verbose: int | None, comm: MPI.Comm) -> int:
                                    for s, f in zip(steps, pf.loading, strict=True)]
     report.extra["problem"] = pf.summary()
     report.extra["versions"] = postprocess.versions()
-    report.extra["results"] = postprocess.results(solution)
+    mixed = getattr(solution, "meshes", None) is not None  # bodies of several cell types
+    report.extra["results"] = solution.results() if mixed else postprocess.results(solution)
     report.extra["command"] = [PROG, str(args.problem), *feti]
     converged = report.converged
     try:
-        written = _write_outputs(pf, solution, args.plot, converged, comm, progress, steps)
+        written = _write_mixed_outputs(pf, solution, converged, comm, progress) if mixed else \
+            _write_outputs(pf, solution, args.plot, converged, comm, progress, steps)
     except (InputError, SolveError) as e:
         _error(f"{PROG}: {pf.path}: cannot write the outputs (none was written): {e}")
         return EXIT_FAILED
@@ -334,13 +342,48 @@ def _write_outputs(pf: ProblemFile, solution, plot_on_request: bool, converged: 
                     postprocess.plot_pressure(solution, png, plot.contact, plot.along,
                                               title=f"{pf.title}: contact pressure on "
                                                     f"{plot.surface!r}")
-        if out.report is not None:
-            report = stage.path(out.report)
-            with collective(comm, "outputs"):
-                if comm.rank == 0:
-                    solution.report.save_json(report)
+        _write_report(stage, out.report, solution, comm)
     progress.phase("output", time.perf_counter() - t0)
     return stage.committed
+
+
+def _write_mixed_outputs(pf: ProblemFile, solution, converged: bool, comm: MPI.Comm,
+                         progress: Progress) -> list[Path]:
+    """The outputs of bodies of several cell types (a MixedSolution), all or none.
+
+    One XDMF file per mesh (``<xdmf stem>_<cell type>.xdmf``), the nodal values of every mesh
+    in one ``.npz`` (:meth:`MixedSolution.save_nodal_values`) and the JSON report; no pressure
+    plot (the file's checks refuse one).
+    """
+    t0 = time.perf_counter()
+    out = pf.output
+    with staged(comm) as stage:
+        if converged:
+            files = out.xdmf_files()
+            for p in files:
+                stage.path(p)
+                stage.path(p.with_suffix(".h5"))
+            if files:
+                solution.write_xdmf(stage.path(out.xdmf))  # collective: the files above
+            for k in range(len(solution.meshes)):
+                solution.nodal_values(k)  # collective: cached on every rank first
+            npz = None if out.nodal_values is None else stage.path(out.nodal_values)
+            with collective(comm, "outputs"):
+                if comm.rank == 0 and npz is not None:
+                    solution.save_nodal_values(npz)
+        _write_report(stage, out.report, solution, comm)
+    progress.phase("output", time.perf_counter() - t0)
+    return stage.committed
+
+
+def _write_report(stage, path: Path | None, solution, comm: MPI.Comm) -> None:
+    """The JSON report, staged (written by rank 0; collective)."""
+    if path is None:
+        return
+    report = stage.path(path)
+    with collective(comm, "outputs"):
+        if comm.rank == 0:
+            solution.report.save_json(report)
 
 
 def _write_series(path: Path, steps, comm: MPI.Comm) -> None:

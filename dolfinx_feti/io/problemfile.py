@@ -62,6 +62,7 @@ from ..problem.contact_problem import (
     Sphere,
     Tie,
 )
+from .mixed_checks import checking_view, method_fault, mixed_faults
 
 # ------------------------------------------------------------------------------------------
 # The schema: the keys each table accepts (the reference in docs/index.md lists them all)
@@ -431,13 +432,24 @@ class OutputSpec:
     nodal_values: Path | None
     pressure_plot: PlotSpec | None
     history: Path | None = None  # a load path's JSON history ([loading])
+    #: Bodies of several cell types: the cell type of each mesh (one XDMF file per mesh).
+    cell_types: tuple[str, ...] = ()
+
+    def xdmf_files(self) -> list[Path]:
+        """The XDMF files written: ``xdmf``, or on several cell types one per mesh."""
+        if self.xdmf is None:
+            return []
+        if not self.cell_types:
+            return [self.xdmf]
+        from ..results.mixed_solution import xdmf_paths
+        return xdmf_paths(self.xdmf, self.cell_types)
 
     def paths(self) -> list[Path]:
         """Every file that a successful run writes (the XDMF's .h5 included)."""
-        out = [p for p in (self.xdmf, self.report, self.nodal_values, self.history)
-               if p is not None]
-        if self.xdmf is not None:
-            out.append(self.xdmf.with_suffix(".h5"))
+        xdmf = self.xdmf_files()
+        out = xdmf + [p for p in (self.report, self.nodal_values, self.history)
+                      if p is not None]
+        out += [p.with_suffix(".h5") for p in xdmf]
         if self.pressure_plot is not None:
             out.append(self.pressure_plot.path)
         return out
@@ -451,7 +463,8 @@ class ProblemFile:
         path: The problem file.
         title: Its title (the file name when none is given).
         model: ``"elasticity"``, ``"neo-hookean"``, ``"svk"`` or ``"poisson"``.
-        mesh: The mesh, on every rank.
+        mesh: The mesh, on every rank (a :class:`~dolfinx_feti.MixedMesh` for bodies of
+            several cell types: the problem is then solved by the mixed solve).
         mesh_source: The mesh file, or the generator call that built the mesh.
         problem: The :class:`~dolfinx_feti.ContactProblem`.
         solver: The ``[solver]`` table (fields of :class:`~dolfinx_feti.SolverOptions`).
@@ -465,7 +478,7 @@ class ProblemFile:
     path: Path
     title: str
     model: str
-    mesh: MeshData
+    mesh: MeshData | MixedMesh
     mesh_source: str
     problem: ContactProblem
     solver: dict[str, Any]
@@ -504,13 +517,19 @@ class ProblemFile:
         return [self.path] + ([mesh] if mesh.suffix == ".msh" else [])
 
     def summary(self) -> dict[str, Any]:
-        """What was solved, for the report."""
+        """What was solved, for the report (bodies of several cell types: ``cell_types``)."""
         m = self.mesh
-        return {"file": str(self.path), "title": self.title, "model": self.model,
-                "mesh": self.mesh_source, "gdim": m.gdim, "nodes": int(m.num_nodes),
-                "cells": int(m.cells.shape[0]), "bodies": list(m.body_names),
-                "dirichlet": len(self.problem.dirichlet), "contact": len(self.problem.contact),
-                "decomposition": repr(self.problem.decomposition)}
+        parts = getattr(m, "parts", (m,))
+        out = {"file": str(self.path), "title": self.title, "model": self.model,
+               "mesh": self.mesh_source, "gdim": m.gdim,
+               "nodes": int(sum(p.num_nodes for p in parts)),
+               "cells": int(sum(p.num_cells for p in parts)), "bodies": list(m.body_names),
+               "dirichlet": len(self.problem.dirichlet), "contact": len(self.problem.contact),
+               "decomposition": repr(self.problem.decomposition)}
+        if len(parts) > 1:
+            out["cell_types"] = [p.cell_type for p in parts]
+            out["ties"] = len(self.problem.ties)
+        return out
 
 
 # ------------------------------------------------------------------------------------------
@@ -611,6 +630,7 @@ class _Reader:
         self.mesh: MeshData | None = None
         self.mesh_path: Path | None = None
         self.model: str | None = None
+        self.mixed: MixedMesh | None = None  # a model of bodies of several cell types
 
     # --- top level ---------------------------------------------------------------------
     def read(self) -> ProblemFile:
@@ -641,10 +661,14 @@ class _Reader:
         output = self._output(contact, loading is not None)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
+        if self.mixed is not None and not c.faults:
+            c.faults.extend(Fault(k, m) for k, m in mixed_faults(self.mixed, data, model,
+                                                                  contact, ties))
         if c.faults:
             raise ProblemFileError(self.path, c.faults)
+        mesh = self.mesh if self.mixed is None else self.mixed
         try:
-            problem = ContactProblem(self.mesh, forms, value_size=value_size,
+            problem = ContactProblem(mesh, forms, value_size=value_size,
                                      dirichlet=dirichlet, contact=contact, ties=ties,
                                      decomposition=decomposition, gluing=gluing)
         except InputError as e:
@@ -652,13 +676,19 @@ class _Reader:
         self._dry_run_contact(problem)
         if c.faults:
             raise ProblemFileError(self.path, c.faults)
-        pf = ProblemFile(path=self.path, title=title, model=model, mesh=self.mesh,
+        pf = ProblemFile(path=self.path, title=title, model=model, mesh=mesh,
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
                          command_line=pairs, loading=loading, loading_values=loading_values)
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
-            pf.solver_options()
+            opts = pf.solver_options()
         except InputError as e:
             raise ProblemFileError(self.path, [Fault("solver", str(e))]) from None
+        if self.mixed is not None:  # the method from wherever it was given
+            key = "method" if "method" in data else "solver.method" if "method" in \
+                self.data.get("solver", {}) else "command line -feti_method"
+            fault = method_fault(opts.method, key)
+            if fault is not None:
+                raise ProblemFileError(self.path, [Fault(*fault)])
         return pf
 
     def _mesh(self) -> str:
@@ -692,17 +722,14 @@ class _Reader:
             self.mesh = read_gmsh(mesh_path, self.comm)
         except (InputError, SolveError) as e:
             c.fault("mesh", f"cannot use the mesh {str(mesh_path)!r}: {e}")
-        self._one_cell_type(str(mesh_path))
+        self._one_cell_type()
         return str(mesh_path)
 
-    def _one_cell_type(self, source: str) -> None:
-        """Refuse a model of bodies of several cell types (a MixedMesh): not in problem files."""
+    def _one_cell_type(self) -> None:
+        """A model of bodies of several cell types: checked on one view of its meshes."""
         if isinstance(self.mesh, MixedMesh):
-            self.c.fault("mesh", f"{source}: bodies of several cell types "
-                         f"({self.mesh.describe()}) are solved through the Python API "
-                         "(df.read_gmsh, df.ContactProblem, df.solve), not yet from a problem "
-                         "file")
-            self.mesh = None
+            self.mixed = self.mesh
+            self.mesh = checking_view(self.mixed)
 
     def _generated_mesh(self, t: dict) -> str:
         """A mesh built by a generator of :mod:`dolfinx_feti.io.meshes` (rank 0, collectively)."""
@@ -753,7 +780,7 @@ class _Reader:
                     pass
         if err is not None:
             c.fault("mesh", f"{source} failed: {err}")
-        self._one_cell_type(source)
+        self._one_cell_type()
         return source
 
     # --- model -------------------------------------------------------------------------
@@ -1080,21 +1107,30 @@ class _Reader:
         return None if p is None or a is None or r is None else Cylinder(p, a, r)
 
     def _dry_run_contact(self, problem: ContactProblem) -> None:
-        """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key."""
+        """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key.
+
+        On bodies of several cell types: each mesh's own conditions on that mesh's problem
+        (the conditions between meshes are paired by the solve).
+        """
         from ..constraints.build import ROW_BUILDERS, SurfaceCondition
 
-        points = problem.dof_points
-        node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
-        node_subs = np.zeros(points.num_points, dtype=np.int32)
-        fixed = np.zeros((points.num_points, problem.value_size), dtype=bool)
-        for i, spec in enumerate(problem.contact):
-            try:  # the condition's own row builder, on one subdomain
-                ROW_BUILDERS[type(spec)](SurfaceCondition(problem, spec, i, node_ptr, node_subs,
-                                                          fixed))
-            except InputError as e:
-                self.c.fault(_key("contact", i), str(e))
-            except Exception:  # noqa: BLE001 - internals changed: the solve checks it again
-                pass
+        index = {id(spec): i for i, spec in enumerate(problem.contact)}
+        parts = [problem] if problem.mixed is None else problem.mixed.problems
+        for part in parts:
+            if not part.contact:
+                continue
+            points = part.dof_points
+            node_ptr = np.arange(points.num_points + 1, dtype=np.int64)
+            node_subs = np.zeros(points.num_points, dtype=np.int32)
+            fixed = np.zeros((points.num_points, part.value_size), dtype=bool)
+            for i, spec in enumerate(part.contact):
+                try:  # the condition's own row builder, on one subdomain
+                    ROW_BUILDERS[type(spec)](SurfaceCondition(part, spec, i, node_ptr,
+                                                              node_subs, fixed))
+                except InputError as e:
+                    self.c.fault(_key("contact", index[id(spec)]), str(e))
+                except Exception:  # noqa: BLE001 - internals changed: the solve checks it again
+                    pass
 
     # --- decomposition, solver, output -------------------------------------------------
     def _decomposition(self):
@@ -1336,7 +1372,8 @@ class _Reader:
             p = {}
         if p is not False:
             plot = self._plot(p, directory, stem, contact)
-        spec = OutputSpec(directory, xdmf, report, nodal, plot, history)
+        spec = OutputSpec(directory, xdmf, report, nodal, plot, history,
+                          () if self.mixed is None else self.mixed.cell_types)
         paths = [q.resolve() for q in spec.paths()]
         if len(set(paths)) != len(paths):
             c.fault("output", "two outputs have the same file name: "

@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import InputError
 
 #: Attributes of the forms helpers that map boundary groups to loads.
 _GROUP_LOADS = ("tractions", "flux")
+#: Attributes of the forms helpers that may map body names to values (materials).
+_BODY_VALUES = ("E", "nu", "k")
 
 
 @dataclass
@@ -100,7 +102,8 @@ def split_problem(problem) -> MixedParts:
             across.append(Across(c, i, where[0][0], where[1][0], what == "ties"))
     problems = [type(problem)(part, _forms_on(problem.forms, part), problem.value_size,
                               dirichlet=dirichlet[k], contact=conditions["contact"][k],
-                              ties=conditions["ties"][k], decomposition=problem.decomposition,
+                              ties=conditions["ties"][k],
+                              decomposition=_decomposition_on(problem.decomposition, part),
                               gluing=problem.gluing, degree=1)
                 for k, part in enumerate(mesh.parts)]
     return MixedParts(problems, across)
@@ -119,7 +122,19 @@ def _forms_on(forms, mesh):
         loads = getattr(forms, name, None)
         if isinstance(loads, Mapping):
             setattr(out, name, {g: v for g, v in loads.items() if g in mesh.facet_groups})
+    for name in _BODY_VALUES:  # a value per body: those of this mesh's bodies
+        values = getattr(forms, name, None)
+        if isinstance(values, Mapping):
+            setattr(out, name, {b: v for b, v in values.items() if b in mesh.body_names})
     return out
+
+
+def _decomposition_on(decomposition, mesh):
+    """The decomposition as one mesh sees it: ``Parts(n={body: ...})`` of its bodies only."""
+    n = getattr(decomposition, "n", None)
+    if not isinstance(n, Mapping):
+        return decomposition
+    return replace(decomposition, n={b: v for b, v in n.items() if b in mesh.body_names})
 
 
 __all__ = ["Across", "MixedParts", "split_problem"]

@@ -53,6 +53,12 @@ class Coupled:
         return self.scale.size
 
 
+def xdmf_paths(path: str | Path, cell_types) -> list[Path]:
+    """The XDMF file of each mesh: ``<stem>_<cell type>.xdmf`` beside ``path``."""
+    path = Path(path)
+    return [path.with_name(f"{path.stem}_{t}{path.suffix or '.xdmf'}") for t in cell_types]
+
+
 class MixedSolution:
     """What solving a problem on bodies of different cell types returns.
 
@@ -127,13 +133,50 @@ class MixedSolution:
         """
         from .output import write_xdmf
 
-        path, out = Path(path), []
-        for k, mesh in enumerate(self.meshes):
+        out = xdmf_paths(path, [m.cell_type for m in self.meshes])
+        for k, p in enumerate(out):
             u = self.function(k)
-            p = path.with_name(f"{path.stem}_{mesh.cell_type}{path.suffix or '.xdmf'}")
             write_xdmf(p, u, [u])
-            out.append(p)
         return out
+
+    def results(self) -> dict:
+        """A few numbers that characterize the solution (the command's report, collective).
+
+        ``max_abs_u`` over all meshes; per mesh its cell type, bodies, nodes and largest
+        displacement; per condition between meshes its rows and total force (contact: the
+        sum of the normal forces; tie: the force vector).
+        """
+        meshes = []
+        for k, mesh in enumerate(self.meshes):
+            u = self.nodal_values(k)
+            meshes.append({"cell_type": mesh.cell_type, "bodies": list(mesh.body_names),
+                           "nodes": int(mesh.num_nodes),
+                           "max_abs_u": float(np.abs(u).max()) if u.size else 0.0})
+        between = []
+        for i, c in enumerate(self.coupled):
+            f = self.forces(i)["force"]
+            between.append({"condition": c.index, "tie": c.tie, "rows": int(c.rows),
+                            "total_force": f.sum(axis=0).tolist()})
+        return {"max_abs_u": max(m["max_abs_u"] for m in meshes), "meshes": meshes,
+                "between_meshes": between}
+
+    def save_nodal_values(self, path: str | Path) -> None:
+        """Write every mesh's nodes and solution to ``.npz`` (call on one rank).
+
+        :meth:`nodal_values` is collective: call it for every mesh on every rank first. The
+        arrays of mesh k are named with its cell type t: ``x_t``, ``u_t``, ``cells_t``,
+        ``cell_body_t`` (indices into ``body_names_t``) and ``body_names_t``.
+        """
+        from .postprocess import atomic_file
+
+        arrays = {}
+        for k, mesh in enumerate(self.meshes):
+            t = mesh.cell_type
+            arrays.update({f"x_{t}": mesh.x, f"u_{t}": self.nodal_values(k),
+                           f"cells_{t}": mesh.cells, f"cell_body_{t}": mesh.cell_body,
+                           f"body_names_{t}": np.array(mesh.body_names)})
+        with atomic_file(path) as tmp, open(tmp, "wb") as f:
+            np.savez(f, **arrays)
 
     def forces(self, i: int) -> dict[str, np.ndarray]:
         """The nodal forces of the rows of the i-th condition between meshes.
@@ -160,4 +203,4 @@ class MixedSolution:
                 "pressure": pressure, "normal": c.normal}
 
 
-__all__ = ["Coupled", "MixedSolution"]
+__all__ = ["Coupled", "MixedSolution", "xdmf_paths"]
