@@ -116,12 +116,13 @@ _BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
 def generators() -> dict[str, Any]:
     """The mesh generators that a problem file may name (``mesh = {generator = "<name>"}``).
 
-    They are the public functions of :mod:`dolfinx_feti.io.meshes` that build a model.
+    They are the public functions that build a model of :mod:`dolfinx_feti.io.meshes` and
+    :mod:`dolfinx_feti.io.meshes_rubber` (the soft bodies of the large-deformation demos).
     """
-    from . import meshes
+    from . import meshes, meshes_rubber
 
-    return {name: fn for name, fn in vars(meshes).items()
-            if inspect.isfunction(fn) and fn.__module__ == meshes.__name__
+    return {name: fn for module in (meshes, meshes_rubber) for name, fn in vars(module).items()
+            if inspect.isfunction(fn) and fn.__module__ == module.__name__
             and not name.startswith("_") and name != "physical_groups"}
 
 

@@ -77,3 +77,26 @@ def test_shipped_rubber_cylinder_matches_the_python_api(root, tmp_path):
     u = sol.nodal_values()
     assert np.abs(data["u"] - u).max() <= 1e-8 * np.abs(u).max()
     assert np.abs(u[:, 1]).max() > 0.09  # the centre line moved down by 0.1
+
+
+@pytest.mark.serial
+def test_shipped_rubber_hemisphere_matches_the_python_api(root, tmp_path):
+    """problems/rubber_hemisphere.toml (a mesh generator of io.meshes_rubber) equals Python."""
+    from dolfinx_feti.cli import main
+    from dolfinx_feti.io.meshes_rubber import quarter_hemisphere
+
+    assert main([str(root / "problems/rubber_hemisphere.toml"), "-o", str(tmp_path), "-q"]) == 0
+    data = np.load(tmp_path / "rubber_hemisphere_nodal.npz")
+    mesh = df.build_mesh(quarter_hemisphere, h_contact=0.1, h_far=0.3)
+    problem = df.ContactProblem(
+        mesh, df.NeoHookean(1.0, 0.3),
+        dirichlet=[df.Dirichlet("top", -0.1, components=[2]),
+                   df.Dirichlet("x0", 0.0, components=[0]),
+                   df.Dirichlet("y0", 0.0, components=[1])],
+        contact=[df.RigidObstacle("sphere", df.Plane((0.0, 0.0, -1.0), (0.0, 0.0, 1.0)))],
+        decomposition=df.Parts(2))
+    sol = df.solve(problem, method="fetidp", rtol=1e-8)
+    assert sol.report.converged
+    u = sol.nodal_values()
+    assert np.abs(data["u"] - u).max() <= 1e-8 * np.abs(u).max()
+    assert sol.total_contact_force[2] > 0  # pressed onto the plane
