@@ -313,3 +313,21 @@ def test_conditions_newton_does_not_take_are_refused_by_name(root, contact, word
         contact=[contact])
     with pytest.raises(df.InputError, match=words):
         df.solve(problem)
+
+
+def test_report_judges_by_newtons_test_not_the_last_increment(root):
+    """At rtol 1e-12 the last increment's QP stops at its round-off floor (its own KKT test
+    warns); Newton's test of the solution passes, and the report carries no such warning."""
+    from dolfinx_feti.drivers.qp_solve import UNMET_KKT
+
+    mesh = df.read_gmsh(root / "meshes/rubber_quarter_disk.msh")
+    problem = df.ContactProblem(
+        mesh, df.NeoHookean(1.0, 0.3),
+        dirichlet=[df.Dirichlet("top", -0.1, components=[1]),
+                   df.Dirichlet("axis", 0.0, components=[0])],
+        contact=[df.RigidObstacle("arc", df.Plane((0.0, -1.0), (0.0, 1.0)))],
+        decomposition=df.Parts(2))
+    sol = df.solve(problem, method="fetidp", rtol=1e-12)
+    assert sol.report.converged
+    assert max(sol.report.kkt.values()) <= 1e-12
+    assert not [w for w in sol.report.warnings if w.startswith(UNMET_KKT)]
