@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import ufl
 from element_models import rectangle, stacked_blocks
+from rubber_cases import rubber_cylinder
 from scipy.optimize import brentq
 from snes_vi import match, neo_hookean, snes_vi
 
@@ -320,13 +321,7 @@ def test_report_judges_by_newtons_test_not_the_last_increment(root):
     warns); Newton's test of the solution passes, and the report carries no such warning."""
     from dolfinx_feti.drivers.qp_solve import UNMET_KKT
 
-    mesh = df.read_gmsh(root / "meshes/rubber_quarter_disk.msh")
-    problem = df.ContactProblem(
-        mesh, df.NeoHookean(1.0, 0.3),
-        dirichlet=[df.Dirichlet("top", -0.1, components=[1]),
-                   df.Dirichlet("axis", 0.0, components=[0])],
-        contact=[df.RigidObstacle("arc", df.Plane((0.0, -1.0), (0.0, 1.0)))],
-        decomposition=df.Parts(2))
+    problem = rubber_cylinder(root)
     sol = df.solve(problem, method="fetidp", rtol=1e-12)
     assert sol.report.converged
     assert max(sol.report.kkt.values()) <= 1e-12

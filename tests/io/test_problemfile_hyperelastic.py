@@ -6,6 +6,7 @@ import gmsh
 import numpy as np
 import pytest
 from element_models import rectangle
+from rubber_cases import rubber_cylinder
 from test_newton import neo_hookean_exact, nodal
 
 import dolfinx_feti as df
@@ -65,13 +66,7 @@ def test_shipped_rubber_cylinder_matches_the_python_api(root, tmp_path):
 
     assert main([str(root / "problems/rubber_cylinder.toml"), "-o", str(tmp_path), "-q"]) == 0
     data = np.load(tmp_path / "rubber_cylinder_nodal.npz")
-    mesh = df.read_gmsh(root / "meshes/rubber_quarter_disk.msh")
-    problem = df.ContactProblem(
-        mesh, df.NeoHookean(1.0, 0.3),
-        dirichlet=[df.Dirichlet("top", -0.1, components=[1]),
-                   df.Dirichlet("axis", 0.0, components=[0])],
-        contact=[df.RigidObstacle("arc", df.Plane((0.0, -1.0), (0.0, 1.0)))],
-        decomposition=df.Parts(2))
+    problem = rubber_cylinder(root)
     sol = df.solve(problem, method="fetidp", rtol=1e-8)
     assert sol.report.converged
     u = sol.nodal_values()
