@@ -59,7 +59,7 @@ DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
             "preconditioner_scaling": "stiffness",
-            "smalbe_depth": 3, "error_if_not_converged": False, "method": "tfeti",
+            "smalbe_depth": 3, "error_if_not_converged": False, "method": "auto",
             "dual_operator": "implicit"}
 
 
@@ -275,7 +275,9 @@ def test_summary_converged_and_not():
 def test_summary_of_a_solve(b1_solution):
     rep = b1_solution.report
     text = rep.summary()
-    assert text.startswith("TFETI + smalbe: converged")
+    # the default method: no gluing rows (one subdomain per membrane) → FETI-1; the left
+    # membrane floats → SMALBE
+    assert text.startswith("FETI-1 + smalbe: converged")
     assert f"{rep.sizes['primal']} primal dofs" in text
     assert f"{rep.sizes['ranks']} rank(s)" in text
     assert "F-multiplications" in text and "KKT" in text
