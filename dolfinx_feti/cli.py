@@ -6,7 +6,8 @@ Usage::
     mpirun -n 4 dolfinx-feti problems/hertz2d.toml -feti_rtol 1e-10
 
 The problem file is read and checked completely (every fault reported, with the file and the
-key) before anything heavy starts; then the problem is solved by Total FETI on all ranks of
+key) before anything heavy starts; then the problem is solved by FETI (the method of least
+measured time unless the file or ``-feti_method`` names one) on all ranks of
 ``MPI.COMM_WORLD`` and the outputs are written, all or none: the output folder is checked before
 the solve, the files are staged beside their targets and moved into place together
 (:mod:`dolfinx_feti.io.staging`).
@@ -66,8 +67,9 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> _Parser:
     p = _Parser(
         prog=PROG,
-        description="Solve a contact problem described in a TOML problem file by Total FETI "
-                    "(SMALBE/MPRGP). Runs the same under mpirun -n N.",
+        description="Solve a contact problem described in a TOML problem file by FETI "
+                    "(method 'auto' unless given: FETI-1 or FETI-DP by the measured rule; "
+                    "SMALBE/MPRGP). Runs the same under mpirun -n N.",
         epilog="Solver options: any field of dolfinx_feti.SolverOptions as -feti_<name> VALUE "
                "(e.g. -feti_rtol 1e-10 -feti_mprgp_gamma 1 -feti_smalbe_rho 2); these override "
                "the file's [solver] table. Exit status: 0 solved, 1 solve failed (nothing "

@@ -61,13 +61,15 @@ _COUNT = Integer(ge=1, le=10**9)
 #: The options of the FETI solve (no solver prefix: ``-feti_rtol``).
 FETI = OptionSet(
     "", "the FETI solve",
-    method=Option("tfeti", Choice("tfeti", "feti1", "fetidp", "auto", "tbeti"), "the FETI "
-                  "method: 'tfeti' (Total FETI: Dirichlet conditions as rows of B, every "
-                  "subdomain floats), 'feti1' (Dirichlet conditions eliminated, kernels only for "
-                  "the floating subdomains), 'fetidp' (FETI-DP: corner dofs primal too, no "
-                  "coarse space when every body is held), 'auto' (the rule of "
-                  "setup.stages.choose_method, docs/solvers.md) or 'tbeti' (Total BETI: "
-                  "boundary element subdomains, 2D, no volume loads; docs/beti.md)"),
+    method=Option("auto", Choice("tfeti", "feti1", "fetidp", "auto", "tbeti"), "the FETI "
+                  "method: 'auto' (the least measured time: 'feti1' without gluing rows or with "
+                  "at most 16 subdomains per body in 2D, 24 in 3D, 'fetidp' with more; "
+                  "setup.method_rule.method_by_time, docs/solvers.md), 'tfeti' (Total FETI: "
+                  "Dirichlet conditions as rows of B, every subdomain floats), 'feti1' "
+                  "(Dirichlet conditions eliminated, kernels only for the floating subdomains), "
+                  "'fetidp' (FETI-DP: corner dofs primal too, no coarse space when every body "
+                  "is held) or 'tbeti' (Total BETI: boundary element subdomains, 2D, no volume "
+                  "loads; docs/beti.md)"),
     rtol=Option(1e-6, _TOL, "the accuracy: with stop_test 'kkt' every KKT residual of the "
                 "solution is at most rtol (gluing, Dirichlet and non-penetration violations "
                 "against max|u|, complementarity against max|λ| max|u|, equilibrium against "

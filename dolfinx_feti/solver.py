@@ -557,10 +557,12 @@ class FetiSolver:
 
 def solve(problem: ContactProblem, *, comm: MPI.Comm = MPI.COMM_WORLD,
           options: SolverOptions | Sequence[str] | None = None, **kwargs) -> Solution:
-    """Solve a contact problem by FETI (Total FETI, FETI-1 or FETI-DP: option ``method``).
+    """Solve a contact problem by FETI (option ``method``; by default FETI-1 or FETI-DP).
 
-    One set-up and one solve of a :class:`FetiSolver`; to solve again on the same set-up
-    (load cases, load steps) keep the solver instead.
+    The default ``method="auto"`` takes the method of least measured time
+    (:func:`~dolfinx_feti.setup.method_rule.method_by_time`). One set-up and one solve of a
+    :class:`FetiSolver`; to solve again on the same set-up (load cases, load steps) keep the
+    solver instead.
 
     Args:
         problem: The problem.

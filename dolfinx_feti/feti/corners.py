@@ -11,8 +11,9 @@ complement S_cc = K_cc − K_cr K_rr⁻¹ K_rc, assembled and factored once on e
 
     y_c = S_cc⁺ (x_c − K_cr K_rr⁺ x_r),   y_r = K_rr⁺ x_r − Ψ y_c,   Ψ = K_rr⁺ K_rc,
 
-one local solve per application (Ψ is kept, sparse: its columns are nonzero on the subdomains
-of their corner only). When every body is held, K̃ is positive definite, there is no coarse
+one local solve per application (Ψ is kept as one dense block per subdomain, its rows × the
+subdomain's corner unknowns: a column of Ψ is nonzero on the subdomains of its corner only).
+When every body is held, K̃ is positive definite, there is no coarse
 space and contact is a bound-constrained QP for MPRGP alone. A floating body leaves S_cc
 singular with its rigid motions as kernel (the semicoercive FETI-DP): they are the kernel R̃ of
 K̃ handed to the dualization, i.e. the natural coarse space on top, and S_cc⁺ fixes a few
@@ -205,6 +206,8 @@ class EliminateCorners:
         self.child = CornerSystem(self, B, c, f, parent.types[self.kept])
         self.Krr_plus: FixingNodesInverse | None = None
         self.S_plus: FixingNodesInverse | None = None
+        self._psi: list = []  # ((first row, end), corner unknowns, dense Ψ block) per block
+        self._psi_csr: sp.csr_matrix | None = None
 
     def _rhs(self, parent: BlockSystem, B: PETSc.Mat) -> tuple[PETSc.Vec, np.ndarray]:
         """The child's load Eᵀ f and its kept right-hand sides (local), checked."""
@@ -227,7 +230,7 @@ class EliminateCorners:
         if not self.parent.comm.allreduce(bool(same), op=MPI.LAND):
             raise SolveError("the new rows give other corners than the set-up's: create a new "
                              "FetiSolver")
-        for name in ("Krr_plus", "Psi", "S", "S_plus", "_t", "_blocks_of"):
+        for name in ("Krr_plus", "_psi", "_psi_csr", "S", "S_plus", "_t", "_blocks_of"):
             if hasattr(other, name):
                 setattr(self, name, getattr(other, name))
 
@@ -275,31 +278,24 @@ class EliminateCorners:
         self._owner[pairs[:, 1], colour[np.searchsorted(cols, pairs[:, 0])]] = pairs[:, 0]
         return [cols[colour == k] for k in range(ncolour)]
 
-    def _psi_pattern(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Ψ's CSR pattern: a row of block b holds b's corner unknowns, sorted (none at corners).
+    @property
+    def Psi(self) -> sp.csr_matrix:
+        """Ψ = K_rr⁺ K_rc as one SciPy CSR matrix (local rows × corner unknowns).
 
-        Returns:
-            ``(indptr, indices, slot)``; ``slot[b, colour]`` is the position, within a row of
-            block b, of b's unknown of that colour (-1: none). Built once from ``_owner``, so
-            the entries of each batch of solves are placed without a sort.
+        For the explicit dual operator; made from the dense blocks once, when first asked for.
         """
-        own = self._owner
-        big = np.iinfo(np.int64).max
-        order = np.argsort(np.where(own >= 0, own, big), axis=1, kind="stable")
-        slot = np.empty_like(own)
-        np.put_along_axis(slot, order, np.arange(own.shape[1])[None, :].repeat(own.shape[0], 0),
-                          axis=1)
-        slot[own < 0] = -1
-        per_block = (own >= 0).sum(axis=1)
-        count = np.where(self.is_corner, 0, per_block[self._block])
-        indptr = np.concatenate([[0], np.cumsum(count)]).astype(np.int64)
-        sorted_cols = np.take_along_axis(own, order, axis=1)
-        rows = np.bincount(self._block[~self.is_corner], minlength=own.shape[0])
-        # rows are block by block: block b's rows repeat its sorted columns (a loop over the
-        # rank's subdomains, not its dofs)
-        indices = _cat([np.tile(sorted_cols[b, :per_block[b]], rows[b])
-                        for b in range(own.shape[0])], np.int64)
-        return indptr, indices, slot
+        if self._psi_csr is None:
+            rows, cols, vals = [], [], []
+            for (lo, _), corners, block in self._psi:
+                r, k = np.nonzero(block)
+                rows.append(lo + r)
+                cols.append(corners[k])
+                vals.append(block[r, k])
+            n = self._n_local
+            self._psi_csr = sp.csr_matrix(
+                (_cat(vals, float), (_cat(rows, np.int64), _cat(cols, np.int64))),
+                shape=(n, self.n_coarse))
+        return self._psi_csr
 
     def factorize(self, factor: str | None = None, site: str = "") -> None:
         """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
@@ -310,10 +306,12 @@ class EliminateCorners:
         comm, parent, nc = self.parent.comm, self.parent, self.n_coarse
         with collective(comm, site):
             self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
-            n = self._n_local
             groups = self._colours()
-            indptr, indices, slot = self._psi_pattern()
-            data = np.zeros(indices.size)
+            # Ψ by subdomains: block b's rows × b's corner unknowns, in the order of their colours
+            offsets, own = self.parent.offsets, self._owner
+            colours = [np.flatnonzero(own[b] >= 0) for b in range(own.shape[0])]
+            psi = [np.zeros((int(offsets[b + 1] - offsets[b]), k.size)) for b, k in
+                   enumerate(colours)]
             # the sum of the columns of each colour: one sparse product, not a column
             # slice of K_rc per colour (which cost as much as the solves on 3D meshes)
             member = sp.csc_matrix((np.ones(sum(g.size for g in groups)),
@@ -326,13 +324,29 @@ class EliminateCorners:
                 batch = groups[first:first + _BATCH]
                 rhs = colour_sums[:, first:first + len(batch)].toarray()
                 Y = self.Krr_plus.solve_matrix(rhs)
-                # each entry of Y goes to its row's slot of its block's unknown of the colour
-                at = slot[self._block, first:first + len(batch)]
-                r, k = np.nonzero((at >= 0) & ~self.is_corner[:, None])
-                data[indptr[r] + at[r, k]] = Y[r, k]
-            self.Psi = sp.csr_matrix((data, indices, indptr), shape=(n, nc))
-            self.Psi.eliminate_zeros()
-            S_loc = (sp.csr_matrix(self._K_cc_local) - self.K_rc.T @ self.Psi).tocoo()
+                # block b's rows of the solve of colour k: K_b⁺ times b's column of colour k
+                # (a colour holds at most one corner unknown per block); a loop over the
+                # rank's subdomains, not its dofs
+                for b, k in enumerate(colours):
+                    at = np.flatnonzero((k >= first) & (k < first + len(batch)))
+                    if at.size:
+                        psi[b][:, at] = Y[offsets[b]:offsets[b + 1], k[at] - first]
+            self._psi, self._psi_csr = [], None
+            Kcc = self._K_cc_local
+            rows, cols, vals = [Kcc.row], [Kcc.col], [Kcc.data]
+            for b, k in enumerate(colours):
+                lo, hi = int(offsets[b]), int(offsets[b + 1])
+                psi[b][self.is_corner[lo:hi]] = 0.0  # a corner copy is no unknown of K_rr
+                corners = own[b, k]
+                self._psi.append(((lo, hi), corners, psi[b]))
+                if k.size:  # S_cc −= K_rc,bᵀ Ψ_b on b's corner unknowns
+                    Sb = np.asarray(self.K_rc[lo:hi][:, corners].T @ psi[b])
+                    rows.append(np.repeat(corners, k.size))
+                    cols.append(np.tile(corners, k.size))
+                    vals.append(-Sb.ravel())
+            S_loc = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
+                                                       _cat(cols, np.int64))),
+                                  shape=(nc, nc)).tocoo()
         parts = comm.allgather((S_loc.row, S_loc.col, S_loc.data))
         S = sp.csr_matrix((np.concatenate([p[2] for p in parts]),
                            (np.concatenate([p[0] for p in parts]),
@@ -374,8 +388,9 @@ class EliminateCorners:
         comm.Allreduce(np.ascontiguousarray(t), self._t, op=MPI.SUM)
         yc = np.empty(self.n_coarse)
         self.S_plus.solve(self._t, yc)
-        if n:
-            yr -= self.Psi @ yc
+        for (lo, hi), corners, block in self._psi:  # yr −= Ψ yc, subdomain by subdomain
+            if corners.size:
+                yr[lo:hi] -= block @ yc[corners]
         if comm.rank == 0:
             out[n:] = yc
 

@@ -1,35 +1,42 @@
-"""The rule of ``method="auto"``, by measured time (docs/solvers.md, docs/benchmarks.md § 23).
+"""The rule of ``method="auto"``, the default method, by measured time (docs/benchmarks.md § 23).
 
 CPU time of ``df.solve`` at rtol 1e-6 on the graded 2D Hertz H2, the rigid sphere S2 and a
-user's graded DOLFINx box (30 k–130 k dofs, 1–51 subdomains; ``bench/auto_decomposition.py``):
+user's graded DOLFINx box (30 k–130 k dofs, 1–77 subdomains; ``bench/auto_decomposition.py``):
 
 - no gluing rows (every subdomain a whole body): FETI-1 (FETI-DP finds no corners there);
-- up to :data:`MANY_PER_BODY` subdomains per body: FETI-1, the fastest on every case measured
-  there (1.45–2.3× less time than TFETI; up to 1.9× less than FETI-DP, whose corner set-up
-  outweighs its fewer F-multiplications: box, 13 subdomains, 15.5 s against 28.9 s);
-- more: FETI-DP, held bodies or floating (2D Hertz cut in 51: 0.3× FETI-1's time, 0.7×
-  TFETI's). TFETI was the slowest on every case and is not chosen.
+- up to :data:`MANY_PER_BODY` subdomains per body (16 in 2D, 24 in 3D): FETI-1, the fastest
+  on most cases measured there (1.45–2.3× less time than TFETI; up to 1.9× less than FETI-DP,
+  whose corner set-up outweighs its fewer F-multiplications: box, 13 subdomains, 15.5 s
+  against 28.9 s);
+- more: FETI-DP, held bodies or floating (2D Hertz cut in 38 of equal volume: 0.75× FETI-1's
+  time, 0.8× TFETI's, where FETI-1 took 1.07× TFETI's). The crossover is lower in 2D, where
+  FETI-DP's corners are vertices only and cheap, than in 3D, where they are whole edges.
+  TFETI was the slowest on most cases and is not chosen.
 
 Reads counts only, the same on every rank.
 """
 
 from __future__ import annotations
 
-#: More subdomains per body than this (on average) make FETI-DP the choice: between the 13 of
-#: the box where FETI-1 was 1.9× faster and the 25.5 of 2D Hertz where FETI-DP was 3.3× faster
-#: (the sphere S2 in 22: FETI-1 1.13× faster).
-MANY_PER_BODY = 24
+#: More subdomains per body than this (on average) make FETI-DP the choice, by the mesh's
+#: dimension. 2D: between B1's 16 (FETI-1 1.3× faster than FETI-DP) and 2D Hertz's 19 of equal
+#: volume (FETI-DP 1.34× faster than FETI-1). 3D: between the box's 13 where FETI-1 was 1.9×
+#: faster and the sphere S2's 22 (FETI-1 1.13× faster) on one side and 2D Hertz's 25.5 (FETI-DP
+#: 3.3× faster) on the other.
+MANY_PER_BODY = {2: 16, 3: 24}
 
 
-def method_by_time(glued: bool, num_subdomains: int, num_bodies: int) -> str:
+def method_by_time(glued: bool, num_subdomains: int, num_bodies: int, gdim: int) -> str:
     """``"feti1"`` or ``"fetidp"``: the method of least measured time (module docstring).
 
     Args:
         glued: Whether there are gluing rows (a body in several subdomains).
         num_subdomains: The subdomains of the whole problem.
         num_bodies: The bodies of the mesh.
+        gdim: The mesh's geometric dimension (2 or 3).
     """
-    if not glued or num_subdomains <= MANY_PER_BODY * max(num_bodies, 1):
+    many = MANY_PER_BODY[2 if gdim <= 2 else 3]
+    if not glued or num_subdomains <= many * max(num_bodies, 1):
         return "feti1"
     return "fetidp"
 

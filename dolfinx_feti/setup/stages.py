@@ -206,7 +206,8 @@ def choose_method(problem: ContactProblem, share, comm: MPI.Comm, method: str) -
 
     if method == "auto":
         glued = comm.allreduce(bool(np.any(share.rows.own.kind == Kind.GLUE)), op=MPI.LOR)
-        method = method_by_time(glued, share.dec.num_subdomains, len(problem.mesh.body_names))
+        method = method_by_time(glued, share.dec.num_subdomains, len(problem.mesh.body_names),
+                                problem.mesh.gdim)
     if method == "fetidp":
         method, share.extra = fetidp_share(
             share, problem.value_size, problem.mesh.body_names, comm,

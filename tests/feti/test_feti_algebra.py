@@ -308,6 +308,15 @@ def test_corner_system(mem):
     Kt.mult(y, r)
     r.axpy(-1.0, b)
     assert r.norm() <= 1e-10 * b.norm()
+    # Ψ (kept as dense blocks per subdomain) solves K_rr Ψ = K_rc, zero on the corner copies;
+    # S_cc = K_cc − K_rcᵀ Ψ summed over the ranks (the corners hold every block here)
+    assert all(k.shape[1] == 0 for k in s2.kernels_rr)
+    Psi, Krc = s2.Psi.toarray(), s2.K_rc.toarray()
+    assert not Psi[s2.is_corner].any()
+    scale = max(comm.allreduce(float(np.abs(Krc).max(initial=0.0)), op=MPI.MAX), 1e-300)
+    assert np.abs(s2.K_rr @ Psi - Krc)[~s2.is_corner].max(initial=0.0) <= 1e-12 * scale
+    S = comm.allreduce(s2._K_cc_local.toarray() - Krc.T @ Psi)
+    assert np.abs(s2.S.toarray() - S).max() <= 1e-12 * np.abs(S).max()
 
 
 def _gather_dense(M) -> np.ndarray:

@@ -205,8 +205,9 @@ def test_progress_levels(outdir, capsys):
     assert main([toml, "-o", str(outdir)]) == 0
     out = capsys.readouterr().out
     if COMM.rank == 0:
-        assert "feti: assembly" in out and "TFETI + smalbe" in out and "wrote" in out
-        assert "||g^P||" not in out.split("TFETI")[0]  # no iteration lines at verbose 1
+        # the default method: one subdomain per membrane → FETI-1, the left one floats → SMALBE
+        assert "feti: assembly" in out and "FETI-1 + smalbe" in out and "wrote" in out
+        assert "||g^P||" not in out.split("FETI-1")[0]  # no iteration lines at verbose 1
     else:
         assert out == ""
     assert main([toml, "-o", str(outdir), "-v"]) == 0

@@ -60,7 +60,7 @@ DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
             "preconditioner_scaling": "stiffness",
             "smalbe_depth": 3, "smalbe_rho_growth": None, "smalbe_rho_max": 100.0,
-            "error_if_not_converged": False, "method": "tfeti",
+            "error_if_not_converged": False, "method": "auto",
             "dual_operator": "implicit"}
 
 
@@ -276,7 +276,9 @@ def test_summary_converged_and_not():
 def test_summary_of_a_solve(b1_solution):
     rep = b1_solution.report
     text = rep.summary()
-    assert text.startswith("TFETI + smalbe: converged")
+    # the default method: no gluing rows (one subdomain per membrane) → FETI-1; the left
+    # membrane floats → SMALBE
+    assert text.startswith("FETI-1 + smalbe: converged")
     assert f"{rep.sizes['primal']} primal dofs" in text
     assert f"{rep.sizes['ranks']} rank(s)" in text
     assert "F-multiplications" in text and "KKT" in text

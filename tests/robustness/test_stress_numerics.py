@@ -142,10 +142,11 @@ def test_large_H_over_h():
 
 
 def test_many_floating_subdomains_scalar():
-    """B1 n = 32 cut into 512 floating subdomains of 2×2 squares."""
+    """B1 n = 32 cut into 512 floating subdomains of 2×2 squares (TFETI: every one floats; the
+    default method would take FETI-DP here)."""
     mesh = df.build_mesh(meshes.membranes, 32)
     one = assert_solved(sc.b1_case(mesh, 32, None, rtol=1e-8))
-    many = assert_solved(sc.b1_case(mesh, 32, 1 / 16, rtol=1e-8))
+    many = assert_solved(sc.b1_case(mesh, 32, 1 / 16, rtol=1e-8, method="tfeti"))
     assert many.report.sizes["subdomains"] == 512
     assert sc.rel_diff(many.nodal_values(), one.nodal_values()) < 1e-6
     assert many.report.hessian_mults < 200
@@ -259,19 +260,21 @@ def test_outer_iterations_beyond_the_old_budget(block16):
     """With the plain multiplier update SMALBE's outer iterations grow with the number of
     subdomains at ρ = 1.1‖PFP‖: 105 for these 32, more than max_outer = 100 (the default before
     it became 1000). With 100 the solve stops honestly, with 1000 it converges; the Anderson
-    acceleration of the update (the default) needs a fraction of them."""
+    acceleration of the update (the default) needs a fraction of them. TFETI's counts (the
+    default method picks FETI-DP for these 32 subdomains of one body)."""
     grid = df.ByFunction(sc.grid_labels(0.25))
     short = sc.run("max_outer 100", lambda: on_cylinder(block16, grid), rtol=1e-8,
-                   max_outer=100, smalbe_acceleration="none")
+                   max_outer=100, smalbe_acceleration="none", method="tfeti")
     rep = short.report
     assert not rep.converged and rep.reason == "max_outer"
     assert any("did not converge" in w for w in rep.warnings)
     assert all(math.isfinite(v) for v in rep.kkt.values())
     case = sc.run("32 subdomains", lambda: on_cylinder(block16, grid), rtol=1e-8,
-                  smalbe_acceleration="none")
+                  smalbe_acceleration="none", method="tfeti")
     assert_solved(case)
     assert case.report.outer_iterations > 100
-    fast = sc.run("32 subdomains, Anderson", lambda: on_cylinder(block16, grid), rtol=1e-8)
+    fast = sc.run("32 subdomains, Anderson", lambda: on_cylinder(block16, grid), rtol=1e-8,
+                  method="tfeti")
     assert_solved(fast)
     assert fast.report.outer_iterations < case.report.outer_iterations / 3
     assert fast.report.hessian_mults < case.report.hessian_mults
@@ -370,8 +373,9 @@ def test_obstacle_out_of_reach(block8, far):
 
 def test_far_obstacle_does_not_spoil_the_accuracy(block8):
     """At rtol 1e-10 the dual QP's own round-off (eps times the gap 1e6 in b) sets a floor
-    near 1e-8: the KKT test stops there, with a warning that says so, at 3e-9."""
-    case = sc.run("far", lambda: far_obstacle(block8, 1e6), rtol=1e-10)
+    near 1e-8: the KKT test stops there, with a warning that says so, at 3e-9. TFETI's floor
+    (b depends on the method); the default, FETI-1, reaches max_outer here on 2 ranks."""
+    case = sc.run("far", lambda: far_obstacle(block8, 1e6), rtol=1e-10, method="tfeti")
     assert sc.rel_diff(case.solution.nodal_values(), far_reference(block8, 1e6)) < 1e-8
     rep = case.report
     assert rep.converged and rep.stopping["checks"] <= 4

@@ -25,6 +25,7 @@ from dolfinx_feti.factor import available_factors
 from dolfinx_feti.feti.system import local_csr
 from dolfinx_feti.io import meshes
 from dolfinx_feti.io import problemfile as pfile
+from dolfinx_feti.setup.method_rule import method_by_time
 from dolfinx_feti.setup.stages import dual_qp
 
 RTOL = 1e-10
@@ -274,6 +275,7 @@ def test_method_in_problem_file_and_command_line(root, tmp_path):
         'mesh = "../meshes/', f'mesh = "{(root / "meshes").as_posix()}/')
     path = tmp_path / "p.toml"
     path.write_text('method = "fetidp"\n' + text)
+    assert pfile.load(root / "problems/membranes_8.toml").solver_options().method == "auto"
     pf = pfile.load(path)
     assert pf.solver_options().method == "fetidp"
     pf = pfile.load(path, command_line=["-feti_method", "feti1"])
@@ -299,10 +301,11 @@ def test_method_in_problem_file_and_command_line(root, tmp_path):
     ("b1_tags", "feti1"),  # one subdomain per body: no gluing rows
     ("tresca2d", "feti1"),  # both bodies held, 4 subdomains each
     ("blocks3d_constrained", "feti1"),  # the upper block floats in z
-    ("b1_many", "fetidp"),  # 64 subdomains per body, the left membrane floating
+    ("b1_many", "fetidp"),  # 64 subdomains per body (more than 16 in 2D), the left floating
 ])
 def test_auto(root, case, expected):
-    """``method="auto"``: the rule of docs/solvers.md, and the solution of the chosen method."""
+    """``method="auto"``, the default: the rule of docs/solvers.md, and the solution of the
+    chosen method."""
     membranes = df.read_gmsh(root / "meshes/membranes_8.msh")
     problem = {
         "b1_grid": lambda: b1.problem(membranes, b1.grid(0.5)),
@@ -313,11 +316,21 @@ def test_auto(root, case, expected):
         "blocks3d_constrained": lambda: b3.problem(df.read_gmsh(root / "meshes/blocks3d.msh"),
                                                    "constrained", df.Parts(4)),
     }[case]
-    auto = df.solve(problem(), rtol=RTOL, method="auto")
+    assert df.SolverOptions.create().method == "auto"
+    auto = df.solve(problem(), rtol=RTOL)  # the default method
     chosen = df.solve(problem(), rtol=RTOL, method=expected)
     assert auto.report.method == chosen.report.method
     assert auto.report.hessian_mults == chosen.report.hessian_mults
     assert np.array_equal(auto.nodal_values(), chosen.nodal_values())
+
+
+def test_rule_by_dimension():
+    """FETI-1 up to 16 subdomains per body in 2D and 24 in 3D (on average over the bodies),
+    FETI-DP above; FETI-1 whenever there are no gluing rows."""
+    assert [method_by_time(True, n, 2, 2) for n in (32, 33)] == ["feti1", "fetidp"]
+    assert [method_by_time(True, n, 2, 3) for n in (48, 49)] == ["feti1", "fetidp"]
+    assert [method_by_time(True, n, 1, 3) for n in (24, 25)] == ["feti1", "fetidp"]
+    assert method_by_time(False, 500, 2, 2) == "feti1"
 
 
 @pytest.mark.parametrize("factor", available_factors())

@@ -256,7 +256,7 @@ def choose_method(problem: ContactProblem, dec, rows) -> str:
     Reads the global decomposition and rows (on the rank that holds them).
     """
     return method_by_time(bool(np.any(rows.kind == Kind.GLUE)), dec.num_subdomains,
-                          len(problem.mesh.body_names))
+                          len(problem.mesh.body_names), problem.mesh.gdim)
 
 
 def serial_share_problem(problem: ContactProblem, comm: MPI.Comm, method: str = "tfeti"):
