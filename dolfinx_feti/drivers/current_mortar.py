@@ -82,8 +82,8 @@ class DeformedMortar:
 
     def __init__(self, solver, problem: ContactProblem, comm: MPI.Comm) -> None:
         self.solver, self.comm = solver, comm
-        self.specs = np.array([i for i, c in enumerate(problem.contact)
-                               if isinstance(c, Mortar)], dtype=np.int32)
+        self.specs = np.array([i for i, c in enumerate(problem.contact) if c.mortar],
+                              dtype=np.int32)
         self.infos: list = []
         surface = solver.qp.surface
         points = comm.bcast(surface.point_ids if comm.rank == 0 else None, root=0)

@@ -223,7 +223,7 @@ class NewtonSolver:
         self.rows = CurrentRows(self.solver, comm, self._kappa)
         # mortar contact: the search and the integrals redone on every iterate's surfaces
         self.mortar = DeformedMortar(self.solver, problem, comm) if any(
-            isinstance(c, Mortar) for c in problem.contact) else None
+            c.mortar for c in problem.contact) else None
         if self.mortar is not None:
             self.mortar.quiet()
         self.slip = None if self.solver.qp.friction is None else \
