@@ -19,29 +19,18 @@ it owns).
 
 from __future__ import annotations
 
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
 from mpi4py import MPI
 
-
-def frames(q: np.ndarray) -> np.ndarray:
-    """(m, d, d) orthonormal frames with rows (q, t1[, t2]); 3D: t1 ∝ e_z × q (e_x if q ∥ e_z)."""
-    m, d = q.shape
-    Q = np.zeros((m, d, d))
-    Q[:, 0] = q
-    if d == 2:
-        Q[:, 1] = np.column_stack([-q[:, 1], q[:, 0]])
-        return Q
-    t1 = np.cross(np.array([0.0, 0.0, 1.0]), q)
-    nt = np.linalg.norm(t1, axis=1)
-    axial = nt < 1e-12
-    t1[~axial] /= nt[~axial, None]
-    t1[axial] = [1.0, 0.0, 0.0]
-    Q[:, 1] = t1
-    Q[:, 2] = np.cross(q, t1)
-    return Q
+_PEERS = str(Path(__file__).resolve().parent / "peers")
+if _PEERS not in sys.path:
+    sys.path.insert(0, _PEERS)
+from common import frames, solver_ksp  # noqa: E402  (bench/peers/common.py)
 
 
 class Bounded:
@@ -204,33 +193,14 @@ def gather(v, comm) -> np.ndarray:
 
 
 def _ksp(M, method: str, comm, modes: np.ndarray | None, bs: int, rtol: float):
-    from petsc4py import PETSc
+    near_null = None
+    if method == "gamg":  # the rigid body modes, orthonormal
+        from petsc4py import PETSc
 
-    ksp = PETSc.KSP().create(comm)
-    ksp.setOperators(M)
-    pc = ksp.getPC()
-    if method == "mumps":
-        M.setOption(PETSc.Mat.Option.SPD, True)
-        ksp.setType("preonly")
-        pc.setType("cholesky")
-        pc.setFactorSolverType("mumps")
-    elif method == "gamg":
-        M.setOption(PETSc.Mat.Option.SPD, True)
         Qm, _ = np.linalg.qr(modes)
         vecs = [petsc_vec(Qm[:, k], comm) for k in range(Qm.shape[1])]
-        M.setNearNullSpace(PETSc.NullSpace().create(vectors=vecs, comm=comm))
-        ksp.setType("cg")
-        ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
-        ksp.setTolerances(rtol=rtol, max_it=5000)
-        pc.setType("gamg")
-        opts = PETSc.Options()
-        opts["pc_gamg_threshold"] = 0.01 if bs == 3 else 0.02
-        opts["mg_levels_ksp_type"] = "chebyshev"
-        opts["mg_levels_pc_type"] = "jacobi"
-        ksp.setFromOptions()
-    else:
-        raise ValueError(method)
-    return ksp
+        near_null = PETSc.NullSpace().create(vectors=vecs, comm=comm)
+    return solver_ksp(M, method, comm, bs, rtol, near_null=near_null)
 
 
 def floor(bp: Bounded, w_ref: np.ndarray, method: str, comm=MPI.COMM_WORLD,

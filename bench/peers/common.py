@@ -244,29 +244,42 @@ def rigid_modes(x: np.ndarray, dofs: np.ndarray, bs: int):
     return PETSc.NullSpace().create(vectors=vecs, comm=PETSc.COMM_SELF)
 
 
-def linear_solve(A: sp.csr_matrix, b: np.ndarray, method: str, x_coords=None, dofs=None,
-                 bs: int = 3, rtol: float = 1e-10) -> tuple[np.ndarray, dict]:
-    """Solve A x = b by "mumps" (Cholesky) or "gamg" (CG + GAMG with rigid body modes).
+def frames(q: np.ndarray) -> np.ndarray:
+    """(m, d, d) orthonormal frames with rows (q, t1[, t2]); 3D: t1 ∝ e_z × q (e_x if q ∥ e_z)."""
+    m, d = q.shape
+    Q = np.zeros((m, d, d))
+    Q[:, 0] = q
+    if d == 2:
+        Q[:, 1] = np.column_stack([-q[:, 1], q[:, 0]])
+        return Q
+    t1 = np.cross(np.array([0.0, 0.0, 1.0]), q)
+    nt = np.linalg.norm(t1, axis=1)
+    axial = nt < 1e-12
+    t1[~axial] /= nt[~axial, None]
+    t1[axial] = [1.0, 0.0, 0.0]
+    Q[:, 1] = t1
+    Q[:, 2] = np.cross(q, t1)
+    return Q
 
-    Returns (x, info) with info the times of setup (matrix conversion excluded) and solve.
+
+def solver_ksp(M, method: str, comm, bs: int, rtol: float, near_null=None):
+    """A KSP on the SPD matrix M with the linear floors' settings every bench shares.
+
+    "mumps": Cholesky; "gamg": CG + GAMG with ``near_null`` (the rigid body modes) as its
+    near-null space.
     """
     from petsc4py import PETSc
 
-    M = petsc_mat(A)
-    bv = petsc_vec(b)
-    xv = bv.duplicate()
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    ksp = PETSc.KSP().create(comm)
     ksp.setOperators(M)
     pc = ksp.getPC()
+    M.setOption(PETSc.Mat.Option.SPD, True)
     if method == "mumps":
-        M.setOption(PETSc.Mat.Option.SPD, True)
         ksp.setType("preonly")
         pc.setType("cholesky")
         pc.setFactorSolverType("mumps")
     elif method == "gamg":
-        M.setOption(PETSc.Mat.Option.SPD, True)
-        M.setBlockSize(1)
-        M.setNearNullSpace(rigid_modes(x_coords, dofs, bs))
+        M.setNearNullSpace(near_null)
         ksp.setType("cg")
         ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
         ksp.setTolerances(rtol=rtol, max_it=5000)
@@ -278,6 +291,24 @@ def linear_solve(A: sp.csr_matrix, b: np.ndarray, method: str, x_coords=None, do
         ksp.setFromOptions()
     else:
         raise ValueError(method)
+    return ksp
+
+
+def linear_solve(A: sp.csr_matrix, b: np.ndarray, method: str, x_coords=None, dofs=None,
+                 bs: int = 3, rtol: float = 1e-10) -> tuple[np.ndarray, dict]:
+    """Solve A x = b by "mumps" (Cholesky) or "gamg" (CG + GAMG with rigid body modes).
+
+    Returns (x, info) with info the times of setup (matrix conversion excluded) and solve.
+    """
+    from petsc4py import PETSc
+
+    M = petsc_mat(A)
+    bv = petsc_vec(b)
+    xv = bv.duplicate()
+    if method == "gamg":
+        M.setBlockSize(1)
+    ksp = solver_ksp(M, method, PETSc.COMM_SELF, bs, rtol,
+                     near_null=rigid_modes(x_coords, dofs, bs) if method == "gamg" else None)
     t = Clock()
     ksp.setUp()
     t_setup = t()

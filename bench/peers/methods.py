@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 from common import Clock, linear_solve, petsc_mat, petsc_vec
+from common import frames as common_frames
 
 # ------------------------------------------------------------------------------------------------
 # The floor: a linear solve of the same mesh, contact set fixed
@@ -63,21 +64,6 @@ def floor_glued(mono, method: str) -> dict:
 # ------------------------------------------------------------------------------------------------
 
 
-def _frames(normals: np.ndarray) -> np.ndarray:
-    """(m, 3, 3) orthonormal frames, rows (n, t1, t2); t1 ∝ e_z × n, e_x/e_y where n ∥ e_z."""
-    m = normals.shape[0]
-    Q = np.zeros((m, 3, 3))
-    Q[:, 0] = normals
-    t1 = np.cross(np.array([0.0, 0.0, 1.0]), normals)
-    nt = np.linalg.norm(t1, axis=1)
-    axial = nt < 1e-12
-    t1[~axial] /= nt[~axial, None]
-    t1[axial] = [1.0, 0.0, 0.0]
-    Q[:, 1] = t1
-    Q[:, 2] = np.cross(normals, t1)
-    return Q
-
-
 class _Bounded:
     """The contact problem in new dofs w (u = T w) where each contact row is a bound w_i >= −g_i.
 
@@ -110,7 +96,7 @@ class Rotated(_Bounded):
         bs, N = mono.bs, mono.mesh.num_nodes
         assert bs == 3
         frames = np.tile(np.eye(3), (N, 1, 1))
-        frames[mono.nodes] = _frames(mono.normals)
+        frames[mono.nodes] = common_frames(mono.normals)
         # u_node = Qᵀ w_node: T has blocks Qᵀ
         r = (3 * np.arange(N)[:, None, None] + np.arange(3)[None, :, None]) * np.ones((1, 1, 3))
         c = (3 * np.arange(N)[:, None, None] + np.arange(3)[None, None, :]) * np.ones((1, 3, 1))
