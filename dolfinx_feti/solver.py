@@ -451,8 +451,6 @@ class FetiSolver:
                 self._lam.destroy()
                 if self._d_last is not None:
                     self._d_last.destroy()
-        elif self._d_last is not None:  # a cold start after the rows changed
-            self._d_last.destroy()
         self._lam = self.qp.multipliers(out.x)
         self._d_last = self.qp.feti.d.copy()
         self._new_case = False
