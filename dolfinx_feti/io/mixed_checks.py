@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mesh.mixed import MixedMesh
-from ..problem.contact_problem import Mortar, RigidObstacle
+from ..problem.conditions import Mortar, RigidObstacle
 
 #: The FETI methods of the mixed solve (``solve_mixed``).
 MIXED_METHODS = ("tfeti", "feti1", "auto")

@@ -51,8 +51,7 @@ from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
 from ..mesh import ByFunction, ByTags, MeshData, MixedMesh, Parts, read_gmsh
 from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
-from ..problem.contact_problem import (
-    ContactProblem,
+from ..problem.conditions import (
     Cylinder,
     Dirichlet,
     Mortar,
@@ -62,6 +61,7 @@ from ..problem.contact_problem import (
     Sphere,
     Tie,
 )
+from ..problem.contact_problem import ContactProblem
 from .mixed_checks import checking_view, method_fault, mixed_faults
 
 # ------------------------------------------------------------------------------------------
@@ -1031,7 +1031,7 @@ class _Reader:
 
     def _friction(self, t: Any, key: str, condition: type, model: str | None):
         """A friction law (``Tresca`` or ``Coulomb`` of dolfinx_feti.problem), or None."""
-        from ..problem import contact_problem as api
+        from ..problem import conditions as api
 
         c = self.c
         if not isinstance(t, dict):
