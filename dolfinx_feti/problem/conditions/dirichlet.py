@@ -9,8 +9,10 @@ import numpy as np
 
 from ...validation import Either, Function, Integer, Maybe, Real, SequenceOf, Text, Vector, checked
 from .base import POINT_FUNCTION
+from .file_table import file_table
 
 
+@file_table("dirichlet", components="components", per_component="value")
 @dataclass(frozen=True)
 @checked(group=Text(),
          value=Either(Real(), Vector(), Function(),

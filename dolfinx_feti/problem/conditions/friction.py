@@ -9,8 +9,10 @@ import numpy as np
 
 from ...validation import Either, Function, Instance, Integer, Maybe, Real, checked
 from .base import POINT_FUNCTION
+from .file_table import file_table
 
 
+@file_table("friction", "tresca", needs_elasticity="friction")
 @dataclass(frozen=True)
 @checked(bound=Either(Real(ge=0, inf=True), Function(),
                       what=f"a slip bound: a number >= 0, inf (no slip) or {POINT_FUNCTION}"))
@@ -39,6 +41,7 @@ class Tresca:
         return None
 
 
+@file_table("friction", "coulomb", needs_elasticity="friction")
 @dataclass(frozen=True)
 @checked(coefficient=Real(ge=0), rtol=Real(gt=0, lt=1), max_steps=Integer(ge=1, le=10**6))
 class Coulomb:

@@ -7,12 +7,14 @@ from typing import TYPE_CHECKING
 
 from ...validation import Choice, Maybe, Real, Text, checked
 from .base import SurfacePair, check_mortar_pair
+from .file_table import file_table
 from .friction import FRICTION, Friction
 
 if TYPE_CHECKING:
     from ..contact_problem import ContactProblem
 
 
+@file_table("contact", "mortar", pair="contact", self_contact=True)
 @dataclass(frozen=True)
 @checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=FRICTION,
          normals=Choice("slave", "flatter"))

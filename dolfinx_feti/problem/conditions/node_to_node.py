@@ -10,12 +10,15 @@ import numpy as np
 from ...errors import InputError
 from ...validation import Maybe, Real, Text, checked
 from .base import SurfacePair
+from .file_table import file_table
 from .friction import FRICTION, Friction
 
 if TYPE_CHECKING:
     from ..contact_problem import ContactProblem
 
 
+@file_table("contact", "node_to_node", keys={"gap": Maybe(Real(ge=0))},
+            infer_from=("slave", "master"), pair="contact")
 @dataclass(frozen=True)
 @checked(slave=Text(), master=Text(), gap=Maybe(Real()), match_tol=Real(gt=0, lt=1),
          friction=FRICTION)

@@ -13,6 +13,7 @@ import numpy as np
 
 from ...validation import Function, Real, Vector, checked
 from .base import POINT_FUNCTION
+from .file_table import file_table
 
 
 class Obstacle(Protocol):
@@ -22,6 +23,7 @@ class Obstacle(Protocol):
         """Signed distance φ(x) and its gradient at the points ``x`` (n, gdim)."""
 
 
+@file_table("obstacle", "plane")
 @dataclass(frozen=True)
 @checked(point=Vector(), normal=Vector(nonzero=True))
 class Plane:
@@ -44,6 +46,7 @@ class Plane:
         return (x - p) @ n, np.broadcast_to(n, x.shape).copy()
 
 
+@file_table("obstacle", "sphere")
 @dataclass(frozen=True)
 @checked(center=Vector(), radius=Real(gt=0))
 class Sphere:
@@ -62,6 +65,7 @@ class Sphere:
         return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
 
 
+@file_table("obstacle", "cylinder", dims=(3,), hint="use a sphere (a disc) in 2D")
 @dataclass(frozen=True)
 @checked(point=Vector(3), axis=Vector(3, nonzero=True), radius=Real(gt=0))
 class Cylinder:

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 from ...errors import InputError
 from ...validation import Instance, Text, checked
+from .file_table import file_table
 from .friction import FRICTION, Friction
 from .obstacles import Obstacle
 
@@ -14,6 +15,8 @@ if TYPE_CHECKING:
     from ..contact_problem import ContactProblem
 
 
+@file_table("contact", "obstacle", infer_from=("group",), one_of={"obstacle": "obstacle"},
+            needs_elasticity="a rigid obstacle")
 @dataclass(frozen=True)
 @checked(group=Text(), obstacle=Instance(methods=("distance",), what="an obstacle (Plane, "
                                          "Sphere, Cylinder, SignedDistance)"),

@@ -8,11 +8,13 @@ from typing import TYPE_CHECKING
 from ...errors import InputError
 from ...validation import Maybe, Real, Text, checked
 from .base import SurfacePair, check_mortar_pair
+from .file_table import file_table
 
 if TYPE_CHECKING:
     from ..contact_problem import ContactProblem
 
 
+@file_table("tie", pair="tie")
 @dataclass(frozen=True)
 @checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)))
 class Tie(SurfacePair):
