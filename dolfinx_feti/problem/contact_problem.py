@@ -24,7 +24,7 @@ from ..mesh.dofpoints import facet_weights
 from ..mesh.mixed import MixedMesh
 from ..validation import Choice, Function, Instance, Integer, Maybe, SequenceOf, checked
 from .conditions.dirichlet import Dirichlet
-from .conditions.friction import Coulomb, Tresca
+from .conditions.friction import FRICTION
 from .conditions.mortar import Mortar
 from .conditions.node_to_node import NodeToNode
 from .conditions.rigid_obstacle import RigidObstacle
@@ -121,15 +121,15 @@ class ContactProblem:
                 raise InputError(f"Dirichlet on {bc.group!r}: components {list(comps)} out of "
                                  f"range for a problem with {self.value_size} component(s)")
         for t in self.ties:
-            if not isinstance(t, Tie):
+            if getattr(t, "role", None) != "tie":
                 raise InputError(f"ties must be df.Tie conditions, got {t!r}")
             t.check(self)
         for c in self.contact:
-            if isinstance(c, Tie) or not callable(getattr(c, "check", None)):
+            if getattr(c, "role", None) != "contact" or not callable(getattr(c, "check", None)):
                 raise InputError(f"unknown contact condition {c!r}")
             c.check(self)
             fr = c.friction
-            if fr is not None and not isinstance(fr, (Tresca, Coulomb)):
+            if not FRICTION.ok(fr)[0]:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
@@ -201,7 +201,7 @@ def _check_distinct_surfaces(mesh: MeshData, pairs) -> None:
         a = np.unique(np.sort(mesh.facets(c.groups[0]), axis=1), axis=0)
         b = np.unique(np.sort(mesh.facets(c.groups[1]), axis=1), axis=0)
         if a.shape == b.shape and np.array_equal(a, b):
-            kind = "tie" if isinstance(c, Tie) else "contact pair"
+            kind = "tie" if c.role == "tie" else "contact pair"
             raise InputError(f"{kind} {c.slave!r} (slave) / {c.master!r} (master): the two "
                              f"groups hold the same {a.shape[0]} facets (one surface under two "
                              "names); an interface needs the surfaces of its two sides")

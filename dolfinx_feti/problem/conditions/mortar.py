@@ -71,6 +71,9 @@ class Mortar(SurfacePair):
     search_distance: float | None = None
     normals: str = "slave"
 
+    #: What it makes of its surfaces: ``"contact"`` (inequality rows, in
+    #: ``ContactProblem.contact``) or ``"tie"`` (equality rows, in ``ContactProblem.ties``).
+    role = "contact"
     #: Whether the rows come from the mortar search (and the report checks them after).
     mortar = True
 

@@ -49,6 +49,9 @@ class NodeToNode(SurfacePair):
     match_tol: float = 1e-4
     friction: Friction | None = None
 
+    #: What it makes of its surfaces: ``"contact"`` (inequality rows, in
+    #: ``ContactProblem.contact``) or ``"tie"`` (equality rows, in ``ContactProblem.ties``).
+    role = "contact"
     #: Whether the rows come from the mortar search (and the report checks them after).
     mortar = False
     #: Two surfaces of different bodies (one group with itself is refused: :meth:`check`).

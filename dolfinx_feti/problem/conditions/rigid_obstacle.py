@@ -34,6 +34,9 @@ class RigidObstacle:
     obstacle: Obstacle
     friction: Friction | None = None
 
+    #: What it makes of its surfaces: ``"contact"`` (inequality rows, in
+    #: ``ContactProblem.contact``) or ``"tie"`` (equality rows, in ``ContactProblem.ties``).
+    role = "contact"
     #: Whether the rows come from the mortar search (and the report checks them after).
     mortar = False
     #: A body against an obstacle, not against itself.

@@ -34,6 +34,9 @@ class Tie(SurfacePair):
     master: str
     search_distance: float | None = None
 
+    #: What it makes of its surfaces: ``"contact"`` (inequality rows, in
+    #: ``ContactProblem.contact``) or ``"tie"`` (equality rows, in ``ContactProblem.ties``).
+    role = "tie"
     #: Whether the rows come from the mortar search (and the report checks them after).
     mortar = True
     #: A tie glues two surfaces: it has no friction.
