@@ -94,7 +94,10 @@ class ConditionReader:
                     f"{self.gdim}D)" + (f"; {table.hint}" if table.hint else ""))
             return None
         kw = {}
+        taken = {k.name for k in keys}
         for f in fields(cls):
+            if f.name not in taken and f.name not in table.one_of:
+                continue  # not a key of the file: its default
             if f.name in table.one_of:
                 kw[f.name] = self._one_of(t, key, table.one_of[f.name])
             elif f.name in t:

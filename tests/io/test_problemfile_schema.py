@@ -71,6 +71,7 @@ class _Probe:
     slave: str
     depth: float
     layers: int | None = None
+    note: object = None  # no check: not a key of the file
 
 
 @pytest.fixture
@@ -87,15 +88,20 @@ def test_a_new_condition_class_is_read_without_an_edit_of_the_reader(probe):
     data = {"contact": [{"type": "probe_for_the_test", "slave": "top", "depth": 0.5},
                         {"type": "probe_for_the_test", "slave": "top", "depth": -1.0,
                          "layers": 0, "colour": 1},
-                        {"type": "probe_for_the_test", "depth": 1.0}]}
+                        {"type": "probe_for_the_test", "depth": 1.0},
+                        {"type": "probe_for_the_test", "slave": "top", "depth": 1.0,
+                         "note": "x"}]}
     out = reader.section(data, "contact")
-    assert out == [probe("top", 0.5)]
+    assert out == [probe("top", 0.5), probe("top", 1.0)]  # an unknown key: a fault, no more
     faults = {f.key: f.message for f in reader.c.faults}
     assert set(faults) == {"contact[1].depth", "contact[1].layers", "contact[1].colour",
-                           "contact[2].slave"}, faults
+                           "contact[2].slave", "contact[3].note"}, faults
+    assert condition_keys()[("contact", "probe_for_the_test")] == ("type", "slave", "depth",
+                                                                  "layers")
     assert "expected a number > 0, got -1.0" in faults["contact[1].depth"]
     assert "expected an integer >= 1" in faults["contact[1].layers"]
     assert "unknown key" in faults["contact[1].colour"]
+    assert "unknown key" in faults["contact[3].note"]
     assert "missing" in faults["contact[2].slave"]
 
 

@@ -42,6 +42,8 @@ class FileTable:
         self_contact: One group as slave and master is allowed.
         components: The field that indexes the problem's components ("" if none).
         per_component: The field of one value, or one per constrained component ("" if none).
+        python_only: Fields the file does not take (as do fields without a ``@checked``
+            spec: the reader could not check them).
     """
 
     section: str
@@ -56,6 +58,7 @@ class FileTable:
     self_contact: bool = False
     components: str = ""
     per_component: str = ""
+    python_only: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -92,13 +95,17 @@ def file_keys(cls: type) -> list[FileKey]:
 
     A field written as one of several keys (``one_of``) is not a key itself: the names of
     its section's classes are, none of them required alone (and their tables have no
-    ``type``). ``type`` is required unless a class of the section can be inferred.
+    ``type``). ``type`` is required unless a class of the section can be inferred. Fields
+    without a check, and the table's ``python_only`` ones, keep their defaults.
     """
     table: FileTable = cls.file_table
     named = table.section in {s for c in FILE_TABLES.values() for s in c.file_table.one_of.values()}
     inferred = any(c.file_table.infer_from for c in classes_of(table.section).values())
     out = [] if table.type is None or named else [FileKey("type", Instance(str), not inferred)]
     for f in fields(cls):
+        if f.name in table.python_only or (f.name not in cls.checks and
+                                           f.name not in table.keys):
+            continue
         if f.name in table.one_of:
             out += [FileKey(t, Instance(c), False) for t, c in
                     classes_of(table.one_of[f.name]).items()]
