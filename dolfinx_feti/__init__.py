@@ -30,7 +30,7 @@ from .mesh import (
     read_gmsh,
 )
 from .options import SolverOptions
-from .problem.contact_problem import (
+from .problem import (
                       ContactProblem,
                       Coulomb,
                       Cylinder,

@@ -46,6 +46,13 @@ def test_no_import_cycle_and_no_private_import_across_modules():
 
 
 @pytest.mark.serial
+def test_no_isinstance_dispatch_on_condition_classes():
+    """A condition says what it is and does (its methods, ``role``, ``mortar``, the registries
+    ``ROW_BUILDERS`` and ``FILE_TABLES``): no module asks for its class."""
+    assert _figures()["isinstance_dispatch"] == 0
+
+
+@pytest.mark.serial
 def test_no_merge_conflict_markers():
     """A merge left no ``<<<<<<<`` / ``>>>>>>>`` lines in the code or the docs."""
     files = [p for pattern in ("dolfinx_feti/**/*.py", "tests/**/*.py", "bench/**/*.py",

@@ -7,7 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..problem.contact_problem import ContactProblem, Mortar, NodeToNode, RigidObstacle, Tie
+from ..problem.conditions import Mortar, NodeToNode, RigidObstacle, Tie
+from ..problem.contact_problem import ContactProblem
 from .contact import node_to_node_rows, obstacle_rows
 from .friction import with_tangential_rows
 from .mortar_rows import MortarInfo, mortar_contact_rows, tie_rows

@@ -9,7 +9,7 @@ from ..errors import InputError
 from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import surface_points
-from ..problem.contact_problem import NodeToNode, RigidObstacle
+from ..problem.conditions import NodeToNode, RigidObstacle
 from .rows import Kind, Rows
 
 

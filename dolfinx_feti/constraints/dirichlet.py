@@ -6,7 +6,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.data import MeshData
-from ..problem.contact_problem import ContactProblem, Dirichlet
+from ..problem.conditions import Dirichlet
+from ..problem.contact_problem import ContactProblem
 from ..validation import evaluate
 from .rows import Kind, Rows
 

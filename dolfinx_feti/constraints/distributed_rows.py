@@ -25,7 +25,7 @@ from mpi4py import MPI
 
 from ..errors import InputError, collective
 from ..parallel.exchange import Blocks, answer, exchange, exclusive_scan
-from ..problem.contact_problem import Dirichlet
+from ..problem.conditions import Dirichlet
 from .dirichlet import condition_values, dirichlet_rows
 from .gluing import gluing_rows
 from .rows import Rows

@@ -35,7 +35,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..mesh.data import MeshData
-from ..problem.contact_problem import ContactProblem, Coulomb, Tresca
+from ..problem.conditions import Coulomb, Tresca
+from ..problem.contact_problem import ContactProblem
 from ..validation import evaluate
 from .contact import surface
 from .rows import Kind, Rows

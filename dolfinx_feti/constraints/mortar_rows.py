@@ -23,7 +23,7 @@ from ..errors import InputError
 from ..mesh.checks import boundary_facets
 from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints
-from ..problem.contact_problem import Mortar, Tie
+from ..problem.conditions import Mortar, Tie
 from .contact import surface
 from .mortar import (
     COVERAGE_FULL_TOL,

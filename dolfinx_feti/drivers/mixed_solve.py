@@ -135,11 +135,15 @@ def solve_mixed(problem, *, comm: MPI.Comm = MPI.COMM_WORLD,
     report.warnings.extend(w for s in shared_all for info in s.mortar for w in info.warnings)
     try:
         out = solve_qp(qp, opts, report=report, timer=timer)
+        e = qp.feti.e  # the summary's ||G λ − e|| relative to ||e||, as a single mesh's
+        e_norm = float(np.linalg.norm(e))
+        report.G_lambda = float(np.linalg.norm(out.G_lambda - e) / (e_norm if e_norm > 0 else 1.0))
     finally:  # the chain's operators and factors (the solution keeps plain arrays)
         qp.destroy()
     res = out.result
     report.converged = bool(res.converged) and bool(np.isfinite(res.gP_norm))
     report.reason = res.reason
+    report.gP_rel = float(res.gP_norm / res.b_norm) if res.b_norm > 0 else float(res.gP_norm)
     report.iterations, report.outer_iterations = res.iterations, res.outer_iterations
     report.method = {"tfeti": "TFETI", "feti1": "FETI-1"}[method]
     report.sizes = {"primal": int(layout.n.sum()), "dual": int(total.dual_size[1]),

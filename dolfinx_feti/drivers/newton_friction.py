@@ -30,7 +30,8 @@ from petsc4py import PETSc
 from ..constraints.friction import tangent_basis
 from ..constraints.rows import Kind
 from ..errors import InputError
-from ..problem.contact_problem import ContactProblem, Cylinder, Plane, Sphere
+from ..problem.conditions import Cylinder, Plane, Sphere
+from ..problem.contact_problem import ContactProblem
 
 #: Obstacle type → the point that moves with it (its translation is the obstacle's motion
 #: between two load steps). An obstacle type missing here is taken to stand still.

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..fem import Elasticity
-from ..problem.contact_problem import ContactProblem, Dirichlet
+from ..problem.conditions import Dirichlet
+from ..problem.contact_problem import ContactProblem
 
 
 def _scaled_value(v, s: float):

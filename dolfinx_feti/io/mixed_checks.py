@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..mesh.mixed import MixedMesh
-from ..problem.contact_problem import Mortar, RigidObstacle
 
 #: The FETI methods of the mixed solve (``solve_mixed``).
 MIXED_METHODS = ("tfeti", "feti1", "auto")
@@ -90,7 +89,7 @@ def mixed_faults(mesh: MixedMesh, data: dict, model: str | None, contact: list,
                     "the contact forces between meshes are in the report"))
     for name, conds in (("contact", contact), ("tie", ties)):
         for i, c in enumerate(conds):
-            if isinstance(c, RigidObstacle):
+            if len(c.groups) != 2:  # one surface (against an obstacle): no pair to join
                 continue
             slave, master = mesh.parts_of_group(c.slave), mesh.parts_of_group(c.master)
             if slave == master and len(slave) == 1:
@@ -99,7 +98,7 @@ def mixed_faults(mesh: MixedMesh, data: dict, model: str | None, contact: list,
             if len(slave) > 1 or len(master) > 1:
                 out.append((key, "a surface lies on bodies of several cell types; name one "
                             "surface per body"))
-            elif name == "contact" and not isinstance(c, Mortar):
+            elif name == "contact" and not c.mortar:
                 out.append((key, f"{c.slave!r} and {c.master!r} lie on meshes of different "
                             f"cell types ({mesh.describe()}): only type = 'mortar' contact and "
                             "[[tie]] join bodies of different types"))

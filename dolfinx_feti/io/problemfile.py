@@ -25,92 +25,53 @@ file reference" in ``docs/index.md``. A minimal example::
 mesh's groups. All faults are collected and raised together as one :class:`ProblemFileError`
 whose message names the file, the key path (``contact[1].master``) and what was expected.
 Nothing heavy (assembly, factorization) happens before that check has passed.
+
+This module is the reader; the keys each table accepts are in :mod:`.schema`, the condition
+tables are built from the condition classes' own declarations by :mod:`.condition_tables`,
+and the model pieces a file needs beyond the Python API in :mod:`dolfinx_feti.fem.file_models`.
 """
 
 from __future__ import annotations
 
 import difflib
 import inspect
-import json
-import math
 import os
-import re
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import ufl
 from mpi4py import MPI
 
 from ..errors import InputError, SolveError, collective
-from ..fem import Elasticity, Poisson
-from ..fem.hyperelastic import NeoHookean, SaintVenantKirchhoff
+from ..fem.file_models import AffineTraction, FilePoisson, SourceBox
 from ..mesh import ByFunction, ByTags, MeshData, MixedMesh, Parts, read_gmsh
 from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
-from ..problem.contact_problem import (
-    ContactProblem,
-    Cylinder,
-    Dirichlet,
-    Mortar,
-    NodeToNode,
-    Plane,
-    RigidObstacle,
-    Sphere,
-    Tie,
-)
+from ..problem.contact_problem import ContactProblem
+from .condition_tables import ConditionReader
 from .mixed_checks import checking_view, method_fault, mixed_faults
-
-# ------------------------------------------------------------------------------------------
-# The schema: the keys each table accepts (the reference in docs/index.md lists them all)
-# ------------------------------------------------------------------------------------------
-
-#: Top-level keys.
-TOP_KEYS = ("mesh", "title", "method", "model", "dirichlet", "contact", "tie",
-            "decomposition", "solver", "output", "loading")
-#: ``[[tie]]`` keys.
-TIE_KEYS = ("slave", "master", "search_distance")
-#: ``[model]`` keys by model type.
-MODEL_KEYS = {"elasticity": ("type", "E", "nu", "tractions", "body_force"),
-              "neo-hookean": ("type", "E", "nu", "tractions", "body_force"),
-              "svk": ("type", "E", "nu", "tractions", "body_force"),
-              "poisson": ("type", "source", "k", "flux", "source_boxes")}
-#: The solid models of ``[model] type``: small strain, and hyperelastic (solved by Newton).
-SOLIDS = {"elasticity": Elasticity, "neo-hookean": NeoHookean, "svk": SaintVenantKirchhoff}
-#: Keys of an affine traction ``model.tractions.<group> = {value, gradient}``.
-AFFINE_KEYS = ("value", "gradient")
-#: ``[[model.source_boxes]]`` keys.
-BOX_KEYS = ("min", "max", "value")
-#: ``[[dirichlet]]`` keys.
-DIRICHLET_KEYS = ("group", "value", "components")
-#: ``[[contact]]`` keys by contact type.
-CONTACT_KEYS = {"mortar": ("type", "slave", "master", "friction", "search_distance", "normals"),
-                "node_to_node": ("type", "slave", "master", "gap", "match_tol", "friction"),
-                "obstacle": ("type", "group", "plane", "sphere", "cylinder", "friction")}
-#: ``contact[i].friction`` keys by friction law.
-FRICTION_KEYS = {"tresca": ("type", "bound"),
-                 "coulomb": ("type", "coefficient", "rtol", "max_steps")}
-#: Obstacle shapes and their keys.
-OBSTACLE_KEYS = {"plane": ("point", "normal"), "sphere": ("center", "radius"),
-                 "cylinder": ("point", "axis", "radius")}
-#: ``[decomposition]`` keys by decomposition type.
-DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
-                      "parts": ("type", "n", "method", "balance", "gluing"),
-                      "grid": ("type", "size", "origin", "gluing")}
-#: ``[output]`` keys.
-OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
-LOADING_KEYS = ("factors", "values", "history")
-#: ``[output.pressure_plot]`` keys.
-PLOT_KEYS = ("file", "surface", "along")
-#: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.
-SOLVER_KEYS = tuple(DECLARED)
-
-_ALONG = ("x", "y", "z", "arclength")
-_GLUING = ("orthonormal", "redundant", "nonredundant")
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+from .schema import (
+    AFFINE_KEYS,
+    ALONG,
+    BOX_KEYS,
+    DECOMPOSITION_KEYS,
+    GLUING,
+    LOADING_KEYS,
+    MODEL_KEYS,
+    OUTPUT_KEYS,
+    PLOT_KEYS,
+    SOLIDS,
+    SOLVER_KEYS,
+    TOP_KEYS,
+    Checker,
+    Fault,
+    ProblemFileError,
+    describe,
+    key_path,
+)
 
 
 def generators() -> dict[str, Any]:
@@ -127,261 +88,8 @@ def generators() -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------------------
-# Faults
+# The decomposition of a grid
 # ------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Fault:
-    """One fault of a problem file: where (a key path such as ``contact[1].master``) and what."""
-
-    key: str
-    message: str
-
-    def __str__(self) -> str:
-        return f"{self.key}: {self.message}" if self.key else self.message
-
-
-class ProblemFileError(InputError):
-    """A problem file that cannot be solved as written; ``faults`` lists every fault found.
-
-    The message has one line per fault, ``<file>: <key>: <what is wrong, what was expected>``.
-    """
-
-    def __init__(self, path: str | Path, faults: Sequence[Fault]) -> None:
-        self.path = str(path)
-        self.faults = list(faults)
-        n = len(self.faults)
-        lines = [f"{self.path}: {n} error{'s' if n != 1 else ''} in the problem file"]
-        lines += [f"{self.path}: {f}" for f in self.faults]
-        super().__init__("\n".join(lines))
-
-
-def _key(parent: str, name: str | int) -> str:
-    if isinstance(name, int):
-        return f"{parent}[{name}]"
-    part = name if _BARE_KEY.fullmatch(name) else json.dumps(name)
-    return f"{parent}.{part}" if parent else part
-
-
-def _describe(value: Any) -> str:
-    if isinstance(value, bool):
-        return f"a boolean ({str(value).lower()})"
-    if isinstance(value, int | float):
-        return f"the number {value}"
-    if isinstance(value, str):
-        return f"a string ({value!r})"
-    if isinstance(value, list):
-        return f"an array of {len(value)} item(s)"
-    if isinstance(value, dict):
-        return "a table"
-    return f"a {type(value).__name__}"
-
-
-class _Check:
-    """Collects faults while reading values; each reader returns None for a bad value."""
-
-    def __init__(self) -> None:
-        self.faults: list[Fault] = []
-
-    def fault(self, key: str, message: str) -> None:
-        self.faults.append(Fault(key, message))
-
-    def table(self, value: Any, key: str, allowed: Sequence[str] | None,
-              required: Sequence[str] = (), what: str = "a table") -> dict | None:
-        """A table with only ``allowed`` keys (any key when None) and all ``required`` ones."""
-        if not isinstance(value, dict):
-            self.fault(key, f"expected {what}, got {_describe(value)}")
-            return None
-        for k in value:
-            if allowed is not None and k not in allowed:
-                close = difflib.get_close_matches(k, allowed, n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                self.fault(_key(key, k), f"unknown key{hint}; expected one of: "
-                           f"{', '.join(allowed)}")
-        for k in required:
-            if k not in value:
-                self.fault(_key(key, k), "missing: this key is required")
-        return value
-
-    def array_of_tables(self, value: Any, key: str) -> list:
-        if value is None:
-            return []
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            self.fault(key, f"expected an array of tables ([[{key}]] sections), got "
-                       f"{_describe(value)}")
-            return []
-        return value
-
-    def number(self, value: Any, key: str, expected: str = "a number", ok=None,
-               integer: bool = False) -> float | None:
-        """A finite number (an integer when ``integer``) for which ``ok(value)`` holds."""
-        kind = "an integer" if integer else "a number"
-        if isinstance(value, bool) or not isinstance(value, int | float) or \
-                (integer and not isinstance(value, int)):
-            self.fault(key, f"expected {expected if expected != 'a number' else kind}, got "
-                       f"{_describe(value)}")
-            return None
-        if not math.isfinite(value):
-            self.fault(key, f"expected {expected}, got {value} (not a finite number)")
-            return None
-        if ok is not None and not ok(value):
-            self.fault(key, f"expected {expected}, got {value}")
-            return None
-        return value
-
-    def string(self, value: Any, key: str, choices: Sequence[str] | None = None) -> str | None:
-        if not isinstance(value, str):
-            what = "a string" if choices is None else "one of " + ", ".join(map(repr, choices))
-            self.fault(key, f"expected {what}, got {_describe(value)}")
-            return None
-        if choices is not None and value not in choices:
-            close = difflib.get_close_matches(value, choices, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            self.fault(key, f"expected one of {', '.join(map(repr, choices))}, got "
-                       f"{value!r}{hint}")
-            return None
-        return value
-
-    def vector(self, value: Any, key: str, length: int | None, what: str = "numbers"
-               ) -> list[float] | None:
-        """An array of ``length`` finite numbers (any length when None)."""
-        n = "" if length is None else f"{length} "
-        if not isinstance(value, list) or any(isinstance(v, bool) or
-                                              not isinstance(v, int | float) for v in value):
-            self.fault(key, f"expected an array of {n}{what}, got {_describe(value)}")
-            return None
-        if length is not None and len(value) != length:
-            self.fault(key, f"expected an array of {n}{what} (the mesh is {length}D), got "
-                       f"{len(value)}")
-            return None
-        if not all(math.isfinite(v) for v in value):
-            self.fault(key, f"expected finite {what}, got {value}")
-            return None
-        return [float(v) for v in value]
-
-    def per_body(self, value: Any, key: str, mesh: MeshData | None, expected: str, ok,
-                 complete: bool = True) -> float | dict[str, float] | None:
-        """A number, or a table body name → number (covering every body when ``complete``)."""
-        if not isinstance(value, dict):
-            return self.number(value, key, f"{expected}, or a table of one per body", ok)
-        out, good = {}, True
-        for body, v in value.items():
-            v = self.number(v, _key(key, body), expected, ok)
-            good &= v is not None
-            out[body] = v
-            if mesh is not None and body not in mesh.body_names:
-                self.fault(_key(key, body), f"unknown body; the mesh's bodies are "
-                           f"{list(mesh.body_names)}")
-                good = False
-        if mesh is not None and complete:
-            missing = [b for b in mesh.body_names if b not in value]
-            if missing:
-                self.fault(key, f"no value for bodies {missing}: give a number for every body "
-                           f"of {list(mesh.body_names)}, or one number for all")
-                good = False
-        return out if good else None
-
-    def group(self, value: Any, key: str, mesh: MeshData | None) -> str | None:
-        """The name of a non-empty boundary group of the mesh."""
-        name = self.string(value, key)
-        if name is None or mesh is None:
-            return name
-        if name not in mesh.facet_groups:
-            if name in mesh.body_names:
-                self.fault(key, f"{name!r} is a body (a physical group of dimension "
-                           f"{mesh.tdim}), not a boundary group; the boundary groups are "
-                           f"{sorted(mesh.facet_groups)}")
-            else:
-                close = difflib.get_close_matches(name, list(mesh.facet_groups), n=1)
-                hint = f" (did you mean {close[0]!r}?)" if close else ""
-                self.fault(key, f"unknown boundary group {name!r}{hint}; the mesh's boundary "
-                           f"groups (dimension {mesh.tdim - 1}) are {sorted(mesh.facet_groups)}")
-            return None
-        if mesh.facet_groups[name].shape[0] == 0:
-            self.fault(key, f"boundary group {name!r} holds no facet")
-            return None
-        return name
-
-
-# ------------------------------------------------------------------------------------------
-# Model pieces that the Python API has no ready-made object for
-# ------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class SourceBox:
-    """A constant source ``value`` in the axis-aligned box ``min <= x <= max``."""
-
-    min: tuple[float, ...]
-    max: tuple[float, ...]
-    value: float
-
-    def indicator(self, x) -> Any:
-        """The box's indicator function as a UFL expression of the spatial coordinate x."""
-        inside = None
-        for a, (lo, hi) in enumerate(zip(self.min, self.max, strict=True)):
-            c = ufl.And(ufl.ge(x[a], lo), ufl.le(x[a], hi))
-            inside = c if inside is None else ufl.And(inside, c)
-        return ufl.conditional(inside, self.value, 0.0)
-
-
-class FilePoisson(Poisson):
-    """:class:`~dolfinx_feti.Poisson` with the source of a problem file.
-
-    The source f is the sum of a constant per body (``source``) and the values of the boxes
-    (``source_boxes``) that contain the point; the boxes need no expression language.
-    """
-
-    def __init__(self, source: float | Mapping[str, float] = 0.0, *,
-                 boxes: Sequence[SourceBox] = (), flux: Mapping | None = None,
-                 k: float | Mapping[str, float] = 1.0) -> None:
-        self.body_source = dict(source) if isinstance(source, Mapping) else None
-        self.boxes = tuple(boxes)
-        constant = 0.0 if isinstance(source, Mapping) else float(source)
-        if self.boxes:
-            def f(x):
-                expr = constant
-                for b in self.boxes:
-                    expr = expr + b.indicator(x)
-                return expr
-            super().__init__(f, flux=flux, k=k)
-        else:
-            super().__init__(constant, flux=flux, k=k)
-
-    def __call__(self, V, sub):
-        """The forms on one subdomain (the per-body source added to Poisson's)."""
-        a, L = super().__call__(V, sub)
-        if self.body_source:
-            values = {b: self.body_source.get(b, 0.0) for b in sub.bodies}
-            f = sub.cellwise(values)
-            if not (isinstance(f, float) and f == 0.0):
-                L = L + f * ufl.TestFunction(V) * sub.dx()
-        return a, L
-
-
-@dataclass(frozen=True)
-class AffineTraction:
-    """The traction t(x) = value + gradient · x (``gradient[i][j]`` = ∂t_i/∂x_j)."""
-
-    value: tuple[float, ...]
-    gradient: tuple[tuple[float, ...], ...] | None = None
-
-    def scaled(self, s: float) -> AffineTraction:
-        """The traction s·t (a load step of the ``[loading]`` table)."""
-        return AffineTraction(tuple(s * v for v in self.value), None if self.gradient is None
-                              else tuple(tuple(s * g for g in row) for row in self.gradient))
-
-    def __call__(self, x) -> Any:
-        """t as a UFL vector of the spatial coordinate x."""
-        comps = []
-        for i, v in enumerate(self.value):
-            t = v
-            for j, gij in enumerate(self.gradient[i] if self.gradient else ()):
-                if gij != 0.0:
-                    t = t + gij * x[j]
-            comps.append(t)
-        return ufl.as_vector(comps)
 
 
 @dataclass(frozen=True)
@@ -627,7 +335,7 @@ class _Reader:
         self.base = path.parent
         self.output_dir = None if output_dir is None else Path(output_dir)
         self.command_line = command_line
-        self.c = _Check()
+        self.c = Checker()
         self.mesh: MeshData | None = None
         self.mesh_path: Path | None = None
         self.model: str | None = None
@@ -648,9 +356,10 @@ class _Reader:
         model, forms = self._model()
         value_size = None if self.mesh is None or model is None else \
             (self.mesh.gdim if model in SOLIDS else 1)
-        dirichlet = self._dirichlet(value_size)
-        contact = self._contact(model)
-        ties = self._ties()
+        conditions = ConditionReader(c, self.mesh, model, value_size)
+        dirichlet = conditions.section(data, "dirichlet")
+        contact = conditions.section(data, "contact")
+        ties = conditions.section(data, "tie")
         decomposition, gluing = self._decomposition()
         solver = self._solver()
         if method is not None:
@@ -700,7 +409,7 @@ class _Reader:
             return self._generated_mesh(self.data["mesh"])
         if not isinstance(self.data["mesh"], str):
             c.fault("mesh", "expected the path of a gmsh .msh file or a table {generator = "
-                    f"'<name>', ...}}, got {_describe(self.data['mesh'])}")
+                    f"'<name>', ...}}, got {describe(self.data['mesh'])}")
             return ""
         mesh_path = Path(os.path.normpath(self.base / self.data["mesh"]))
         self.mesh_path = mesh_path
@@ -750,11 +459,11 @@ class _Reader:
             if k not in params:
                 close = difflib.get_close_matches(k, list(params), n=1)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
-                c.fault(_key("mesh", k), f"unknown parameter of meshes.{name}{hint}; expected "
+                c.fault(key_path("mesh", k), f"unknown parameter of meshes.{name}{hint}; expected "
                         f"one of: {', '.join(params)}")
                 good = False
             elif isinstance(v, dict):
-                c.fault(_key("mesh", k), f"expected a number or an array, got {_describe(v)}")
+                c.fault(key_path("mesh", k), f"expected a number or an array, got {describe(v)}")
                 good = False
             else:
                 kwargs[k] = tuple(v) if isinstance(v, list) else v
@@ -791,7 +500,7 @@ class _Reader:
         if m is None:  # reported as missing
             return None, None
         if not isinstance(m, dict):
-            c.fault("model", f"expected a table, got {_describe(m)}")
+            c.fault("model", f"expected a table, got {describe(m)}")
             return None, None
         kind = c.string(m.get("type", "elasticity"), "model.type", tuple(MODEL_KEYS))
         if kind is None:
@@ -810,7 +519,7 @@ class _Reader:
             tractions = {}
             t = c.table(m.get("tractions", {}), "model.tractions", None)
             for group, vec in (t or {}).items():
-                key = _key("model.tractions", group)
+                key = key_path("model.tractions", group)
                 g = c.group(group, key, mesh)
                 if isinstance(vec, dict):
                     v = self._affine(vec, key, gdim)
@@ -831,20 +540,20 @@ class _Reader:
         flux = {}
         t = c.table(m.get("flux", {}), "model.flux", None)
         for group, val in (t or {}).items():
-            key = _key("model.flux", group)
+            key = key_path("model.flux", group)
             g = c.group(group, key, mesh)
             v = c.number(val, key, "a number (the flux k du/dn)")
             if g is not None and v is not None:
                 flux[g] = v
         boxes = []
         for i, b in enumerate(c.array_of_tables(m.get("source_boxes"), "model.source_boxes")):
-            key = _key("model.source_boxes", i)
+            key = key_path("model.source_boxes", i)
             b = c.table(b, key, BOX_KEYS, required=BOX_KEYS)
             if b is None or any(k_ not in b for k_ in BOX_KEYS):
                 continue
-            lo = c.vector(b["min"], _key(key, "min"), gdim)
-            hi = c.vector(b["max"], _key(key, "max"), gdim)
-            val = c.number(b["value"], _key(key, "value"))
+            lo = c.vector(b["min"], key_path(key, "min"), gdim)
+            hi = c.vector(b["max"], key_path(key, "max"), gdim)
+            val = c.number(b["value"], key_path(key, "value"))
             if lo is not None and hi is not None and len(lo) != len(hi):
                 c.fault(key, f"min and max have different lengths ({len(lo)}, {len(hi)})")
             elif lo is not None and hi is not None and not all(
@@ -861,251 +570,21 @@ class _Reader:
         t = c.table(t, key, AFFINE_KEYS, required=("value",))
         if t is None or "value" not in t:
             return None
-        value = c.vector(t["value"], _key(key, "value"), gdim)
+        value = c.vector(t["value"], key_path(key, "value"), gdim)
         gradient = t.get("gradient")
-        gkey = _key(key, "gradient")
+        gkey = key_path(key, "gradient")
         if gradient is not None:
             if not isinstance(gradient, list) or (gdim is not None and len(gradient) != gdim):
                 c.fault(gkey, f"expected an array of {gdim or 'gdim'} rows (row i: the "
-                        f"derivatives of component i along x, y[, z]), got {_describe(gradient)}")
+                        f"derivatives of component i along x, y[, z]), got {describe(gradient)}")
                 return None
-            rows = [c.vector(r, _key(gkey, i), gdim) for i, r in enumerate(gradient)]
+            rows = [c.vector(r, key_path(gkey, i), gdim) for i, r in enumerate(gradient)]
             if any(r is None for r in rows):
                 return None
             gradient = tuple(tuple(r) for r in rows)
         if value is None:
             return None
         return AffineTraction(tuple(value), gradient)
-
-    # --- conditions --------------------------------------------------------------------
-    def _dirichlet(self, value_size: int | None) -> list[Dirichlet]:
-        c, mesh = self.c, self.mesh
-        out = []
-        for i, d in enumerate(c.array_of_tables(self.data.get("dirichlet"), "dirichlet")):
-            key = _key("dirichlet", i)
-            d = c.table(d, key, DIRICHLET_KEYS, required=("group",))
-            if d is None:
-                continue
-            group = c.group(d.get("group"), _key(key, "group"), mesh) if "group" in d else None
-            comps = None
-            if "components" in d:
-                comps = d["components"]
-                if not isinstance(comps, list) or not comps or any(
-                        isinstance(v, bool) or not isinstance(v, int) for v in comps):
-                    c.fault(_key(key, "components"), "expected a non-empty array of component "
-                            f"indices (0 = x, 1 = y, 2 = z), got {_describe(comps)}")
-                    comps = None
-                elif len(set(comps)) != len(comps):
-                    c.fault(_key(key, "components"), f"expected distinct indices, got {comps}")
-                    comps = None
-                elif value_size is not None and any(not 0 <= v < value_size for v in comps):
-                    c.fault(_key(key, "components"), f"expected indices in 0..{value_size - 1} "
-                            f"(the problem has {value_size} component(s)), got {comps}")
-                    comps = None
-            ncomp = len(comps) if comps is not None else value_size
-            value = d.get("value", 0.0)
-            vkey = _key(key, "value")
-            if isinstance(value, list):
-                v = c.vector(value, vkey, None)
-                if v is not None and ncomp is not None and len(v) not in (1, ncomp):
-                    c.fault(vkey, f"expected one number or {ncomp} (one per constrained "
-                            f"component), got {len(v)}")
-                    v = None
-                value = v
-            else:
-                value = c.number(value, vkey, "a number or an array of one per component")
-            if group is not None and value is not None and \
-                    ("components" not in d or comps is not None):
-                out.append(Dirichlet(group, value, comps))
-        return out
-
-    def _contact(self, model: str | None) -> list:
-        c, mesh = self.c, self.mesh
-        out = []
-        for i, t in enumerate(c.array_of_tables(self.data.get("contact"), "contact")):
-            key = _key("contact", i)
-            kind = t.get("type")
-            if kind is None:
-                kind = "node_to_node" if "slave" in t or "master" in t else \
-                    "obstacle" if "group" in t else None
-                if kind is None:
-                    c.fault(_key(key, "type"), "missing: expected 'node_to_node' (with slave "
-                            "and master) or 'obstacle' (with group and a shape)")
-                    continue
-            else:
-                kind = c.string(kind, _key(key, "type"), tuple(CONTACT_KEYS))
-                if kind is None:
-                    continue
-            if kind in ("node_to_node", "mortar"):
-                t = c.table(t, key, CONTACT_KEYS[kind], required=("slave", "master"))
-                s, m = self._pair(t, key, "contact", self_contact=kind == "mortar")
-                kw = {}
-                if "gap" in t:
-                    kw["gap"] = c.number(t["gap"], _key(key, "gap"), "a number >= 0 (the "
-                                         "initial gap; omit it to take the gap from the geometry)",
-                                         lambda v: v >= 0)
-                if "match_tol" in t:
-                    kw["match_tol"] = c.number(t["match_tol"], _key(key, "match_tol"),
-                                               "a number > 0", lambda v: v > 0)
-                if "search_distance" in t:
-                    kw["search_distance"] = self._search_distance(t, key)
-                if "normals" in t and kind == "mortar":
-                    kw["normals"] = c.string(t["normals"], _key(key, "normals"),
-                                             ("slave", "flatter"))
-                cls = NodeToNode if kind == "node_to_node" else Mortar
-                if "friction" in t:
-                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"), cls,
-                                                    model)
-                if s is not None and m is not None and all(v is not None for v in kw.values()):
-                    out.append(cls(slave=s, master=m, **kw))
-            else:
-                t = c.table(t, key, CONTACT_KEYS[kind], required=("group",))
-                g = c.group(t["group"], _key(key, "group"), mesh) if "group" in t else None
-                if model == "poisson":
-                    c.fault(key, "a rigid obstacle needs an elasticity model (model.type = "
-                            "'elasticity')")
-                shapes = [s for s in OBSTACLE_KEYS if s in t]
-                if len(shapes) != 1:
-                    c.fault(key, "expected exactly one obstacle shape: plane = {point, normal}, "
-                            "sphere = {center, radius} or cylinder = {point, axis, radius}; got "
-                            f"{shapes or 'none'}")
-                    continue
-                obstacle = self._obstacle(shapes[0], t[shapes[0]], _key(key, shapes[0]))
-                kw = {}
-                if "friction" in t:
-                    kw["friction"] = self._friction(t["friction"], _key(key, "friction"),
-                                                    RigidObstacle, model)
-                if g is not None and obstacle is not None and \
-                        all(v is not None for v in kw.values()):
-                    out.append(RigidObstacle(g, obstacle, **kw))
-        return out
-
-    def _pair(self, t: dict, key: str, what: str, self_contact: bool = False
-              ) -> tuple[str | None, str | None]:
-        """The slave and master groups of a contact pair or a tie, checked.
-
-        ``self_contact``: one group as slave and master is allowed (mortar contact).
-        """
-        c, mesh = self.c, self.mesh
-        s = c.group(t["slave"], _key(key, "slave"), mesh) if "slave" in t else None
-        m = c.group(t["master"], _key(key, "master"), mesh) if "master" in t else None
-        if "slave" in t and t.get("slave") == t.get("master"):
-            if self_contact:
-                return s, m
-            c.fault(key, f"a {what} of the group {t['slave']!r} with itself: slave and master "
-                    "must be two different surfaces (self-contact is type = 'mortar')")
-            return None, m
-        if what == "contact" and s is not None and m is not None and mesh is not None:
-            sb, mb = _bodies_of(mesh, s), _bodies_of(mesh, m)
-            shared = np.intersect1d(mesh.facet_groups[s], mesh.facet_groups[m])
-            if shared.size:
-                c.fault(key, f"slave {s!r} and master {m!r} share {shared.size} nodes: the "
-                        "bodies are glued there (common nodes), not in contact; bodies in "
-                        "contact need their own nodes on the surfaces")
-                return None, m
-            if sb & mb:
-                c.fault(key, f"slave {s!r} and master {m!r} both lie on body "
-                        f"{mesh.body_names[min(sb & mb)]!r}: contact is between two bodies")
-                return None, m
-        return s, m
-
-    def _search_distance(self, t: dict, key: str) -> float | None:
-        return self.c.number(t["search_distance"], _key(key, "search_distance"),
-                             "a finite number > 0 (omit it for the default)",
-                             lambda v: np.isfinite(v) and v > 0)
-
-    def _ties(self) -> list:
-        """``[[tie]]``: mortar gluing of non-matching interfaces."""
-        c = self.c
-        out = []
-        for i, t in enumerate(c.array_of_tables(self.data.get("tie"), "tie")):
-            key = _key("tie", i)
-            t = c.table(t, key, TIE_KEYS, required=("slave", "master"))
-            s, m = self._pair(t, key, "tie")
-            kw = {}
-            if "search_distance" in t:
-                kw["search_distance"] = self._search_distance(t, key)
-            if s is not None and m is not None and all(v is not None for v in kw.values()):
-                out.append(Tie(slave=s, master=m, **kw))
-        return out
-
-    def _friction(self, t: Any, key: str, condition: type, model: str | None):
-        """A friction law (``Tresca`` or ``Coulomb`` of dolfinx_feti.problem), or None."""
-        from ..problem import contact_problem as api
-
-        c = self.c
-        if not isinstance(t, dict):
-            c.fault(key, "expected a table: {type = 'coulomb', coefficient = ...} or "
-                    f"{{type = 'tresca', bound = ...}}, got {_describe(t)}")
-            return None
-        kind = c.string(t.get("type"), _key(key, "type"), tuple(FRICTION_KEYS)) \
-            if "type" in t else None
-        if "type" not in t:
-            c.fault(_key(key, "type"), "missing: expected 'coulomb' or 'tresca'")
-        if kind is None:
-            return None
-        t = c.table(t, key, FRICTION_KEYS[kind], required=FRICTION_KEYS[kind][:2])
-        law = getattr(api, kind.capitalize(), None)
-        if law is None or "friction" not in {f.name for f in fields(condition)}:
-            c.fault(key, "friction is not supported by this version of dolfinx_feti")
-            return None
-        if model == "poisson":
-            c.fault(key, "friction needs an elasticity model (model.type = 'elasticity')")
-            return None
-        if kind == "tresca":
-            if "bound" not in t:
-                return None
-            b = t["bound"]
-            if isinstance(b, float) and b == math.inf:
-                return law(math.inf)
-            b = c.number(b, _key(key, "bound"), "a slip bound >= 0 (a traction; inf: no slip)",
-                         lambda v: v >= 0)
-            return None if b is None else law(float(b))
-        kw = {}
-        if "coefficient" in t:
-            kw["coefficient"] = c.number(t["coefficient"], _key(key, "coefficient"),
-                                         "a friction coefficient >= 0", lambda v: v >= 0)
-        if "rtol" in t:
-            kw["rtol"] = c.number(t["rtol"], _key(key, "rtol"), "a number > 0", lambda v: v > 0)
-        if "max_steps" in t:
-            kw["max_steps"] = c.number(t["max_steps"], _key(key, "max_steps"),
-                                       "an integer >= 1", lambda v: v >= 1, integer=True)
-        if "coefficient" not in t or any(v is None for v in kw.values()):
-            return None
-        try:
-            return law(**kw)
-        except (InputError, TypeError) as e:
-            c.fault(key, str(e))
-            return None
-
-    def _obstacle(self, shape: str, t: Any, key: str):
-        c = self.c
-        gdim = None if self.mesh is None else self.mesh.gdim
-        t = c.table(t, key, OBSTACLE_KEYS[shape], required=OBSTACLE_KEYS[shape])
-        if t is None or any(k not in t for k in OBSTACLE_KEYS[shape]):
-            return None
-        if shape == "plane":
-            p = c.vector(t["point"], _key(key, "point"), gdim)
-            n = c.vector(t["normal"], _key(key, "normal"), gdim)
-            if n is not None and not np.linalg.norm(n) > 0:
-                c.fault(_key(key, "normal"), "expected a non-zero vector (pointing out of the "
-                        "obstacle)")
-                n = None
-            return None if p is None or n is None else Plane(p, n)
-        r = c.number(t["radius"], _key(key, "radius"), "a radius > 0", lambda v: v > 0)
-        if shape == "sphere":
-            x = c.vector(t["center"], _key(key, "center"), gdim)
-            return None if x is None or r is None else Sphere(x, r)
-        if gdim is not None and gdim != 3:
-            c.fault(key, f"a cylinder obstacle needs a 3D mesh (this one is {gdim}D); use a "
-                    "sphere (a disc) in 2D")
-            return None
-        p = c.vector(t["point"], _key(key, "point"), 3)
-        a = c.vector(t["axis"], _key(key, "axis"), 3)
-        if a is not None and not np.linalg.norm(a) > 0:
-            c.fault(_key(key, "axis"), "expected a non-zero vector")
-            a = None
-        return None if p is None or a is None or r is None else Cylinder(p, a, r)
 
     def _dry_run_contact(self, problem: ContactProblem) -> None:
         """Pair the contact surfaces now (cheap), so that a mismatch is reported with its key.
@@ -1129,7 +608,7 @@ class _Reader:
                     ROW_BUILDERS[type(spec)](SurfaceCondition(part, spec, i, node_ptr,
                                                               node_subs, fixed))
                 except InputError as e:
-                    self.c.fault(_key("contact", index[id(spec)]), str(e))
+                    self.c.fault(key_path("contact", index[id(spec)]), str(e))
                 except Exception:  # noqa: BLE001 - internals changed: the solve checks it again
                     pass
 
@@ -1139,9 +618,9 @@ class _Reader:
         d = self.data.get("decomposition", {})
         key = "decomposition"
         if not isinstance(d, dict):
-            c.fault(key, f"expected a table, got {_describe(d)}")
+            c.fault(key, f"expected a table, got {describe(d)}")
             return ByTags(), "orthonormal"
-        kind = c.string(d.get("type", "tags"), _key(key, "type"), tuple(DECOMPOSITION_KEYS))
+        kind = c.string(d.get("type", "tags"), key_path(key, "type"), tuple(DECOMPOSITION_KEYS))
         if kind is None:
             return ByTags(), "orthonormal"
         allowed = DECOMPOSITION_KEYS[kind]
@@ -1150,33 +629,33 @@ class _Reader:
                 owner = [t for t, keys in DECOMPOSITION_KEYS.items() if k in keys]
                 what = (f"not a key of decomposition type {kind!r} (it belongs to type "
                         f"{owner[0]!r})") if owner else "unknown key"
-                c.fault(_key(key, k), f"{what}; expected one of: {', '.join(allowed)}")
-        gluing = c.string(d.get("gluing", "orthonormal"), _key(key, "gluing"), _GLUING)
+                c.fault(key_path(key, k), f"{what}; expected one of: {', '.join(allowed)}")
+        gluing = c.string(d.get("gluing", "orthonormal"), key_path(key, "gluing"), GLUING)
         gluing = gluing or "orthonormal"
         if kind == "tags":
             return ByTags(), gluing
         gdim = None if mesh is None else mesh.gdim
         if kind == "parts":
             if "n" not in d:
-                c.fault(_key(key, "n"), "missing: the number of parts per body (an integer "
+                c.fault(key_path(key, "n"), "missing: the number of parts per body (an integer "
                         ">= 1, or a table body = integer)")
                 return None, gluing
             n = d["n"]
             if isinstance(n, dict):
                 ok = True
                 for body, v in n.items():
-                    ok &= c.number(v, _key(_key(key, "n"), body), "an integer >= 1",
+                    ok &= c.number(v, key_path(key_path(key, "n"), body), "an integer >= 1",
                                    lambda v: v >= 1, integer=True) is not None
                     if mesh is not None and body not in mesh.body_names:
-                        c.fault(_key(_key(key, "n"), body), "unknown body; the mesh's bodies "
-                                f"are {list(mesh.body_names)}")
+                        c.fault(key_path(key_path(key, "n"), body), "unknown body; the mesh's "
+                                f"bodies are {list(mesh.body_names)}")
                         ok = False
                 n = dict(n) if ok else None
             else:
-                n = c.number(n, _key(key, "n"), "an integer >= 1 (or a table body = integer)",
+                n = c.number(n, key_path(key, "n"), "an integer >= 1 (or a table body = integer)",
                              lambda v: v >= 1, integer=True)
-            method = c.string(d.get("method", "rcb"), _key(key, "method"), ("rcb", "ptscotch"))
-            balance = c.string(d.get("balance", "cells"), _key(key, "balance"),
+            method = c.string(d.get("method", "rcb"), key_path(key, "method"), ("rcb", "ptscotch"))
+            balance = c.string(d.get("balance", "cells"), key_path(key, "balance"),
                                ("cells", "volume"))
             if n is None or method is None or balance is None:
                 return None, gluing
@@ -1185,30 +664,30 @@ class _Reader:
                 for b, name in enumerate(mesh.body_names):
                     nb = n.get(name, 1) if isinstance(n, dict) else n
                     if nb > counts[b]:
-                        c.fault(_key(key, "n"), f"{nb} parts for body {name!r}, which has only "
+                        c.fault(key_path(key, "n"), f"{nb} parts for body {name!r}, which has only "
                                 f"{counts[b]} cells")
             if balance == "volume" and method != "rcb":
-                c.fault(_key(key, "balance"), "'volume' needs method = 'rcb'")
+                c.fault(key_path(key, "balance"), "'volume' needs method = 'rcb'")
                 return None, gluing
             return Parts(n, method, balance), gluing
         if "size" not in d:
-            c.fault(_key(key, "size"), "missing: the edge length of the grid's boxes (a number "
+            c.fault(key_path(key, "size"), "missing: the edge length of the grid's boxes (a number "
                     "> 0, or an array of one per coordinate)")
             return None, gluing
         size = d["size"]
         if isinstance(size, list):
-            size = c.vector(size, _key(key, "size"), gdim, "edge lengths")
+            size = c.vector(size, key_path(key, "size"), gdim, "edge lengths")
             if size is not None and min(size) <= 0:
-                c.fault(_key(key, "size"), f"expected edge lengths > 0, got {size}")
+                c.fault(key_path(key, "size"), f"expected edge lengths > 0, got {size}")
                 size = None
         else:
-            size = c.number(size, _key(key, "size"), "an edge length > 0 (or an array of one "
+            size = c.number(size, key_path(key, "size"), "an edge length > 0 (or an array of one "
                             "per coordinate)", lambda v: v > 0)
             if size is not None and gdim is not None:
                 size = [float(size)] * gdim
         origin = None
         if "origin" in d:
-            origin = c.vector(d["origin"], _key(key, "origin"), gdim)
+            origin = c.vector(d["origin"], key_path(key, "origin"), gdim)
             if origin is None:
                 return None, gluing
         if size is None or mesh is None:
@@ -1217,7 +696,7 @@ class _Reader:
         origin = lo if origin is None else np.asarray(origin)
         boxes = np.prod(np.maximum(np.ceil((hi - np.minimum(origin, lo)) / size), 1.0))
         if boxes > mesh.cells.shape[0]:
-            c.fault(_key(key, "size"), f"a grid of {boxes:.0f} boxes of size {size} is finer "
+            c.fault(key_path(key, "size"), f"a grid of {boxes:.0f} boxes of size {size} is finer "
                     f"than the mesh ({mesh.cells.shape[0]} cells): expected a larger size")
             return None, gluing
         return ByFunction(GridLabels(tuple(size), tuple(float(v) for v in origin))), gluing
@@ -1231,14 +710,14 @@ class _Reader:
         for k, v in s.items():
             if k not in DECLARED:
                 continue
-            key = _key("solver", k)
+            key = key_path("solver", k)
             if kind(k) == "int":
                 v = c.number(v, key, "an integer", integer=True)
             elif kind(k) == "float":
                 v = c.number(v, key, "a number")
             elif kind(k) == "bool":
                 if not isinstance(v, bool):
-                    c.fault(key, f"expected true or false, got {_describe(v)}")
+                    c.fault(key, f"expected true or false, got {describe(v)}")
                     v = None
             else:
                 v = c.string(v, key)
@@ -1298,11 +777,11 @@ class _Reader:
         c, key = self.c, "loading.values"
         if not isinstance(v, dict):
             c.fault(key, f"expected a table {{ <dirichlet group> = [[...], ...] }}, got "
-                    f"{_describe(v)}")
+                    f"{describe(v)}")
             return None
         out, good = {}, True
         for group, rows in v.items():
-            gkey = _key(key, group)
+            gkey = key_path(key, group)
             conds = [d for d in dirichlet if d.group == group]
             if not conds:
                 c.fault(gkey, f"not the group of a [[dirichlet]] condition (those are "
@@ -1311,11 +790,11 @@ class _Reader:
                 continue
             n = {len(d.components) if d.components is not None else value_size for d in conds}
             if not isinstance(rows, list) or not rows:
-                c.fault(gkey, f"expected an array of one value per step, got {_describe(rows)}")
+                c.fault(gkey, f"expected an array of one value per step, got {describe(rows)}")
                 good = False
                 continue
-            vals = [c.vector(r, _key(gkey, i), None) if isinstance(r, list) else
-                    c.number(r, _key(gkey, i), "a number or an array of one per component")
+            vals = [c.vector(r, key_path(gkey, i), None) if isinstance(r, list) else
+                    c.number(r, key_path(gkey, i), "a number or an array of one per component")
                     for i, r in enumerate(rows)]
             if any(x is None for x in vals):
                 good = False
@@ -1323,7 +802,7 @@ class _Reader:
             bad = [i for i, x in enumerate(vals) if isinstance(x, list)
                    and len(x) != 1 and len(x) not in n]
             if bad:
-                c.fault(_key(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
+                c.fault(key_path(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
                         f"constrained component), got {len(vals[bad[0]])}")
                 good = False
                 continue
@@ -1348,10 +827,11 @@ class _Reader:
             if v is False or v is None:
                 return None
             if not isinstance(v, str) or not v:
-                c.fault(_key("output", k), f"expected a file name or false, got {_describe(v)}")
+                c.fault(key_path("output", k), f"expected a file name or false, got {describe(v)}")
                 return None
             if suffix is not None and not v.endswith(suffix):
-                c.fault(_key("output", k), f"expected a file name ending in {suffix}, got {v!r}")
+                c.fault(key_path("output", k), f"expected a file name ending in {suffix}, got "
+                        f"{v!r}")
                 return None
             return directory / v
 
@@ -1364,7 +844,7 @@ class _Reader:
             if h is not False:
                 if not isinstance(h, str) or not h.endswith(".json"):
                     c.fault("loading.history", "expected a file name ending in .json or false, "
-                            f"got {_describe(h)}")
+                            f"got {describe(h)}")
                 else:
                     history = directory / h
         plot = None
@@ -1392,8 +872,8 @@ class _Reader:
             return None
         file = p.get("file", f"{stem}_pressure.png")
         if not isinstance(file, str) or not file.endswith(".png"):
-            c.fault(_key(key, "file"), f"expected a file name ending in .png, got "
-                    f"{_describe(file)}")
+            c.fault(key_path(key, "file"), f"expected a file name ending in .png, got "
+                    f"{describe(file)}")
             return None
         specs = self.data.get("contact")
         surfaces = []
@@ -1406,13 +886,13 @@ class _Reader:
             return None
         surface = p.get("surface", surfaces[0])
         if surface not in surfaces:
-            c.fault(_key(key, "surface"), f"expected the slave or obstacle group of a contact "
-                    f"condition, one of {surfaces}, got {_describe(surface)}")
+            c.fault(key_path(key, "surface"), f"expected the slave or obstacle group of a contact "
+                    f"condition, one of {surfaces}, got {describe(surface)}")
             return None
         index = surfaces.index(surface)
         along = None
         if "along" in p:
-            along = c.string(p["along"], _key(key, "along"), _ALONG)
+            along = c.string(p["along"], key_path(key, "along"), ALONG)
             if along is None:
                 return None
         if mesh is not None and isinstance(surface, str) and surface in mesh.facet_groups:
@@ -1424,23 +904,12 @@ class _Reader:
                 try:
                     surface_arclength(mesh, surface)
                 except InputError as e:
-                    c.fault(_key(key, "along"), str(e))
+                    c.fault(key_path(key, "along"), str(e))
                     return None
             elif "xyz".index(along) >= mesh.gdim:
-                c.fault(_key(key, "along"), f"the mesh is {mesh.gdim}D: expected one of "
+                c.fault(key_path(key, "along"), f"the mesh is {mesh.gdim}D: expected one of "
                         f"{list('xyz'[:mesh.gdim]) + ['arclength']}, got {along!r}")
                 return None
         if len(contact) != len(surfaces):  # a faulty contact entry: nothing to map
             return None
         return PlotSpec(directory / file, index, surface, along or "x")
-
-
-def _bodies_of(mesh: MeshData, group: str) -> set[int]:
-    """The bodies with a cell that touches a node of the group."""
-    nodes = np.unique(mesh.facet_groups[group])
-    return set(np.unique(mesh.cell_body[np.isin(mesh.cells, nodes).any(axis=1)]).tolist())
-
-
-__all__ = ["AffineTraction", "Fault", "FilePoisson", "GridLabels", "OutputSpec", "PlotSpec",
-           "ProblemFile", "ProblemFileError", "SourceBox", "check_command_line", "generators",
-           "load"]

@@ -1,18 +1,17 @@
 """What a user describes: the contact problem and its conditions.
 
-:mod:`.changes` says what may change between load cases of one set-up.
+:mod:`.contact_problem` holds :class:`ContactProblem`; :mod:`.conditions` the condition
+classes, one module each; :mod:`.changes` says what may change between load cases of one
+set-up.
 """
 
-from .contact_problem import (
-    ByFunction,
-    ByTags,
-    ContactProblem,
+from ..mesh.decompose import ByFunction, ByTags, Parts
+from .conditions import (
     Coulomb,
     Cylinder,
     Dirichlet,
     Mortar,
     NodeToNode,
-    Parts,
     Plane,
     RigidObstacle,
     SignedDistance,
@@ -20,6 +19,7 @@ from .contact_problem import (
     Tie,
     Tresca,
 )
+from .contact_problem import ContactProblem
 
 __all__ = ["ByFunction", "ByTags", "ContactProblem", "Coulomb", "Cylinder", "Dirichlet",
            "Mortar", "NodeToNode", "Parts", "Plane", "RigidObstacle", "SignedDistance",

@@ -14,7 +14,8 @@ from mpi4py import MPI
 
 from ..errors import InputError, collective
 from ..mesh.decompose import ByFunction
-from .contact_problem import ContactProblem, Dirichlet
+from .conditions import Dirichlet
+from .contact_problem import ContactProblem
 
 
 def _dirichlet_key(bc: Dirichlet) -> tuple:

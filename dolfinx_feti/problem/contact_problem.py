@@ -1,10 +1,12 @@
-"""What a user describes: the mesh, the forms, Dirichlet conditions, contact, the decomposition."""
+"""What a user describes: :class:`ContactProblem` and its checks.
+
+The mesh, the forms, the conditions (their classes in :mod:`.conditions`), the decomposition.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from typing import Protocol
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,416 +22,13 @@ from ..mesh.data import MeshData
 from ..mesh.decompose import ByFunction, ByTags, Parts
 from ..mesh.dofpoints import facet_weights
 from ..mesh.mixed import MixedMesh
-from ..validation import (
-    Choice,
-    Either,
-    Function,
-    Instance,
-    Integer,
-    Maybe,
-    Real,
-    SequenceOf,
-    Text,
-    Vector,
-    checked,
-)
-
-_POINT_FUNCTION = "a function of the node coordinates x (n, gdim)"
-
-
-@dataclass(frozen=True)
-@checked(group=Text(),
-         value=Either(Real(), Vector(), Function(),
-                      what=f"a finite number, one per component, or {_POINT_FUNCTION}"),
-         components=Maybe(SequenceOf(Integer(ge=0), unique=True, nonempty=True)))
-class Dirichlet:
-    """Prescribed values on a boundary group.
-
-    Args:
-        group: Name of the boundary physical group.
-        value: A number, one number per component, or ``value(x) -> (n, ncomp)`` of the node
-            coordinates ``x`` (n, gdim).
-        components: The constrained components (e.g. ``(0,)`` for a symmetry plane normal to x);
-            all components when ``None``.
-    """
-
-    group: str
-    value: float | Sequence[float] | Callable[[np.ndarray], np.ndarray] = 0.0
-    components: Sequence[int] | None = None
-
-
-@dataclass(frozen=True)
-@checked(bound=Either(Real(ge=0, inf=True), Function(),
-                      what=f"a slip bound: a number >= 0, inf (no slip) or {_POINT_FUNCTION}"))
-class Tresca:
-    """Given (Tresca) friction: the tangential traction is bounded by the slip bound ``g``.
-
-    At each contact node the tangential nodal force satisfies |λ_T| <= g(x)·A with A the
-    node's lumped area (length in 2D) on the slave surface: the node sticks (no relative
-    tangential displacement) while |λ_T| < g(x)·A and slips against the friction force when
-    |λ_T| = g(x)·A. In 2D this is a box on one tangential multiplier, in 3D a disc on two.
-
-    Args:
-        bound: The slip bound g >= 0, a traction (force per unit area, per unit length in
-            2D): a number, ``numpy.inf`` (no slip: the tangential rows become equalities) or
-            ``bound(x) -> (n,)`` of the node coordinates ``x`` (n, gdim).
-    """
-
-    bound: float | Callable[[np.ndarray], np.ndarray]
-
-    def key(self) -> tuple:
-        """What the friction rows' values depend on (a set-up's update compares it)."""
-        return "tresca", self.bound if callable(self.bound) else float(self.bound)
-
-    def fixed_point(self) -> None:
-        """Tresca is solved by one QP: no fixed point."""
-        return None
-
-
-@dataclass(frozen=True)
-@checked(coefficient=Real(ge=0), rtol=Real(gt=0, lt=1), max_steps=Integer(ge=1, le=10**6))
-class Coulomb:
-    """Coulomb friction, solved by a fixed point on Tresca problems.
-
-    The slip bound of each contact node is 𝓕 times its normal nodal force: g_i = 𝓕 λ_N,i.
-    Each fixed-point step solves a Tresca problem (warm-started from the previous step) with
-    the bound taken from the previous normal forces; the first step uses g = ∞ (no slip). The
-    iteration stops when max_i |g_i − 𝓕 λ_N,i| <= rtol max_i λ_N,i over all Coulomb nodes
-    (the Coulomb residual of the iterate, in physical units; the inner solves' accuracy
-    follows it, docs/friction.md) or after ``max_steps`` steps (then the report says not
-    converged). With several Coulomb pairs the smallest ``rtol`` and the largest
-    ``max_steps`` apply.
-
-    Args:
-        coefficient: The friction coefficient 𝓕 >= 0.
-        rtol: The Coulomb residual max|g − 𝓕 λ_N| / max λ_N that ends the fixed point.
-        max_steps: Budget of fixed-point steps (Tresca solves).
-    """
-
-    coefficient: float
-    rtol: float = 1e-6
-    max_steps: int = 50
-
-    def key(self) -> tuple:
-        """What the friction rows' values depend on (a set-up's update compares it)."""
-        return "coulomb", float(self.coefficient), float(self.rtol), int(self.max_steps)
-
-    def fixed_point(self) -> tuple[float, int]:
-        """The fixed point's stopping residual and budget of steps."""
-        return float(self.rtol), int(self.max_steps)
-
-
-Friction = Tresca | Coulomb
-_FRICTION = Maybe(Instance(Tresca, Coulomb))
-
-
-@dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), gap=Maybe(Real()), match_tol=Real(gt=0, lt=1),
-         friction=_FRICTION)
-class NodeToNode:
-    """Contact of two surfaces of different bodies with matching nodes.
-
-    Each node of the ``slave`` surface is paired with the master node at the same position
-    along the master surface (up to the initial gap along the master's normal). The normal is
-    the master's outward normal n; the condition at a pair is (u_slave − u_master)·n >= −gap,
-    with gap = (x_slave − x_master)·n from the geometry unless ``gap`` is given. For a scalar
-    problem the condition is u_slave − u_master <= gap (gap 0 by default).
-
-    Args:
-        slave: Boundary group of the slave side.
-        master: Boundary group of the master side.
-        gap: Override of the initial gap (a number for every pair).
-        match_tol: Pairing tolerance relative to the mean edge length of the slave surface,
-            in (0, 1). On a curved (second-order) mesh the edge nodes of the two sides are
-            placed by the mesher independently (on an arc at its mid-angle, on a segment at
-            its midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
-        friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
-            slip is the tangential part of u_slave − u_master.
-    """
-
-    slave: str
-    master: str
-    gap: float | None = None
-    match_tol: float = 1e-4
-    friction: Friction | None = None
-
-    #: Whether the rows come from the mortar search (and the report checks them after).
-    mortar = False
-    #: Two surfaces of different bodies (one group with itself is refused: :meth:`check`).
-    self_contact = False
-
-    @property
-    def group(self) -> str:
-        """The surface whose nodes carry the rows (the slave)."""
-        return self.slave
-
-    @property
-    def groups(self) -> tuple[str, ...]:
-        """The boundary groups the condition reads."""
-        return self.slave, self.master
-
-    def check(self, problem: ContactProblem) -> None:
-        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
-        problem.mesh.facets(self.slave)
-        problem.mesh.facets(self.master)
-        if self.slave == self.master:
-            raise InputError(f"contact pair {self.slave!r} with itself")
-        if self.gap is not None and not np.isfinite(self.gap):
-            raise InputError(f"contact pair {self.slave!r}/{self.master!r}: gap is not finite")
-
-    def structure_key(self) -> tuple:
-        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
-        return _structure_key(self)
-
-
-@dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)), friction=_FRICTION,
-         normals=Choice("slave", "flatter"))
-class Mortar:
-    """Contact of two surfaces of different bodies with independent (non-matching) meshes.
-
-    Segment-to-segment mortar with dual Lagrange multipliers on the slave side: one
-    non-penetration row and one bound λ_j >= 0 per slave node j, coupling it to the master
-    surface through the integrals of the slave's dual basis against the master's shape
-    functions over the overlap of each slave facet with the master facets projected onto it
-    (see :mod:`dolfinx_feti.constraints.mortar`). The normal at a slave node is the average of
-    its facets' normals; the initial gap comes from the geometry (weighted). Degree 1 on
-    triangles, tetrahedra, quadrilaterals and hexahedra (warped bilinear facets included);
-    degree 2 in 2D (3-node segments, straight or curved: rows at vertices and edge points) and
-    on first-order tetrahedra (6-node triangles, the slave side in the transformed basis of
-    positive weights of Popp, Wohlmuth, Gee and Wall 2012) and hexahedra (9-node
-    quadrilaterals, whose functions have positive weights already).
-
-    The two groups may be whole candidate surfaces, much larger than the contact zone: pairs
-    of facets are searched automatically; slave nodes with no master facet within
-    ``search_distance`` get no row (the report says how many), and after the solve every node
-    of both surfaces is checked against the other surface (the report warns about a
-    penetration, or about an active row on the rim of a candidate surface). Take as slave the
-    surface with the finer mesh, or the smaller one.
-
-    **Self-contact**: ``Mortar(slave=g, master=g)`` with one boundary group ``g`` (a body
-    touching itself: a C-clip closing, a folding strip). The search then leaves out each
-    facet's own neighbourhood (the facets sharing a vertex with it) and the facets that do not
-    face it from the outside (the two sides of a thin wall), and keeps each pair of zones
-    that face each other once: the zone first in the group's facet order is the slave
-    (:mod:`dolfinx_feti.constraints.self_contact`). The rows, friction and the report are
-    those of two surfaces; the report's penetration check runs on the zones paired before
-    and after the deformation.
-
-    Args:
-        slave: Boundary group of the slave side.
-        master: Boundary group of the master side.
-        friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`; the slip is
-            the tangential part of u_slave − Σ_k w_k u_k (the weighted master point).
-        search_distance: How far apart two facets may be (along the slave normal, either
-            side) and still be coupled; by default twice the larger mean facet size of the
-            two surfaces, and at least 5 % of the slave surface's extent.
-        normals: The direction of each row: ``"slave"`` (the slave's averaged normal, the
-            usual choice) or ``"flatter"`` (per slave node the normal of whichever surface
-            bends less there, :mod:`dolfinx_feti.constraints.mortar_normals`): use it where
-            the slave has kinks or fillets in the contact zone and the master is flat (a
-            filleted punch as slave on a block), so that the normal forces carry no
-            tangential load and the friction forces sum to the applied shear.
-    """
-
-    slave: str
-    master: str
-    friction: Friction | None = None
-    search_distance: float | None = None
-    normals: str = "slave"
-
-    #: Whether the rows come from the mortar search (and the report checks them after).
-    mortar = True
-
-    @property
-    def group(self) -> str:
-        """The surface whose nodes carry the rows (the slave)."""
-        return self.slave
-
-    @property
-    def groups(self) -> tuple[str, ...]:
-        """The boundary groups the condition reads."""
-        return self.slave, self.master
-
-    @property
-    def self_contact(self) -> bool:
-        """Whether a body touches itself (one group on both sides)."""
-        return self.slave == self.master
-
-    def check(self, problem: ContactProblem) -> None:
-        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
-        _check_pair(problem.mesh, "mortar contact", self)
-
-    def structure_key(self) -> tuple:
-        """What a set-up depends on (:mod:`.changes`): the condition, friction or not."""
-        return _structure_key(self)
-
-
-@dataclass(frozen=True)
-@checked(slave=Text(), master=Text(), search_distance=Maybe(Real(gt=0)))
-class Tie:
-    """Gluing of two surfaces with independent (non-matching) meshes by mortar equality rows.
-
-    For pieces of a body (or of several bodies) meshed on their own, e.g. gmsh volumes that
-    were not fragmented, or stiff inclusions meshed apart from the matrix: at each slave node
-    u_slave = Σ_k w_k u_k (the same dual-basis weights as :class:`Mortar`), per component.
-
-    Args:
-        slave: Boundary group of the slave side (preferably the finer mesh).
-        master: Boundary group of the master side.
-        search_distance: As for :class:`Mortar`.
-    """
-
-    slave: str
-    master: str
-    search_distance: float | None = None
-
-    #: Whether the rows come from the mortar search (and the report checks them after).
-    mortar = True
-    #: A tie glues two surfaces: it has no friction.
-    friction = None
-    #: One group with itself is refused (:meth:`check`).
-    self_contact = False
-
-    @property
-    def groups(self) -> tuple[str, ...]:
-        """The boundary groups the condition reads."""
-        return self.slave, self.master
-
-    def check(self, problem: ContactProblem) -> None:
-        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
-        if self.slave == self.master:
-            problem.mesh.facets(self.slave)
-            raise InputError(f"tie {self.slave!r} with itself")
-        _check_pair(problem.mesh, "tie", self)
-
-    def structure_key(self) -> tuple:
-        """What a set-up depends on (:mod:`.changes`): the condition itself."""
-        return _structure_key(self)
-
-
-class Obstacle(Protocol):
-    """A rigid obstacle as a signed distance: positive outside the obstacle."""
-
-    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Signed distance φ(x) and its gradient at the points ``x`` (n, gdim)."""
-
-
-@dataclass(frozen=True)
-@checked(point=Vector(), normal=Vector(nonzero=True))
-class Plane:
-    """The half-space {(x − point)·normal <= 0}; ``normal`` points out of the obstacle.
-
-    ``point`` and ``normal`` have one coordinate per dimension of the mesh.
-    """
-
-    point: Sequence[float]
-    normal: Sequence[float]
-
-    def coordinates(self) -> dict[str, Sequence[float]]:
-        """The vectors that need one coordinate per dimension of the mesh."""
-        return {"point": self.point, "normal": self.normal}
-
-    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        n = np.asarray(self.normal, dtype=float)
-        n = n / np.linalg.norm(n)
-        p = np.asarray(self.point, dtype=float)
-        return (x - p) @ n, np.broadcast_to(n, x.shape).copy()
-
-
-@dataclass(frozen=True)
-@checked(center=Vector(), radius=Real(gt=0))
-class Sphere:
-    """A rigid ball (a disc in 2D) of radius ``radius`` centred at ``center``."""
-
-    center: Sequence[float]
-    radius: float
-
-    def coordinates(self) -> dict[str, Sequence[float]]:
-        """The vectors that need one coordinate per dimension of the mesh."""
-        return {"center": self.center}
-
-    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        d = x - np.asarray(self.center, dtype=float)
-        r = np.linalg.norm(d, axis=1)
-        return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
-
-
-@dataclass(frozen=True)
-@checked(point=Vector(3), axis=Vector(3, nonzero=True), radius=Real(gt=0))
-class Cylinder:
-    """A rigid infinite cylinder (3D) with an axis through ``point`` along ``axis``."""
-
-    point: Sequence[float]
-    axis: Sequence[float]
-    radius: float
-
-    def coordinates(self) -> dict[str, Sequence[float]]:
-        """The vectors that need one coordinate per dimension of the mesh."""
-        return {"point": self.point, "axis": self.axis}
-
-    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        a = np.asarray(self.axis, dtype=float)
-        a = a / np.linalg.norm(a)
-        d = x - np.asarray(self.point, dtype=float)
-        d = d - np.outer(d @ a, a)
-        r = np.linalg.norm(d, axis=1)
-        return r - self.radius, d / np.maximum(r, 1e-300)[:, None]
-
-
-@dataclass(frozen=True)
-@checked(fn=Function(f"{_POINT_FUNCTION} returning (phi (n,), grad (n, gdim))"))
-class SignedDistance:
-    """A rigid obstacle given by a user signed distance ``fn(x) -> (phi, grad)``."""
-
-    fn: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
-
-    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
-        return self.fn(x)
-
-
-@dataclass(frozen=True)
-@checked(group=Text(), obstacle=Instance(methods=("distance",), what="an obstacle (Plane, "
-                                         "Sphere, Cylinder, SignedDistance)"),
-         friction=_FRICTION)
-class RigidObstacle:
-    """Contact of a body's boundary group with a rigid obstacle.
-
-    The condition at each node is φ(x + u) >= 0, linearized: ∇φ(x)·u >= −φ(x). Nodes that
-    start inside the obstacle (φ < 0) are pushed out: an initial penetration is honoured.
-    ``friction`` (``None``, :class:`Tresca` or :class:`Coulomb`) acts on the tangential part
-    of u (the obstacle does not move).
-    """
-
-    group: str
-    obstacle: Obstacle
-    friction: Friction | None = None
-
-    #: Whether the rows come from the mortar search (and the report checks them after).
-    mortar = False
-    #: A body against an obstacle, not against itself.
-    self_contact = False
-
-    @property
-    def groups(self) -> tuple[str, ...]:
-        """The boundary groups the condition reads."""
-        return (self.group,)
-
-    def check(self, problem: ContactProblem) -> None:
-        """Refuse, by name, what this condition cannot take on ``problem``'s mesh."""
-        problem.mesh.facets(self.group)
-        if problem.value_size == 1:
-            raise InputError("rigid obstacles need a vector (elasticity) problem")
-
-    def structure_key(self) -> tuple:
-        """What a set-up depends on (:mod:`.changes`).
-
-        Not the obstacle's position, nor the friction values: only the obstacle's kind and
-        whether there is friction.
-        """
-        return (type(self).__name__, self.group, type(self.obstacle).__name__,
-                self.friction is not None)
-
+from ..validation import Choice, Function, Instance, Integer, Maybe, SequenceOf, checked
+from .conditions.dirichlet import Dirichlet
+from .conditions.friction import FRICTION
+from .conditions.mortar import Mortar
+from .conditions.node_to_node import NodeToNode
+from .conditions.rigid_obstacle import RigidObstacle
+from .conditions.tie import Tie
 
 #: The contact conditions; each has ``group``, the surface whose nodes carry its rows.
 Contact = NodeToNode | Mortar | RigidObstacle
@@ -522,15 +121,15 @@ class ContactProblem:
                 raise InputError(f"Dirichlet on {bc.group!r}: components {list(comps)} out of "
                                  f"range for a problem with {self.value_size} component(s)")
         for t in self.ties:
-            if not isinstance(t, Tie):
+            if getattr(t, "role", None) != "tie":
                 raise InputError(f"ties must be df.Tie conditions, got {t!r}")
             t.check(self)
         for c in self.contact:
-            if isinstance(c, Tie) or not callable(getattr(c, "check", None)):
+            if getattr(c, "role", None) != "contact" or not callable(getattr(c, "check", None)):
                 raise InputError(f"unknown contact condition {c!r}")
             c.check(self)
             fr = c.friction
-            if fr is not None and not isinstance(fr, (Tresca, Coulomb)):
+            if not FRICTION.ok(fr)[0]:
                 raise InputError(f"friction must be None, df.Tresca or df.Coulomb, got {fr!r}")
             if fr is not None and self.value_size == 1:
                 raise InputError("friction needs a vector (elasticity) problem")
@@ -589,29 +188,6 @@ def _degree(degree, forms, default: int) -> int:
     return int(degree)
 
 
-def _structure_key(c) -> tuple:
-    """A pair condition's part of the set-up's structure.
-
-    Itself without its friction values (whether there is friction counts).
-    """
-    fr = getattr(c, "friction", None) is not None
-    return type(c).__name__, replace(c, friction=None) if fr else c, fr
-
-
-def _check_pair(mesh: MeshData, what: str, c: Mortar | Tie) -> None:
-    """The groups of a mortar condition exist, the search distance is sane.
-
-    One group with itself is self-contact (:class:`Mortar` only; a tie is refused).
-    """
-    mesh.facets(c.slave)
-    mesh.facets(c.master)
-    if mesh.tdim != mesh.gdim:
-        raise InputError(f"{what}: mortar needs a mesh of full dimension (tdim = gdim)")
-    d = c.search_distance
-    if d is not None and not (isinstance(d, (int, float)) and np.isfinite(d) and d > 0):
-        raise InputError(f"{what} {c.slave!r}/{c.master!r}: search_distance must be a finite "
-                         f"number > 0, got {d!r}")
-
 
 def _check_distinct_surfaces(mesh: MeshData, pairs) -> None:
     """The two groups of a pair are two surfaces, not one surface under two names.
@@ -625,7 +201,7 @@ def _check_distinct_surfaces(mesh: MeshData, pairs) -> None:
         a = np.unique(np.sort(mesh.facets(c.groups[0]), axis=1), axis=0)
         b = np.unique(np.sort(mesh.facets(c.groups[1]), axis=1), axis=0)
         if a.shape == b.shape and np.array_equal(a, b):
-            kind = "tie" if isinstance(c, Tie) else "contact pair"
+            kind = "tie" if c.role == "tie" else "contact pair"
             raise InputError(f"{kind} {c.slave!r} (slave) / {c.master!r} (master): the two "
                              f"groups hold the same {a.shape[0]} facets (one surface under two "
                              "names); an interface needs the surfaces of its two sides")

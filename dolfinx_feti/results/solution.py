@@ -16,7 +16,8 @@ from ..constraints.mortar_rows import self_contact_areas
 from ..constraints.rows import Kind
 from ..drivers.kkt_stop import kkt_residuals
 from ..feti.system import BlockSystem
-from ..problem.contact_problem import ContactProblem, RigidObstacle
+from ..problem.conditions import RigidObstacle
+from ..problem.contact_problem import ContactProblem
 from ..setup.share import RankShare
 from .report import Report
 

@@ -85,6 +85,18 @@ def test_more_subdomains_spread_over_the_ranks(method):
     assert np.abs(sol.forces(0)["pressure"] - P).max() < 1e-10
 
 
+def test_summary_has_the_dual_residuals():
+    """The report's ||g^P||/||b|| and ||Gλ − e|| are filled (they printed nan): the projected
+    gradient within the dual stopping test's rtol, the equality Gλ = e to round-off."""
+    problem = _patch_problem(3, "lower", False, df.Parts(2))
+    sol = df.solve(problem, method="tfeti", stop_test="dual", rtol=1e-9)
+    r = sol.report
+    assert r.converged
+    assert 0.0 <= r.gP_rel <= 1e-9, r.gP_rel
+    assert 0.0 <= r.G_lambda < 1e-10, r.G_lambda
+    assert "nan" not in r.summary(), r.summary()
+
+
 def test_one_function_per_mesh(tmp_path_factory):
     """The displacement as a DOLFINx Function on each mesh, equal to the nodal values."""
     problem = _patch_problem(2, "lower", True)

@@ -25,6 +25,7 @@ import dolfinx_feti as df
 from dolfinx_feti import compat
 from dolfinx_feti.cli import main
 from dolfinx_feti.io import problemfile as pfile
+from dolfinx_feti.io import schema
 from dolfinx_feti.results.postprocess import surface_arclength, von_mises
 
 
@@ -367,12 +368,12 @@ def test_arclength_along_the_disk():
 
 
 def test_docs_reference_lists_every_key():
+    """The tables other than the conditions' (those: tests/io/test_problemfile_schema.py)."""
     docs = (ROOT / "docs" / "index.md").read_text()
     ref = docs[docs.index("## Problem file reference"):]
-    keys = set(pfile.TOP_KEYS) | set(pfile.BOX_KEYS) | set(pfile.DIRICHLET_KEYS) | \
-        set(pfile.OUTPUT_KEYS) | set(pfile.PLOT_KEYS) | set(pfile.AFFINE_KEYS) | set(pfile.TIE_KEYS)
-    for table in (pfile.MODEL_KEYS, pfile.CONTACT_KEYS, pfile.OBSTACLE_KEYS,
-                  pfile.DECOMPOSITION_KEYS, pfile.FRICTION_KEYS):
+    keys = set(schema.TOP_KEYS) | set(schema.BOX_KEYS) | set(schema.OUTPUT_KEYS) | \
+        set(schema.PLOT_KEYS) | set(schema.AFFINE_KEYS)
+    for table in (schema.MODEL_KEYS, schema.DECOMPOSITION_KEYS):
         for ks in table.values():
             keys |= set(ks)
     missing = sorted(k for k in keys if f"`{k}`" not in ref)
