@@ -106,13 +106,26 @@ def _signature(obj) -> str:
     return sig.removesuffix(" -> None").removesuffix(" -> 'None'")
 
 
+def _members(cls) -> dict:
+    """A class's members, with those of its bases from this package, nearest first.
+
+    Mixins such as the conditions' shared surface-pair part document their members here.
+    """
+    members: dict = {}
+    for base in cls.__mro__:
+        if base is cls or base.__module__.startswith("dolfinx_feti"):
+            for name, member in vars(base).items():
+                members.setdefault(name, member)
+    return members
+
+
 def describe(qualname: str, obj) -> list[str]:
     """Markdown for one public object."""
     lines = []
     if inspect.isclass(obj):
         lines.append(f"### class `{qualname}{_signature(obj)}`\n")
         lines.append(render_docstring(inspect.getdoc(obj)))
-        for name, member in sorted(vars(obj).items()):
+        for name, member in sorted(_members(obj).items()):
             if name.startswith("_") and name != "__call__":
                 continue
             if isinstance(member, property):
