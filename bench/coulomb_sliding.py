@@ -59,6 +59,8 @@ def main() -> None:
     parser.add_argument("--rho", type=float, default=None, help="SMALBE's smalbe_rho")
     parser.add_argument("--rho-growth", type=float, default=None,
                         help="SMALBE's smalbe_rho_growth (default: none, ρ fixed)")
+    parser.add_argument("--acceleration", default=None,
+                        help="SMALBE's smalbe_acceleration (default: the solver's)")
     parser.add_argument("--tresca", type=float, default=None,
                         help="Tresca bound (a traction) instead of Coulomb")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/coulomb_sliding.md")
@@ -82,7 +84,8 @@ def main() -> None:
             friction = df.Coulomb(MU) if args.tresca is None else df.Tresca(args.tresca)
             sol = df.solve(problem(mesh, ratio, half, args.parts, friction),
                            rtol=args.rtol, max_it=args.max_it, smalbe_rho=args.rho,
-                           smalbe_rho_growth=args.rho_growth, comm=comm)
+                           smalbe_rho_growth=args.rho_growth,
+                           smalbe_acceleration=args.acceleration, comm=comm)
             dt = time.perf_counter() - t0
             rep = sol.report
             fr = rep.extra["friction"]

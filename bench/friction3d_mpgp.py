@@ -5,8 +5,12 @@ frictionless solve, on the two stacked blocks of ``demos/demo_tresca3d.py`` (E =
 top displaced by (0.02, 0.01, −0.02), g = 0.0075, Parts(2) per block) for growing n.
 
 Run: ``python bench/friction3d_mpgp.py`` (``--help``). Writes
-``output/bench/friction3d_mpgp.md``. The MPGP variant is chosen by replacing SMALBE's inner
-solver class ``dolfinx_feti.qp.smalbe.INNER['mpgp']`` (SMALBE looks it up at each call).
+``output/bench/friction3d_mpgp.md``. The MPGP variant is chosen by replacing the class
+``MPGP`` that the FETI driver makes SMALBE's inner solver from
+(``dolfinx_feti.drivers.qp_solve.MPGP``, looked up at each solve). Each row checks that the
+variant reached the solver: the two friction columns must differ in their counts or the
+bench stops. (Until this check, the bench replaced ``dolfinx_feti.qp.smalbe.INNER['mpgp']``,
+which only the function form ``smalbe()`` reads: both columns were the default 'tangent'.)
 """
 
 from __future__ import annotations
@@ -23,8 +27,9 @@ from mpi4py import MPI
 import dolfinx_feti as df
 from dolfinx_feti.io import meshes
 
-# the module (dolfinx_feti.qp.smalbe as an attribute is the function of the same name)
-smalbe_module = importlib.import_module("dolfinx_feti.qp.smalbe")
+# the module that makes the FETI solve's QP solvers (imported by name: a package attribute
+# of the same name may be a function)
+qp_solve = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 
 ROOT = Path(__file__).resolve().parent.parent
 SHIFT = (0.02, 0.01, -0.02)
@@ -39,7 +44,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/friction3d_mpgp.md")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
-    plain = smalbe_module.INNER["mpgp"]
+    plain = qp_solve.MPGP
     lines = [f"3D blocks, Tresca g = {args.g}, Parts(2) per block, {comm.size} rank(s); "
              "F-multiplications (SMALBE outer iterations), seconds", "",
              "| n | contact nodes | rtol | frictionless | MPGP 'interior' | MPGP 'tangent' | "
@@ -47,11 +52,10 @@ def main() -> None:
     for n in (int(v) for v in args.n.split(",")):
         mesh = df.build_mesh(meshes.blocks3d, n=n, comm=comm)
         for rtol in (float(v) for v in args.rtol.split(",")):
-            cells = []
+            cells, counts = [], []
             for friction, face in ((None, None), (df.Tresca(args.g), "interior"),
                                    (df.Tresca(args.g), "tangent")):
-                smalbe_module.INNER["mpgp"] = plain if face is None else \
-                    functools.partial(plain, face=face)
+                qp_solve.MPGP = plain if face is None else functools.partial(plain, face=face)
                 problem = df.ContactProblem(
                     mesh, df.Elasticity(1.0, 0.3),
                     dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=SHIFT)],
@@ -61,12 +65,16 @@ def main() -> None:
                 t0 = time.perf_counter()
                 sol = df.solve(problem, comm=comm, rtol=rtol, max_it=50000)
                 r = sol.report
+                counts.append((r.hessian_mults, r.outer_iterations, r.iterations))
                 cells.append(f"{r.hessian_mults} ({r.outer_iterations}), "
                              f"{time.perf_counter() - t0:.2f} s"
                              + ("" if r.converged else " NOT CONVERGED"))
                 slipping = (np.mean(sol.contact.state == df.ContactData.SLIP)
                             if friction is not None else 0.0)
-            smalbe_module.INNER["mpgp"] = plain
+            qp_solve.MPGP = plain
+            if counts[1] == counts[2]:
+                raise RuntimeError("MPGP 'interior' and 'tangent' gave the same counts: the "
+                                   "variant did not reach the solver")
             lines.append(f"| {n} | {sol.contact.node.size} | {rtol:g} | " + " | ".join(cells)
                          + f" | {100 * slipping:.0f} % |")
             if comm.rank == 0:

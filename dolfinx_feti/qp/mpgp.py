@@ -138,9 +138,11 @@ class MPGP(QPSolver):
     module docstring); ``face='interior'`` is the algorithm as published.
 
     Hessian multiplications: 1 for the initial gradient (0 when ``g_valid``), 1 per CG step (2
-    when it turns disc pairs along their circles), 2 per expansion (3 when its first half turns
-    pairs; ``'optimal'`` skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` or
-    ``'bb'`` step costs a third), 1 per proportioning step, 3 per rejected turning step
+    when it turns disc pairs along their circles and the product with their pull-back onto the
+    circles cannot be deferred, ``mpgp_steps.DRIFT_RTOL``; 1 more before a stopping test is
+    passed with products deferred), 2 per expansion (3 when its first half turns pairs;
+    ``'optimal'`` skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` or ``'bb'``
+    step costs a third), 1 per proportioning step, 2–3 per rejected turning step
     (``counts['rejected']``) and its proportioning step, plus the norm estimate when neither
     ``alpha_bar`` nor ``norm_A`` is given.
 

@@ -41,6 +41,13 @@ CURVATURE_SCALE = 0.05
 # A step along the circles is rejected when it raises the energy by more than this times
 # Σ|x||g| (the round-off level of the energy differences).
 _ENERGY_NOISE = 64 * np.finfo(float).eps
+# A CG step that turns pairs moves x by x0 - t p plus the pull-back c onto the circles; g is
+# updated by -t A p and the product A c deferred while the deferred pull-backs d satisfy
+# ||A|| |d| <= DRIFT_RTOL ||g^P|| (a fresh gradient then, and always before a stopping test
+# is passed): one multiplication per such step instead of two. bench/coulomb_sliding.py, the
+# half punch at 0.9 𝓕N with SMALBE's Anderson acceleration: 3 588 → 2 093 F-multiplications
+# (0.01: 2 004, 0.5: 1 935).
+DRIFT_RTOL = 0.1
 
 
 class MPGPSolve:
@@ -90,13 +97,22 @@ class MPGPSolve:
         n = x.getLocalSize()
         self.rot = np.zeros(n, dtype=bool)  # disc entries turning along their circle
         self.curv = np.zeros(n)
+        # x − (the straight steps): the pull-backs onto the circles whose A-product g lacks
+        self.drift = np.zeros(n) if self.tangent else None
+        self.drift_norm = 0.0
+        self.gP = math.inf
 
     # --- the loop --------------------------------------------------------------------------
     def run(self) -> QPResult:
         """Iterate until a stopping test holds; the result."""
         while True:
             phi_a, phi2, beta2, gP, active = self.split()
+            self.gP = gP
             reason = self.stopping(gP)
+            if reason is not None and self.drift_norm > 0.0:
+                self.history.pop()  # tested again on the exact gradient
+                self.fresh_gradient()
+                continue
             if reason is not None:
                 break
             self.it += 1
@@ -247,28 +263,63 @@ class MPGPSolve:
         return None
 
     def turn(self, t: float) -> bool:
-        """A CG step that turns disc pairs along their circles: x <- P(x - t p), fresh gradient.
+        """A CG step that turns disc pairs along their circles: x <- P(x - t p).
 
-        Kept unless the energy increased: f(x1) - f(x0) = ½ (x1 - x0)ᵀ(g0 + g1) for a
-        quadratic, without the cancellation of f(x1) - f(x0); the rounding of x on the
-        circles, where g is large, moves f by ~ eps Σ|x||g|: tolerated. On rejection x and g
-        are restored.
+        The gradient follows as ``g - t A p``, the product with the pull-back onto the circles
+        (``c = x1 - (x0 - t p)``) deferred while the deferred products move g by at most
+        :data:`DRIFT_RTOL` ||g^P|| (:meth:`_defer`); else a fresh gradient. Kept unless the
+        energy increased: f(x1) - f(x0) = ½ (x1 - x0)ᵀ(g0 + g1) for a quadratic, without the
+        cancellation of f(x1) - f(x0); the rounding of x on the circles, where g is large,
+        moves f by ~ eps Σ|x||g|: tolerated. The deferred products err that difference by at
+        most ½ |x1 - x0| ||A|| (|d0| + |d1|) (d the pull-backs not yet multiplied): a step
+        the bound leaves in doubt is decided on a fresh gradient. On rejection x, g and the
+        deferred pull-backs are restored.
         """
         x, g = self.x, self.g
         x0, g0 = x.array_r.copy(), g.copy()
+        drift0 = None if self.drift is None else (self.drift.copy(), self.drift_norm)
         x.array[:] = self.S.step(x.array_r, self.p.array_r, t)
-        self.fresh_gradient()
-        xa, ga = x.array_r, g.array_r
-        df, noise = self.comm.allreduce(np.array([
-            0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
-            float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga))]))
-        if df <= _ENERGY_NOISE * noise:
-            g0.destroy()
-            return True
+        deferred = self.drift is not None and self._defer(x0, t)
+        if not deferred:
+            self.fresh_gradient()
+        n0 = 0.0 if drift0 is None else drift0[1]
+        while True:
+            xa, ga = x.array_r, g.array_r
+            df, noise, dx2 = self.comm.allreduce(np.array([
+                0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
+                float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga)),
+                float(np.dot(xa - x0, xa - x0))]))
+            n1 = 0.0 if self.drift is None else self.drift_norm
+            err = 0.5 * math.sqrt(dx2) * self.scale_A * (n0 + n1)
+            if df + err <= _ENERGY_NOISE * noise:
+                g0.destroy()
+                return True
+            if not deferred:
+                break
+            deferred = False  # in doubt: decide on the fresh gradient
+            self.fresh_gradient()
+        if drift0 is not None:  # g0 lacks the products of the pull-backs before this step
+            self.drift[:], self.drift_norm = drift0
         x.array[:] = x0
         g0.copy(g)
         g0.destroy()
         return False
+
+    def _defer(self, x0: np.ndarray, t: float) -> bool:
+        """``g -= t A p`` for a step that turned pairs, the pull-back's product deferred.
+
+        Returns False (nothing done) when the pull-backs not yet multiplied would move g by
+        more than :data:`DRIFT_RTOL` ||g^P|| (bounded by ||A|| times their norm).
+        """
+        c = self.x.array_r - (x0 - t * self.p.array_r)
+        d = self.drift + c
+        nd = math.sqrt(self.comm.allreduce(float(d @ d)))
+        if self.scale_A * nd > DRIFT_RTOL * self.gP:
+            return False
+        self.drift[:] = d
+        self.drift_norm = nd
+        self.g.axpy(-t, self.Ap)
+        return True
 
     # --- what the expansions are made of ---------------------------------------------------
     def energy(self) -> float:
@@ -279,6 +330,9 @@ class MPGPSolve:
         """``g = A x - b`` (one product)."""
         self.mult(self.x, self.g)
         self.g.axpy(-1.0, self.b)
+        if self.drift is not None:
+            self.drift[:] = 0.0
+            self.drift_norm = 0.0
 
     def half_step(self, t_f: float) -> None:
         """To the boundary along ``p``: ``x <- x - t_f p``, ``g <- g - t_f A p``."""

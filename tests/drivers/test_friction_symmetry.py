@@ -62,9 +62,10 @@ def frictionless_mults(half_mesh):
     return sol.report.hessian_mults
 
 
-def test_half_punch_coulomb_within_ten_frictionless(half_mesh, frictionless_mults):
-    """0.5·𝓕N on the half punch: ≤ 10× the frictionless F-mults (65× before the pinning)."""
-    sol = df.solve(punch_problem(half_mesh, 0.5, half=True), method="tfeti", max_it=20000)
+def solved_within_ten_frictionless(mesh, ratio: float, frictionless_mults: int):
+    """The half punch at ratio·𝓕N: converged within 10× the frictionless F-mults, the lateral
+    force ratio·𝓕N and Coulomb's conditions on the returned contact data."""
+    sol = df.solve(punch_problem(mesh, ratio, half=True), method="tfeti", max_it=20000)
     rep = sol.report
     assert rep.converged, rep.summary()
     assert rep.extra["friction"]["fixed_point_converged"]
@@ -72,15 +73,34 @@ def test_half_punch_coulomb_within_ten_frictionless(half_mesh, frictionless_mult
                                                           frictionless_mults)
     fx, _, N = sol.total_contact_force
     assert N > 0.95 * 0.5 * PRESSURE * np.pi  # half the punch's top
-    assert abs(fx + 0.5 * MU * N) <= 1e-6 * N
+    assert abs(fx + ratio * MU * N) <= 1e-6 * N
     v = coulomb_violations(sol, MU)
     assert max(v.values()) <= 1e-5, v
+    return sol
+
+
+def test_half_punch_coulomb_within_ten_frictionless(half_mesh, frictionless_mults):
+    """0.5·𝓕N on the half punch: ≤ 10× the frictionless F-mults (65× before the pinning)."""
+    sol = solved_within_ten_frictionless(half_mesh, 0.5, frictionless_mults)
     # on the plane the friction force lies in the plane
     c = sol.contact
     on = np.abs(c.x[:, 1]) <= 1e-10
     assert on.sum() >= 3
     assert np.abs(c.tangential_force[on, 1]).max() <= 1e-12 * np.abs(c.force).max()
     assert np.abs(c.tangential_force[on, 0]).max() > 0.0
+
+
+def test_half_punch_near_gross_sliding_within_ten_frictionless(half_mesh, frictionless_mults):
+    """0.9·𝓕N on the half punch: ≤ 10× the frictionless F-mults, Coulomb's conditions hold.
+
+    Before the deferred pull-back products of MPGP's turning steps and the 'aitken'
+    acceleration of SMALBE on discs: 4 668 F-multiplications (23×) on this mesh, and Anderson
+    acceleration did not converge in 20 000 iterations at 0.7 and 0.99·𝓕N when the curvature
+    scaling of MPGP was changed by 2 %; now 1 276 (6×).
+    """
+    sol = solved_within_ten_frictionless(half_mesh, 0.9, frictionless_mults)
+    assert (sol.contact.state == df.ContactData.SLIP).sum() > \
+        (sol.contact.state == df.ContactData.STICK).sum()  # mostly sliding
 
 
 def test_half_punch_slides_as_the_full_one():

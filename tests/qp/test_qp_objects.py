@@ -174,7 +174,10 @@ def test_smalbe_owns_an_mpgp_on_discs():
     radius = np.maximum(radius, np.linalg.norm(centre, axis=1) + 0.05)  # 0 is feasible
     radius[-1] = np.inf
     lb, ub = np.minimum(lb, 0.0), np.maximum(ub, 0.0)
-    solver = SMALBE(MPGP(face="tangent"), rtol=1e-10, acceleration="anderson")
+    # eq_rtol: ||D x|| <= eq_rtol ||b|| <= 1e-9 below for both scales (||b|| = 23.4, 46.9),
+    # by the stopping test and not by the path (the default eq_rtol = rtol left 2.6e-9 at
+    # scale -2 on two ranks once MPGP deferred the products of its pull-backs)
+    solver = SMALBE(MPGP(face="tangent"), rtol=1e-10, eq_rtol=2e-11, acceleration="anderson")
     for scale in (1.0, -2.0):  # two QPs, one solver
         bv = make_vec(scale * b)
         x = zeros_like(bv)
@@ -290,7 +293,7 @@ def _body_lines(fn: ast.FunctionDef) -> int:
 def test_solver_functions_are_short():
     """No function of the QP solvers is longer than 60 lines of code (docstrings aside)."""
     files = ["cg.py", "mpgp.py", "mpgp_steps.py", "expansion.py", "mprgp.py", "smalbe.py",
-             "solver.py", "problem.py", "anderson.py"]
+             "solver.py", "problem.py", "anderson.py", "aitken.py"]
     long = []
     for name in files:
         tree = ast.parse((QP_DIR / name).read_text())

@@ -57,7 +57,7 @@ DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "
             "factor": default_factor(), "mprgp_gamma": 1.0, "mprgp_expansion": "fixed",
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed", "preconditioner": "lumped",
-            "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "anderson",
+            "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "auto",
             "preconditioner_scaling": "stiffness",
             "smalbe_depth": 3, "smalbe_rho_growth": None, "smalbe_rho_max": 100.0,
             "error_if_not_converged": False, "method": "auto",
