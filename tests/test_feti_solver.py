@@ -174,6 +174,10 @@ def test_moving_circle_updates_rows(hertz_mesh, method):
     # ‖P F P‖ from the last Ritz vector: the fresh set-up's estimate, in fewer F-multiplications
     assert solver.qp.norm_A == pytest.approx(fresh.qp.norm_A, rel=3e-4)
     assert solver.qp.proj.norm_mults <= fresh.qp.proj.norm_mults - (method != "fetidp")
+    # another G̃: SMALBE's multiplier is the one the start implies, not the last one's
+    assert b.report.extra["warm_start_multiplier"] == \
+        ("estimate" if solver.qp.constraint.m else None)
+    assert b.report.hessian_mults < cold.report.hessian_mults
     fresh.destroy()
 
 
