@@ -329,7 +329,8 @@ class DualQP:
 def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
              dec=None, rows=None, info: dict | None = None,
-             dual_operator: str = "implicit", norm_guess: PETSc.Vec | None = None) -> DualQP:
+             dual_operator: str = "implicit", norm_guess: PETSc.Vec | None = None,
+             same_load: Dualization | None = None) -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 
     Args:
@@ -345,6 +346,8 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         info: Sizes of the method for the report.
         dual_operator: How F is applied (:class:`.dualize.Dualization`).
         norm_guess: Where the estimate of ``||P F P||`` starts (:class:`.homogenize.Project`).
+        same_load: The dualization of a chain of the same factors (other rows) whose K⁺f this
+            one takes where f is the same (:class:`.dualize.Dualization`).
     """
     timer = Timer() if timer is None else timer
     comm = total.comm
@@ -356,7 +359,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         with timer.phase("factorization"):
             system.factorize(factor, site="factorization")  # guarded inside (collective)
     with timer.phase("dual operators"):
-        feti = Dualization(system, dual_operator)
+        feti = Dualization(system, dual_operator, same_load=same_load)
     ineq = system.types == INEQUALITY
     with timer.phase("coarse problem"):
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))
