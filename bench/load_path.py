@@ -39,7 +39,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "peers"))
 import common as C  # noqa: E402  (bench/peers/common.py)
-from reuse import hertz2d, setup_time, sphere3d  # noqa: E402  (bench/reuse.py's cases)
+from reuse import SOLVE_PHASES, hertz2d, setup_time, sphere3d  # noqa: E402  (bench/reuse.py's cases)
 
 ROOT = HERE.parent
 R, P, F = 8.0, 10.0, 0.4
@@ -113,6 +113,8 @@ def main() -> None:
         warm = solver.solve()
         cold = reference.solve(x0="cold")  # the same step from the default start
         row = {"step": k, "load": float(s), "setup": setup_time(warm.report),
+               "setup_phases": {p: t for p, t in warm.report.timings.items()
+                                if p not in SOLVE_PHASES},
                "mults_warm": warm.report.hessian_mults, "mults_cold": cold.report.hessian_mults,
                "converged": bool(warm.report.converged and cold.report.converged)}
         fr = warm.report.extra.get("friction")

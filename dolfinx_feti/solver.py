@@ -371,7 +371,8 @@ class FetiSolver:
         if friction is not None and start is not None:
             friction.start_from(self._normal_force * scale if x0 is None and
                                 self._normal_force is not None else None)
-        mu = self._mu_start(scale, omega) if x0 is None and start is not None else None
+        mu, mu_kind = self._mu_start(scale, omega, start) if x0 is None and start is not None \
+            else (None, None)
         start_mults = qp.feti.hessian_mults - mults0
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
@@ -380,6 +381,7 @@ class FetiSolver:
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
+        report.extra["warm_start_multiplier"] = mu_kind
         if start is not None:
             start.destroy()
         self._remember(out)
@@ -427,14 +429,34 @@ class FetiSolver:
             lam.destroy()
         return x, scale, omega
 
-    def _mu_start(self, scale: float, omega: float | None) -> np.ndarray | None:
-        """SMALBE's multiplier of a warm start: the last one scaled, or by the secant."""
-        if self._mu is None:
-            return None
+    def _mu_start(self, scale: float, omega: float | None, start: PETSc.Vec
+                  ) -> tuple[np.ndarray | None, str | None]:
+        """SMALBE's multiplier of a warm start and how it was found.
+
+        ``"secant"``: the extrapolation of the last two multipliers, where the start is the
+        secant predictor (a load path from its third case); ``"scaled"``: the last one times
+        the load factor; after new rows (another G̃: no last μ), without friction,
+        ``"estimate"``: the least-squares multiplier the start implies
+        (:meth:`.DualQP.multiplier_estimate`, one F-multiplication), else None (SMALBE starts
+        from zero). The estimate is not taken where a last μ exists: it is exact at the
+        solution but only as good as the start's set of rows at the bound, and on a new load
+        of the 2D Hertz case it saved F-multiplications at rtol 1e-6 and 1e-10 and cost some
+        at 1e-8 (docs/benchmarks.md § 11).
+        """
         before = None if self._before is None else self._before[2]
-        if omega is None or before is None or before.shape != self._mu.shape:
-            return self._mu * scale
-        return self._mu + omega * (self._mu - before)
+        if omega is not None and self._mu is not None and before is not None and \
+                before.shape == self._mu.shape:
+            return self._mu + omega * (self._mu - before), "secant"
+        if self._mu is not None:
+            return self._mu * scale, "scaled"
+        if self.qp.friction is None and self._smalbe_runs():
+            return self.qp.multiplier_estimate(start), "estimate"
+        return None, None
+
+    def _smalbe_runs(self) -> bool:
+        """Whether the QP has a coarse space and inequality rows (SMALBE takes a multiplier)."""
+        qp = self.qp
+        return qp.constraint.m > 0 and self.comm.allreduce(int(qp.ineq.sum())) > 0
 
     def _remember(self, out) -> None:
         """Keep λ = λ̂ + x and SMALBE's multiplier of this solve as the next one's start.

@@ -15,6 +15,7 @@ import reference as ref
 from mpi4py import MPI
 
 import dolfinx_feti as df
+from dolfinx_feti.feti.system import BlockSystem
 
 RTOL = 1e-10
 TOL = 1e-6
@@ -158,13 +159,25 @@ def test_moving_plane_keeps_B(hertz_mesh, method):
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_moving_circle_updates_rows(hertz_mesh, method):
+def test_moving_circle_updates_rows(hertz_mesh, method, monkeypatch):
     def circle(dx, dy):
         return df.Sphere((dx, -40.0 + dy), 40.0)
 
     solver = df.FetiSolver(on_obstacle(hertz_mesh, circle(0.0, 0.0)), rtol=RTOL, method=method)
     solver.solve()
+    kplus = [0]
+    apply_kplus = BlockSystem.apply_kplus
+
+    def counted(system, x, y):
+        kplus[0] += 1
+        apply_kplus(system, x, y)
+
+    monkeypatch.setattr(BlockSystem, "apply_kplus", counted)
     solver.update(on_obstacle(hertz_mesh, circle(0.3, 0.001)))
+    monkeypatch.undo()
+    if method != "fetidp":  # (FETI-DP's K⁺ is its corner system's)
+        # the load is the same: K⁺f is kept; K⁺ only in ‖PFP‖'s estimate and in b
+        assert kplus[0] == solver.qp.proj.norm_mults + 1
     b = solver.solve()
     fresh = df.FetiSolver(on_obstacle(hertz_mesh, circle(0.3, 0.001)), rtol=RTOL, method=method)
     cold = fresh.solve()
@@ -174,6 +187,10 @@ def test_moving_circle_updates_rows(hertz_mesh, method):
     # ‖P F P‖ from the last Ritz vector: the fresh set-up's estimate, in fewer F-multiplications
     assert solver.qp.norm_A == pytest.approx(fresh.qp.norm_A, rel=3e-4)
     assert solver.qp.proj.norm_mults <= fresh.qp.proj.norm_mults - (method != "fetidp")
+    # another G̃: SMALBE's multiplier is the one the start implies, not the last one's
+    assert b.report.extra["warm_start_multiplier"] == \
+        ("estimate" if solver.qp.constraint.m else None)
+    assert b.report.hessian_mults < cold.report.hessian_mults
     fresh.destroy()
 
 

@@ -27,6 +27,7 @@ from ..validation import (
     check_arguments,
     per_body,
 )
+from . import load_literals
 
 #: What the helpers accept, checked when they are made (ranges per body in ``check(mesh)``).
 _NUMBER = per_body(Real(finite=False))
@@ -65,19 +66,34 @@ def scaled_form(L, factor: float, V):
     return L if L.empty() else compat.constant(compat.space_mesh(V), factor) * L
 
 
-def _load_key(kind: str, terms: list) -> tuple | None:
-    """The shape of a subdomain's loads: where each acts; None if one is a function of x.
+def _load_key(kind: str, terms: list, sub) -> tuple:
+    """The shape of a subdomain's loads: where each acts; a function of x by its structure.
 
-    A function of x may read state that changes between load cases: its form is built again.
+    A function of x is called on the subdomain's coordinate: its float literals become runtime
+    constants (:mod:`~dolfinx_feti.fem.load_literals`), so a new case whose function differs
+    in numbers only compiles nothing; one that reads other objects (a new Function) is
+    another structure and is compiled again.
     """
-    if any(callable(v) for _, v in terms):
-        return None
-    return kind, tuple(where for where, _ in terms)
+    return kind, tuple((where, load_literals.load_key(v, sub.mesh) if callable(v) else None)
+                       for where, v in terms)
 
 
-def _load_values(terms: list, load_factor: float) -> list:
+def _load_values(terms: list, load_factor: float, sub) -> list:
     """The runtime constants' values in the order the forms make them, the load factor last."""
-    return [np.asarray(v, dtype=float) for _, v in terms] + [load_factor]
+    values: list = []
+    for _, v in terms:
+        if callable(v):
+            values.extend(load_literals.load_values(v, sub.mesh))
+        else:
+            values.append(np.asarray(v, dtype=float))
+    return values + [load_factor]
+
+
+def _of_x(load: Callable, x, mesh):
+    """``load(x)`` with its float literals as runtime constants (:func:`_load_key`)."""
+    expr = load(x)
+    expr = ufl.as_vector(expr) if isinstance(expr, list | tuple) else ufl.as_ufl(expr)
+    return load_literals.with_constants(expr, load_literals.literals(expr), mesh)
 
 
 def _frozen(value):
@@ -168,11 +184,11 @@ class Elasticity:
 
     def load_key(self, sub) -> tuple | None:
         """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
-        return _load_key("Elasticity", self._loads(sub))
+        return _load_key("Elasticity", self._loads(sub), sub)
 
     def load_values(self, sub) -> list:
         """The values of the loads' runtime constants on ``sub``, in the order they are made."""
-        return _load_values(self._loads(sub), self.load_factor)
+        return _load_values(self._loads(sub), self.load_factor, sub)
 
     def check(self, mesh) -> None:
         """Validate the material data and the named groups against ``mesh``."""
@@ -237,8 +253,8 @@ class Elasticity:
         L = 0
         x = ufl.SpatialCoordinate(V.mesh)
         for where, t in self._loads(sub):
-            tv = t(x) if callable(t) else compat.constant(compat.space_mesh(V),
-                                                          [float(c) for c in t])
+            msh = compat.space_mesh(V)
+            tv = _of_x(t, x, msh) if callable(t) else compat.constant(msh, [float(c) for c in t])
             L += ufl.inner(tv, v) * (sub.dx() if where == "dx" else sub.ds(where))
         return a, scaled_form(L, self.load_factor, V)
 
@@ -278,11 +294,11 @@ class Poisson:
 
     def load_key(self, sub) -> tuple | None:
         """The shape of the loads on ``sub`` (see :mod:`~dolfinx_feti.fem.load_form`)."""
-        return _load_key("Poisson", self._loads(sub))
+        return _load_key("Poisson", self._loads(sub), sub)
 
     def load_values(self, sub) -> list:
         """The values of the loads' runtime constants on ``sub``, in the order they are made."""
-        return _load_values(self._loads(sub), self.load_factor)
+        return _load_values(self._loads(sub), self.load_factor, sub)
 
     def check(self, mesh) -> None:
         """Validate the data and the named groups against ``mesh``."""
@@ -310,12 +326,13 @@ class Poisson:
         x = ufl.SpatialCoordinate(V.mesh)
         a = sub.cellwise(self._k) * ufl.inner(ufl.grad(u), ufl.grad(v)) * sub.dx()
         msh = compat.space_mesh(V)
-        f = self.source(x) if callable(self.source) else \
+        f = _of_x(self.source, x, msh) if callable(self.source) else \
             compat.constant(msh, self.source) if self.source != 0 else 0.0
         L = f * v * sub.dx()
         for name, g in self.flux.items():
             if sub.has_facets(name):
-                L += (g(x) if callable(g) else compat.constant(msh, g)) * v * sub.ds(name)
+                L += (_of_x(g, x, msh) if callable(g) else compat.constant(msh, g)) * v * \
+                    sub.ds(name)
         return a, scaled_form(L, self.load_factor, V)
 
 

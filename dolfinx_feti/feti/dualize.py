@@ -91,7 +91,8 @@ class Dualization:
     """
 
     def __init__(self, primal, dual_operator: str = "implicit",
-                 expected_mults: float = EXPECTED_MULTS) -> None:
+                 expected_mults: float = EXPECTED_MULTS, same_load: Dualization | None = None
+                 ) -> None:
         self.primal = primal
         self.comm: MPI.Comm = primal.comm
         self.B, self.c, self.f = primal.B, primal.c, primal.f
@@ -119,19 +120,39 @@ class Dualization:
         self.Gt_local = sp.csr_matrix((data, indices, indptr), shape=(self.dual_size[0], m))
         Gt.destroy()
         Rmat.destroy()
-        self.e, self.d = self._linear_terms()
+        self._kplus_f: np.ndarray | None = None
+        self.e, self.d = self._linear_terms(same_load)
 
-    def _linear_terms(self) -> tuple[np.ndarray, PETSc.Vec]:
-        """e = Rᵀ f and d = B K⁺ f − c (one application of K⁺)."""
+    def _linear_terms(self, same_load: Dualization | None = None
+                      ) -> tuple[np.ndarray, PETSc.Vec]:
+        """e = Rᵀ f and d = B K⁺ f − c (one application of K⁺).
+
+        ``same_load``: a dualization of the same factored K (other rows, e.g. a moved curved
+        obstacle's): where its f is this one's on every rank, its K⁺f is taken (a row update
+        of an unchanged load costs no K⁺ application for d).
+        """
         e = self.comm.allreduce(self.R.T @ self.f.array_r, op=MPI.SUM) if self.coarse_size \
             else np.zeros(0)
         d = self.B.createVecLeft()
         v = self.B.createVecRight()
-        self.primal.apply_kplus(self.f, v)
+        if self._same_kplus_f(same_load):
+            v.array[:] = same_load._kplus_f
+        else:
+            self.primal.apply_kplus(self.f, v)
+        self._kplus_f = v.array_r.copy()
         self.B.mult(v, d)
         d.axpy(-1.0, self.c)
         v.destroy()
         return e, d
+
+    def _same_kplus_f(self, other: Dualization | None) -> bool:
+        """Whether ``other`` holds K⁺f of this f and this K⁺ (collective)."""
+        kplus = getattr(self.primal, "Kplus", None)
+        same = other is not None and other._kplus_f is not None and kplus is not None and \
+            getattr(other.primal, "Kplus", None) is kplus and \
+            other._kplus_f.shape == self.f.array_r.shape and \
+            np.array_equal(other.f.array_r, self.f.array_r)
+        return bool(self.comm.allreduce(bool(same), op=MPI.LAND))
 
     def for_load(self, primal) -> Dualization:
         """The dualization of ``primal``, a new load case of this one's primal (same K, B).

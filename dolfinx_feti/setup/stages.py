@@ -155,7 +155,8 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                   rows=shared.share.rows,
                   info=shared.share.extra["info"] if shared.method == "fetidp" else None,
                   dual_operator=dual_operator,
-                  norm_guess=None if nearby is None else nearby.proj.top)
+                  norm_guess=None if nearby is None else nearby.proj.top,
+                  same_load=None if factors_of is None else factors_of.feti)
     qp.mortar, qp.friction = shared.mortar, shared.friction
     qp.share, qp.surface = shared.share, shared.surface
     qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)

@@ -1,8 +1,9 @@
 """A new load case of the same shape reuses the subdomains' compiled linear forms.
 
 The load vector assembled from the kept form with new constants equals the one of a fresh
-set-up of the new problem to round-off; a load given as a function of x, or of another shape,
-is built again; Poisson's fluxes and zero source go the same way.
+set-up of the new problem to round-off; a load given as a function of x is kept by its
+structure (its numbers are constants); one of another shape is built again; Poisson's fluxes
+and zero source go the same way.
 """
 
 from __future__ import annotations
@@ -76,20 +77,31 @@ def test_another_shape_builds_the_form_again(hertz_mesh):
         solver.destroy()
 
 
-def test_a_function_of_x_is_built_again(hertz_mesh):
-    """A load given as a function may read state that changes: never served from the cache."""
-    state = {"g": 1.0}
+def test_a_function_of_x_sets_its_numbers(hertz_mesh):
+    """A load given as a function of x is kept by its structure; its numbers are constants.
+
+    New numbers (the state it reads) reuse the compiled form; another expression (x[1] for
+    x[0]) builds it again; both give the load of a fresh set-up.
+    """
+    state = {"g": 1.0, "axis": 0}
 
     def gravity(x):
-        return ufl.as_vector((0.0, -state["g"] * (1.0 + x[0])))
+        return ufl.as_vector((0.0, -state["g"] * (1.0 + 0.5 * x[state["axis"]])))
 
     solver = df.FetiSolver(_problem(hertz_mesh, _elastic(1.0, 0.0, body_force=gravity)))
     try:
-        assert all(k is None for k in _kept(solver))
+        kept = _kept(solver)
+        assert all(k is not None and k.compiled is not None for k in kept)
         state["g"] = 4.0
         new = _problem(hertz_mesh, _elastic(1.0, 0.0, body_force=gravity))
         solver.update(new)
+        assert all(a is b for a, b in zip(kept, _kept(solver), strict=True))
         _assert_load_of_fresh_setup(solver, new)
+        state["axis"] = 1
+        other = _problem(hertz_mesh, _elastic(1.0, 0.0, body_force=gravity))
+        solver.update(other)
+        assert all(a is not b for a, b in zip(kept, _kept(solver), strict=True))
+        _assert_load_of_fresh_setup(solver, other)
     finally:
         solver.destroy()
 

@@ -74,3 +74,40 @@ def test_kkt_of_the_qp(solved):
     # the solution is a minimizer: no worse than the feasible start
     assert qp.objective(x) <= qp.objective(qp.start()) + 1e-14
 
+
+
+def test_multiplier_estimate_at_the_solution(solved):
+    """At the solution the least-squares multiplier is SMALBE's μ."""
+    qp, x, res = solved
+    mu = qp.multiplier_estimate(x)
+    assert mu.shape == res.multiplier.shape
+    assert np.linalg.norm(mu - res.multiplier) <= 1e-6 * np.linalg.norm(res.multiplier)
+
+
+def test_multiplier_estimate_is_least_squares(solved):
+    """Away from the solution: G̃ᵀμ balances the gradient off the bound as well as it can.
+
+    The normal equations of min ‖g_F + (G̃ᵀμ)_F‖ over the rows F off the bound: the residual
+    on F is orthogonal to every row of G restricted to F.
+    """
+    qp, x, _ = solved
+    comm = qp.feti.comm
+    y = qp.start()
+    y.axpby(0.5, 0.5, x)  # halfway from the default start: rows on and off the bound
+    lb = qp.lb.array_r
+    free = ~(np.isfinite(lb) & (y.array_r <= lb))
+    assert comm.allreduce(int((~free).sum())) > 0
+    mu = qp.multiplier_estimate(y)
+    g = qp.b.duplicate()
+    qp.A.mult(y, g)
+    g.axpy(-1.0, qp.b)
+    size = comm.allreduce(float(np.sum(g.array_r[free] ** 2))) ** 0.5
+    corr = qp.b.duplicate()
+    qp.constraint.mult_transpose(mu, corr)
+    r = g.array_r[free] + corr.array_r[free]
+    Gt = qp.constraint.base.Dt_local[np.flatnonzero(free)]
+    normal = comm.allreduce(Gt.T @ r)
+    scale = comm.allreduce(float(abs(Gt).max()) if Gt.nnz else 0.0, op=MPI.MAX)
+    assert size > 0 and np.abs(normal).max() <= 1e-10 * scale * size
+    # and not a trivial μ: without it the residual is not orthogonal
+    assert np.abs(comm.allreduce(Gt.T @ g.array_r[free])).max() > 1e-6 * scale * size
