@@ -72,7 +72,8 @@ FETI = OptionSet(
                   "loads; docs/beti.md)"),
     rtol=Option(1e-6, _TOL, "the accuracy: with stop_test 'kkt' every KKT residual of the "
                 "solution is at most rtol (gluing, Dirichlet and non-penetration violations "
-                "against max|u|, complementarity against max|λ| max|u|, equilibrium against "
+                "against max|u|, complementarity against max|λ| max|u|, the contact rows' "
+                "violations times their stiffness against max|λ|, equilibrium against "
                 "the load: docs/solvers.md, 'What rtol guarantees'); with 'dual' "
                 "||g^P|| <= rtol ||b||"),
     stop_test=Option("kkt", Choice("kkt", "dual"), "'kkt' (stop on the KKT residuals of the "

@@ -74,6 +74,14 @@ class QPSolve:
 #: residual over rtol (the residuals fall like 1/ρ), within these factors.
 PENALTY_GROWTH = (10.0, 1e4)
 
+#: Under the KKT test a run after a failed check gets at most CONTINUE_BUDGET times the
+#: (outer) iterations of all runs before it, and at least CONTINUE_MIN: the check moves the
+#: bound by the factor the residuals missed rtol by, which a converging iteration covers in
+#: fewer. A run that spends it has met the round-off floor of the dual gradient, below which
+#: the bound asks for what no iteration reaches (finding 8's obstacle 1e6 away on 2 ranks:
+#: 1 000 outer iterations of one inner step each, then max_outer); the check after it decides.
+CONTINUE_BUDGET, CONTINUE_MIN = 1.0, 20
+
 
 def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              progress: Progress | None = None, timer: Timer | None = None,
@@ -185,6 +193,8 @@ class _KKTRuns:
         mults0 = feti.hessian_mults
         while True:
             res = self.run()
+            if self.budget_spent(res):  # the check decides: met, stalled or another run
+                res.converged, res.reason = True, "stop"
             m0 = feti.hessian_mults
             with self.timer.phase("recovery"):
                 u, lam_all, alpha, Glam = _recover(self.qp, res, self.x, self.friction)
@@ -217,12 +227,38 @@ class _KKTRuns:
         self.runs.append(res)
         return res
 
+    def budget(self) -> tuple[int, int]:
+        """(max_it, max_outer) of the next run.
+
+        All that is left, or after a failed check :data:`CONTINUE_BUDGET` times what the runs
+        before used (not with friction, whose fixed point runs the QP solver itself).
+        """
+        opts = self.opts
+        used = sum(r.iterations for r in self.runs)
+        max_it, max_outer = opts.max_it - used, opts.max_outer
+        if self.runs and self.stop is not None and self.friction is None:
+            outer = sum(r.outer_iterations for r in self.runs)
+            max_it = min(max_it, max(CONTINUE_MIN, int(CONTINUE_BUDGET * used)))
+            max_outer = min(max_outer, max(CONTINUE_MIN, int(CONTINUE_BUDGET * outer)))
+        return max_it, max_outer
+
+    def budget_spent(self, res: QPResult) -> bool:
+        """Whether a run after a failed check stopped at :meth:`budget`, not at the options'."""
+        if len(self.runs) < 2 or self.stop is None or self.friction is not None:
+            return False
+        used = sum(r.iterations for r in self.runs)
+        return (res.reason == "max_it" and used < self.opts.max_it) or \
+            (res.reason == "max_outer" and res.outer_iterations < self.opts.max_outer)
+
     def _run_qp(self, mu, used: int, loosen: float, rho_factor: float) -> QPResult:
         # loosen: Coulomb's early fixed-point steps are solved to loosen·rtol
         opts, stop = self.opts, self.stop
         o = opts if loosen == 1.0 or stop is not None else opts.replace(rtol=opts.rtol * loosen)
+        max_it, max_outer = self.budget()
+        if max_outer != opts.max_outer:
+            o = o.replace(max_outer=max_outer)
         return _run_qp(o, self.report, self.progress, self.qp, self.x, self.n_ineq,
-                       self.precond, self.friction, mu, max_it=opts.max_it - used,
+                       self.precond, self.friction, mu, max_it=max_it,
                        test=None if stop is None else stop.make_test(loosen),
                        rho_factor=rho_factor)
 

@@ -9,11 +9,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import reference as ref
+import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx_feti as df
-from dolfinx_feti.drivers.kkt_stop import KEYS
+from dolfinx_feti.constraints.rows import Kind
+from dolfinx_feti.drivers.kkt_stop import KEYS, kkt_residuals
 from dolfinx_feti.io import meshes
 from dolfinx_feti.qp import MPRGP, QP, MaxGradientTest
 
@@ -131,3 +133,35 @@ def test_max_gradient_test_replaces_the_relative_one():
     assert res.converged and res.reason == "rtol" and test.last <= 1e-10
     exact = np.linalg.solve(A[:5, :5], np.ones(5))
     assert np.abs(x.array[:5] - exact).max() <= 1e-9 and x.array[5] == 0.0
+
+
+def test_violation_force_is_the_violation_times_the_rows_stiffness_in_series():
+    """violation_force = max_i k_i |v_i| / max(max|λ|, ‖f‖∞) on the contact rows, with
+    1/k_i = Σ_j b_ij² / K_jj (the row's sides in series) and v_i the violation of a row that
+    carries a force, the penetration of one that does not; gluing rows are not in it."""
+    comm = MPI.COMM_SELF
+    K = np.diag([4.0, 9.0, 1.0, 2.0])  # dofs 0, 1 on side a; 2, 3 on side b
+    B = np.array([[1.0, 0.0, -1.0, 0.0],   # contact, carries a force: gap open by 1e-3
+                  [0.0, 2.0, 0.0, -2.0],   # contact (scale 2), no force, penetrates 1e-3
+                  [1.0, 0.0, 0.0, -1.0]])  # gluing: violated by 1, left out
+    scale = np.array([1.0, 2.0, 1.0])
+    u = np.array([0.0, 1e-3, 1e-3, 0.0])
+    c = B @ u - scale * np.array([-1e-3, 1e-3, 1.0])
+
+    class System:
+        pass
+    s = System()
+    s.comm, s.K = comm, sp.csr_matrix(K)
+    s.B = PETSc.Mat().createDense((3, 4), array=B, comm=comm)
+    s.B.convert("aij")
+    s.c = PETSc.Vec().createWithArray(c, comm=comm)
+    s.f = PETSc.Vec().createWithArray(np.array([0.0, 0.0, 0.0, 0.5]), comm=comm)
+    s.residuals = lambda u, lam: {"equilibrium": 0.0}
+    lam = PETSc.Vec().createWithArray(np.array([0.25, 0.0, 3.0]) / scale, comm=comm)
+    kkt, _ = kkt_residuals(s, scale, np.array([Kind.OBSTACLE, Kind.OBSTACLE, Kind.GLUE]),
+                           np.array([True, True, False]),
+                           PETSc.Vec().createWithArray(u, comm=comm), lam)
+    k0 = 1.0 / (1.0 / 4.0 + 1.0 / 1.0)
+    k1 = 1.0 / ((2.0 / 2.0) ** 2 / 9.0 + (2.0 / 2.0) ** 2 / 2.0)
+    expected = max(k0 * 1e-3, k1 * 1e-3) / max(3.0, 0.5)
+    assert kkt["violation_force"] == pytest.approx(expected, rel=1e-12)
