@@ -13,6 +13,8 @@ complement S_cc = K_cc − K_cr K_rr⁻¹ K_rc, assembled and factored once on e
 
 one local solve per application (Ψ is kept as one dense block per subdomain, its rows × the
 subdomain's corner unknowns: a column of Ψ is nonzero on the subdomains of its corner only).
+K_rr is factored subdomain by subdomain (:class:`~.kplus.BlockwiseInverse`), so that Ψ costs
+each subdomain as many solves as it has corner unknowns, not as many as the rank's fullest.
 When every body is held, K̃ is positive definite, there is no coarse
 space and contact is a bound-constrained QP for MPRGP alone. A floating body leaves S_cc
 singular with its rigid motions as kernel (the semicoercive FETI-DP): they are the kernel R̃ of
