@@ -7,12 +7,17 @@ S2, the graded 2D Hertz H2 and the user's graded DOLFINx box (``bench/graded_box
 is not comparable), the least of ``--repeat`` runs, and the report's phases of that run.
 
 Run: ``python bench/setup_methods.py`` (~3 min); ``--cases S2 --parts 8``.
-Writes ``output/bench/setup_methods.md`` and ``.json``.
+Writes ``output/bench/setup_methods.md`` and ``.json``. ``--profile DIR``: also one more
+set-up per case and method under cProfile with the process's CPU time as its clock (the
+machine is shared), written to ``DIR/<case>_<method>.prof`` and its largest internal times
+printed (read with ``pstats``).
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
+import pstats
 import sys
 import time
 from pathlib import Path
@@ -36,6 +41,7 @@ def main() -> None:
     parser.add_argument("--methods", default="tfeti,feti1,fetidp")
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/setup_methods.md")
+    parser.add_argument("--profile", type=Path, default=None)
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     rows = []
@@ -50,6 +56,8 @@ def main() -> None:
                 best = min(best, comm.allreduce(time.process_time() - c0, op=MPI.MAX))
                 del solver
             row[method] = round(best, 2)
+            if args.profile is not None:
+                _profile(problem, comm, method, args.profile / f"{case}_{method}.prof")
         rows.append(row)
         if comm.rank == 0:
             print(row, flush=True)
@@ -63,6 +71,20 @@ def main() -> None:
     lines += [f"| {r['case']} | " + " | ".join(str(r[m]) for m in methods)
               + f" | {r['fetidp'] / r['tfeti']:.2f} |" for r in rows]
     P.write_outputs(args.out, lines, rows)
+
+
+def _profile(problem, comm, method: str, path: Path) -> None:
+    """One more set-up under cProfile (CPU clock), its stats to ``path``, the top printed."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    solver = df.FetiSolver(problem, comm=comm, method=method)
+    prof.disable()
+    del solver
+    if comm.rank == 0:
+        prof.dump_stats(str(path))
+        print(f"--- {path.stem}: CPU {pstats.Stats(prof).total_tt:.2f} s", flush=True)
+        pstats.Stats(prof).sort_stats("tottime").print_stats(8)
 
 
 if __name__ == "__main__":

@@ -63,7 +63,7 @@ FETI = OptionSet(
     "", "the FETI solve",
     method=Option("auto", Choice("tfeti", "feti1", "fetidp", "auto", "tbeti"), "the FETI "
                   "method: 'auto' (the least measured time: 'feti1' without gluing rows or with "
-                  "at most 16 subdomains per body in 2D, 24 in 3D, 'fetidp' with more; "
+                  "at most 16 subdomains per body in 2D, 4 in 3D, 'fetidp' with more; "
                   "setup.method_rule.method_by_time, docs/solvers.md), 'tfeti' (Total FETI: "
                   "Dirichlet conditions as rows of B, every subdomain floats), 'feti1' "
                   "(Dirichlet conditions eliminated, kernels only for the floating subdomains), "

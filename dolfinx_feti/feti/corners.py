@@ -13,6 +13,8 @@ complement S_cc = K_cc − K_cr K_rr⁻¹ K_rc, assembled and factored once on e
 
 one local solve per application (Ψ is kept as one dense block per subdomain, its rows × the
 subdomain's corner unknowns: a column of Ψ is nonzero on the subdomains of its corner only).
+K_rr is factored subdomain by subdomain (:class:`~.kplus.BlockwiseInverse`), so that Ψ costs
+each subdomain as many solves as it has corner unknowns, not as many as the rank's fullest.
 When every body is held, K̃ is positive definite, there is no coarse
 space and contact is a bound-constrained QP for MPRGP alone. A floating body leaves S_cc
 singular with its rigid motions as kernel (the semicoercive FETI-DP): they are the kernel R̃ of
@@ -34,7 +36,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InputError, SolveError, collective
-from .kplus import CornerCoarse, FixingNodesInverse, LocalInverse
+from .kplus import BlockwiseInverse, CornerCoarse, FixingNodesInverse, LocalInverse
 from .system import (
     EQUALITY,
     BlockSystem,
@@ -48,8 +50,6 @@ from .transforms import drop_small, recover_multipliers, row_max, select_rows
 #: Entries of B̃ = B E below this times the largest entry of their row are cancellations
 #: (the two copies of a corner dof in a gluing row).
 CANCEL_RTOL = 1e-12
-#: Right-hand sides per batched solve when Ψ = K_rr⁺ K_rc is built (memory: n_local × this).
-_BATCH = 32
 
 
 def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
@@ -184,7 +184,6 @@ class EliminateCorners:
         self.K_rc = (sp.diags(rr) @ K @ Pc).tocsr()
         self.K_rc.eliminate_zeros()
         self._K_cc_local = (Pc.T @ K @ Pc).tocoo()
-        self._block = np.repeat(np.arange(len(parent.kernels)), np.diff(parent.offsets))
 
         # the kernel of K̃: the given rigid motions, checked, in the new layout
         modes = np.asarray(modes, dtype=float)
@@ -204,7 +203,7 @@ class EliminateCorners:
         self.kernel_local = sp.csr_matrix(np.vstack([Zr, Zc]) if rank == 0 else Zr)
         self.kernel_bodies = list(mode_bodies)
         self.child = CornerSystem(self, B, c, f, parent.types[self.kept])
-        self.Krr_plus: FixingNodesInverse | None = None
+        self.Krr_plus: BlockwiseInverse | None = None
         self.S_plus: FixingNodesInverse | None = None
         self._psi: list = []  # ((first row, end), corner unknowns, dense Ψ block) per block
         self._psi_csr: sp.csr_matrix | None = None
@@ -230,7 +229,7 @@ class EliminateCorners:
         if not self.parent.comm.allreduce(bool(same), op=MPI.LAND):
             raise SolveError("the new rows give other corners than the set-up's: create a new "
                              "FetiSolver")
-        for name in ("Krr_plus", "_psi", "_psi_csr", "S", "S_plus", "_t", "_blocks_of"):
+        for name in ("Krr_plus", "_psi", "_psi_csr", "S", "S_plus", "_t"):
             if hasattr(other, name):
                 setattr(self, name, getattr(other, name))
 
@@ -248,36 +247,6 @@ class EliminateCorners:
         return new
 
     # --- the coarse problem ----------------------------------------------------------------
-    def _colours(self) -> list[np.ndarray]:
-        """Groups of local corner unknowns whose columns of K_rc touch disjoint blocks.
-
-        Also sets ``_owner``: per block and colour, the corner unknown of that colour in the
-        block (-1: none).
-        """
-        ci = np.flatnonzero(self.is_corner)
-        self._blocks_of = {}
-        self._owner = np.full((len(self.parent.kernels), 0), -1, dtype=np.int64)
-        if ci.size == 0:
-            return []
-        pairs = np.unique(np.stack([self.coarse[ci], self._block[ci]], axis=1), axis=0)
-        cols = np.unique(pairs[:, 0])
-        blocks_of = np.split(pairs[:, 1], np.searchsorted(pairs[:, 0], cols[1:]))
-        colour_of_block: dict[int, set[int]] = {}
-        colour = np.empty(cols.size, dtype=np.int64)
-        for j, blocks in enumerate(blocks_of):  # greedy, over the few local corner unknowns
-            used = set().union(*(colour_of_block.get(int(b), set()) for b in blocks))
-            k = 0
-            while k in used:
-                k += 1
-            colour[j] = k
-            for b in blocks:
-                colour_of_block.setdefault(int(b), set()).add(k)
-        self._blocks_of = dict(zip(cols.tolist(), blocks_of, strict=True))
-        ncolour = int(colour.max(initial=-1)) + 1
-        self._owner = np.full((len(self.parent.kernels), ncolour), -1, dtype=np.int64)
-        self._owner[pairs[:, 1], colour[np.searchsorted(cols, pairs[:, 0])]] = pairs[:, 0]
-        return [cols[colour == k] for k in range(ncolour)]
-
     @property
     def Psi(self) -> sp.csr_matrix:
         """Ψ = K_rr⁺ K_rc as one SciPy CSR matrix (local rows × corner unknowns).
@@ -298,52 +267,34 @@ class EliminateCorners:
         return self._psi_csr
 
     def factorize(self, factor: str | None = None, site: str = "") -> None:
-        """K_rr⁺, Ψ = K_rr⁺ K_rc (one solve per colour), S_cc and its generalized inverse.
+        """K_rr⁺ (one factor per subdomain), Ψ = K_rr⁺ K_rc, S_cc and its generalized inverse.
 
+        Ψ by subdomains: block b's rows × b's corner unknowns, one batched solve of b's factor
+        with b's columns of K_rc (a column of K_rc is nonzero on its corner's subdomains only).
         The rank-local part runs in one guard (:func:`~dolfinx_feti.errors.collective`, phase
         ``site``); the assembly of S_cc after it is collective.
         """
         comm, parent, nc = self.parent.comm, self.parent, self.n_coarse
         with collective(comm, site):
-            self.Krr_plus = FixingNodesInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
-            groups = self._colours()
-            # Ψ by subdomains: block b's rows × b's corner unknowns, in the order of their colours
-            offsets, own = self.parent.offsets, self._owner
-            colours = [np.flatnonzero(own[b] >= 0) for b in range(own.shape[0])]
-            psi = [np.zeros((int(offsets[b + 1] - offsets[b]), k.size)) for b, k in
-                   enumerate(colours)]
-            # the sum of the columns of each colour: one sparse product, not a column
-            # slice of K_rc per colour (which cost as much as the solves on 3D meshes)
-            member = sp.csc_matrix((np.ones(sum(g.size for g in groups)),
-                                    (_cat(groups, np.int64),
-                                     np.repeat(np.arange(len(groups)),
-                                               [g.size for g in groups]))),
-                                   shape=(nc, len(groups)))
-            colour_sums = (self.K_rc @ member).tocsc()
-            for first in range(0, len(groups), _BATCH):
-                batch = groups[first:first + _BATCH]
-                rhs = colour_sums[:, first:first + len(batch)].toarray()
-                Y = self.Krr_plus.solve_matrix(rhs)
-                # block b's rows of the solve of colour k: K_b⁺ times b's column of colour k
-                # (a colour holds at most one corner unknown per block); a loop over the
-                # rank's subdomains, not its dofs
-                for b, k in enumerate(colours):
-                    at = np.flatnonzero((k >= first) & (k < first + len(batch)))
-                    if at.size:
-                        psi[b][:, at] = Y[offsets[b]:offsets[b + 1], k[at] - first]
+            self.Krr_plus = BlockwiseInverse(self.K_rr, self.kernels_rr, factor, parent.labels)
+            offsets = parent.offsets
             self._psi, self._psi_csr = [], None
             Kcc = self._K_cc_local
             rows, cols, vals = [Kcc.row], [Kcc.col], [Kcc.data]
-            for b, k in enumerate(colours):
+            for b in range(len(offsets) - 1):  # a loop over the rank's subdomains
                 lo, hi = int(offsets[b]), int(offsets[b + 1])
-                psi[b][self.is_corner[lo:hi]] = 0.0  # a corner copy is no unknown of K_rr
-                corners = own[b, k]
-                self._psi.append(((lo, hi), corners, psi[b]))
-                if k.size:  # S_cc −= K_rc,bᵀ Ψ_b on b's corner unknowns
-                    Sb = np.asarray(self.K_rc[lo:hi][:, corners].T @ psi[b])
-                    rows.append(np.repeat(corners, k.size))
-                    cols.append(np.tile(corners, k.size))
-                    vals.append(-Sb.ravel())
+                corners = np.unique(self.coarse[lo:hi][self.is_corner[lo:hi]])
+                if corners.size == 0:
+                    self._psi.append(((lo, hi), corners, np.zeros((hi - lo, 0))))
+                    continue
+                Krc_b = self.K_rc[lo:hi][:, corners]
+                psi = self.Krr_plus.solve_block(b, Krc_b.toarray(order="F"), overwrite=True)
+                psi[self.is_corner[lo:hi]] = 0.0  # a corner copy is no unknown of K_rr
+                self._psi.append(((lo, hi), corners, psi))
+                Sb = np.asarray(Krc_b.T @ psi)  # S_cc −= K_rc,bᵀ Ψ_b on b's corner unknowns
+                rows.append(np.tile(corners, corners.size))  # column-major, as Ψ_b: no copy
+                cols.append(np.repeat(corners, corners.size))
+                vals.append(-Sb.ravel(order="F"))
             S_loc = sp.csr_matrix((_cat(vals, float), (_cat(rows, np.int64),
                                                        _cat(cols, np.int64))),
                                   shape=(nc, nc)).tocoo()

@@ -96,17 +96,20 @@ class SparseCholesky:
             self._ksp.solve(self.b, self.x)
 
     def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
-        """A⁻¹ rhs for the columns of a dense (n × k) array: one batched solve (MatMatSolve)."""
+        """A⁻¹ rhs for the columns of a dense (n × k) array: one batched solve (MatMatSolve).
+
+        The result is column-major (PETSc's dense layout, written in place); a column-major
+        float64 ``rhs`` is used without a copy.
+        """
         n, k = rhs.shape
+        out = np.zeros((n, k), order="F")
         if self._ksp is None or k == 0:
-            return np.zeros((n, k))
+            return out
         B = PETSc.Mat().createDense((n, k), array=np.asfortranarray(rhs, dtype=float),
                                     comm=PETSc.COMM_SELF)
-        X = PETSc.Mat().createDense((n, k), comm=PETSc.COMM_SELF)
-        X.setUp()
+        X = PETSc.Mat().createDense((n, k), array=out, comm=PETSc.COMM_SELF)
         X.assemble()
         self._ksp.getPC().getFactorMatrix().matSolve(B, X)
-        out = X.getDenseArray().copy()
         B.destroy()
         X.destroy()
         return out
@@ -162,12 +165,16 @@ class FixingNodesInverse:
         factor = factor or default_factor()
         self._factor = factor
         try:
-            self._chol = SparseCholesky(A, factor)
+            self._factorize(A, factor)
         except PETSc.Error:
             self._diagnose(K, kernels, factor, labels)
             raise SolveError(f"the Cholesky factorization ({factor}) of the subdomain matrices "
                              "without their fixing dofs failed") from None
         self._check(K, labels)
+
+    def _factorize(self, A: sp.csr_matrix, factor: str) -> None:
+        """Factor A (the blocks with identity rows at the fixing dofs) as one matrix."""
+        self._chol = SparseCholesky(A, factor)
 
     def _diagnose(self, K, kernels, factor: str, labels) -> None:
         """Find the block whose factorization fails, and name it (the rare, slow path)."""
@@ -244,3 +251,70 @@ class FixingNodesInverse:
     def destroy(self) -> None:
         """Free the factorization."""
         self._chol.destroy()
+
+
+class BlockwiseInverse(FixingNodesInverse):
+    """The same K⁺ by fixing nodes, with one factorization per block instead of one per rank.
+
+    A right-hand side of one block is then solved with that block's factor alone: FETI-DP's
+    Ψ = K_rr⁺ K_rc needs, per subdomain, only the columns of its own corner unknowns, while a
+    solve by the rank's joint factor costs the whole rank's triangular solves per column, so
+    the columns of all subdomains packed side by side pay for the subdomain with the most
+    corners on every other one (docs/benchmarks.md § 23: 30 % of the solves on the graded box).
+    Measured there and on the sphere S2, the blocks factored one by one also cost less than
+    the joint factor (the ordering of each block alone). An application of K⁺ is then one
+    solve per block: a loop over the rank's subdomains (not its dofs).
+
+    Args: as :class:`FixingNodesInverse`.
+    """
+
+    def _factorize(self, A: sp.csr_matrix, factor: str) -> None:
+        o = self.offsets
+        self._chols: list[SparseCholesky] = []
+        try:
+            for lo, hi in zip(o[:-1], o[1:], strict=True):
+                self._chols.append(SparseCholesky(A[lo:hi, lo:hi], factor))
+        except PETSc.Error:
+            self.destroy()
+            raise
+        # each block's fixing dofs in its own numbering
+        at = np.searchsorted(o, self.fixed, side="right") - 1
+        self._fixed_of = [self.fixed[at == b] - o[b] for b in range(len(o) - 1)]
+
+    def solve(self, rhs: np.ndarray, out: np.ndarray) -> None:
+        """out = K⁺ rhs on the whole local primal array (``out`` contiguous float64)."""
+        o = self.offsets
+        for b, chol in enumerate(self._chols):
+            lo, hi = o[b], o[b + 1]
+            if hi == lo:
+                continue
+            chol.b.array[:] = rhs[lo:hi]
+            chol.b.array[self._fixed_of[b]] = 0.0
+            chol.x.placeArray(out[lo:hi])
+            try:
+                chol.solve_in_place()
+            finally:
+                chol.x.resetArray()
+
+    def solve_block(self, block: int, rhs: np.ndarray, overwrite: bool = False) -> np.ndarray:
+        """K_b⁺ applied to the columns of a dense (n_b × k) array of block ``block`` alone.
+
+        ``overwrite``: ``rhs`` (best column-major float64: no copies) may be changed.
+        """
+        b = rhs if overwrite else np.array(rhs, dtype=float, order="F")
+        b[self._fixed_of[block]] = 0.0
+        return self._chols[block].solve_matrix(b)
+
+    def solve_matrix(self, rhs: np.ndarray) -> np.ndarray:
+        """K⁺ applied to the columns of a dense (n × k) array (one batched solve per block)."""
+        o = self.offsets
+        out = np.empty((int(o[-1]), rhs.shape[1]))
+        for b in range(len(self._chols)):
+            out[o[b]:o[b + 1]] = self.solve_block(b, rhs[o[b]:o[b + 1]])
+        return out
+
+    def destroy(self) -> None:
+        """Free the factorizations."""
+        for chol in self._chols:
+            chol.destroy()
+        self._chols = []

@@ -325,11 +325,11 @@ def test_auto(root, case, expected):
 
 
 def test_rule_by_dimension():
-    """FETI-1 up to 16 subdomains per body in 2D and 24 in 3D (on average over the bodies),
+    """FETI-1 up to 16 subdomains per body in 2D and 4 in 3D (on average over the bodies),
     FETI-DP above; FETI-1 whenever there are no gluing rows."""
     assert [method_by_time(True, n, 2, 2) for n in (32, 33)] == ["feti1", "fetidp"]
-    assert [method_by_time(True, n, 2, 3) for n in (48, 49)] == ["feti1", "fetidp"]
-    assert [method_by_time(True, n, 1, 3) for n in (24, 25)] == ["feti1", "fetidp"]
+    assert [method_by_time(True, n, 2, 3) for n in (8, 9)] == ["feti1", "fetidp"]
+    assert [method_by_time(True, n, 1, 3) for n in (4, 5)] == ["feti1", "fetidp"]
     assert method_by_time(False, 500, 2, 2) == "feti1"
 
 
