@@ -109,6 +109,9 @@ class FetiSolver:
         self._mu: np.ndarray | None = None
         self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
         self._normal_force: np.ndarray | None = None  # of the last friction solve
+        # a lower bound of the KKT test's displacement scale: a Newton increment is solved
+        # against the total displacement (drivers/kkt_stop.KKTStop)
+        self.u_floor = 0.0
         self.solves = 0
 
     # --- what changes between solves ---------------------------------------------------------
@@ -376,7 +379,7 @@ class FetiSolver:
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu)
+                       multiplier0=mu, u_floor=self.u_floor)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
