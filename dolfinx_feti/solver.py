@@ -30,6 +30,7 @@ from . import compat
 from .constraints.friction_values import friction_key, with_friction_of
 from .constraints.load_rows import LoadRows
 from .drivers.friction import FrictionSolve
+from .drivers.obstacle_motion import carried_slip
 from .drivers.qp_solve import solve_qp, warn_loose_stop
 from .errors import InputError, NotConverged, collective
 from .fem.assembly import assemble_loads, assemble_subdomains
@@ -161,6 +162,9 @@ class FetiSolver:
         if check_stiffness:
             self._check_stiffness(problem)
         self._tangential = self._slip_of(slip_from)
+        if self._tangential is not None:  # the obstacles' RigidMotion carried the surfaces
+            self._tangential += carried_slip(self._shared.share, self._loads.tangential,
+                                             slip_from.problem, problem)
         self._new_case = True
         self._new_friction_values(problem)
         f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
