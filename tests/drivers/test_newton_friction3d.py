@@ -65,11 +65,11 @@ def quadratic(sol) -> None:
 
 
 def test_full_stick_equals_the_clamped_box(cube):
-    """𝓕 = 2: every node sticks from the first touch (the bottom lies on the plane), so the
+    """𝓕 = 5: every node sticks from the first touch (the bottom lies on the plane), so the
     bottom stays where it was while the box is pressed and slid at an angle: the solution is
     that of the box with its bottom clamped (no contact)."""
     times = [0.5, 1.0, 1.5, 2.0]
-    sols = df.solve_path(lambda t: slid(cube, t, df.Coulomb(2.0)), times, **OPTS)
+    sols = df.solve_path(lambda t: slid(cube, t, df.Coulomb(5.0)), times, **OPTS)
     assert all(s.report.converged for s in sols)
     s = 1.0 * 0.1
     ref = df.solve(df.ContactProblem(
@@ -79,12 +79,13 @@ def test_full_stick_equals_the_clamped_box(cube):
         decomposition=df.Parts(2)), rtol=1e-12, newton_rtol=1e-10, method="fetidp")
     assert ref.report.converged
     sol = sols[-1]
-    assert np.all(sol.contact.state == 1)
+    c = sol.contact
+    assert np.all(c.state[c.force > 0] == 1)  # a node without normal force has no bound
     F = sol.total_contact_force
     assert F[2] > 0 and 0.05 < np.hypot(F[0], F[1]) / F[2] < 2.0  # slid, below 𝓕N
     U, Ur = sol.nodal_values(), ref.nodal_values()
     assert np.abs(U - Ur).max() < 1e-8 * np.abs(Ur).max()
-    check_coulomb(sol, 2.0)
+    check_coulomb(sol, 5.0)
     for s in sols:
         quadratic(s)
 
