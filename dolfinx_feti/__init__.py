@@ -44,6 +44,7 @@ from .problem import (
                       Tie,
                       Tresca,
 )
+from .problem.rigid_motion import RigidMotion
 from .results.report import Report
 from .results.solution import ContactData, Solution
 from .setup.stages import DualQP, dual_qp
@@ -52,7 +53,8 @@ from .solver import FetiSolver, solve
 __all__ = ["Auto", "ByFunction", "ByTags", "ContactData", "ContactProblem", "Coulomb",
            "Cylinder", "Dirichlet", "DualQP", "Elasticity", "FetiSolver", "Hyperelastic",
            "InputError", "MeshData", "MixedMesh", "Mortar", "NeoHookean", "NodeToNode",
-           "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidObstacle",
+           "NotConverged", "Parts", "Plane", "Poisson", "Report", "RigidMotion",
+           "RigidObstacle",
            "SaintVenantKirchhoff", "SignedDistance", "Solution", "SolveError", "SolverOptions",
            "Sphere", "Subdomain", "Tie", "Tresca", "build_mesh", "dual_qp", "from_dolfinx",
            "read_gmsh", "solve", "solve_cases", "solve_path"]

@@ -30,6 +30,7 @@ from . import compat
 from .constraints.friction_values import friction_key, with_friction_of
 from .constraints.load_rows import LoadRows
 from .drivers.friction import FrictionSolve
+from .drivers.obstacle_motion import carried_slip
 from .drivers.qp_solve import solve_qp, warn_loose_stop
 from .errors import InputError, NotConverged, collective
 from .fem.assembly import assemble_loads, assemble_subdomains
@@ -109,6 +110,9 @@ class FetiSolver:
         self._mu: np.ndarray | None = None
         self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
         self._normal_force: np.ndarray | None = None  # of the last friction solve
+        # a lower bound of the KKT test's displacement scale: a Newton increment is solved
+        # against the total displacement (drivers/kkt_stop.KKTStop)
+        self.u_floor = 0.0
         self.solves = 0
 
     # --- what changes between solves ---------------------------------------------------------
@@ -158,6 +162,9 @@ class FetiSolver:
         if check_stiffness:
             self._check_stiffness(problem)
         self._tangential = self._slip_of(slip_from)
+        if self._tangential is not None:  # the obstacles' RigidMotion carried the surfaces
+            self._tangential += carried_slip(self._shared.share, self._loads.tangential,
+                                             slip_from.problem, problem)
         self._new_case = True
         self._new_friction_values(problem)
         f = assemble_loads(problem.forms, self._data, self._shared.share, self._timer)
@@ -377,7 +384,7 @@ class FetiSolver:
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu)
+                       multiplier0=mu, u_floor=self.u_floor)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega

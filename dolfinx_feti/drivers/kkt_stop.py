@@ -54,6 +54,10 @@ KEYS = ("dual_feasibility", "primal_feasibility", "equality", "complementarity",
 #: At most this many exact checks in one solve (each a recovery of u); then the QP solver's
 #: stop is accepted as it is, with a warning naming the residual above rtol.
 MAX_CHECKS = 8
+#: A bound of the weighted gradient below this many ε ‖A‖ max_i w_i ‖λ‖ (the round-off of
+#: the gradient F λ − d) is not asked of the QP solver: a run cannot reach it and would go
+#: to its budget (a Newton increment near the solution, whose U is small).
+ROUND_OFF = 10.0
 #: A failed check aims the next bound at this fraction of what would just pass.
 SAFETY = 0.5
 #: A check whose largest residual is above this fraction of the best before, after the bound
@@ -64,7 +68,7 @@ STALL = 0.5
 
 def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
                   u: PETSc.Vec, lam: PETSc.Vec, Bu: PETSc.Vec | None = None,
-                  friction=None) -> tuple[dict[str, float], float]:
+                  friction=None, u_floor: float = 0.0) -> tuple[dict[str, float], float]:
     """The KKT residuals of ``(u, λ)`` for the Total FETI ``system`` (collective).
 
     Args:
@@ -76,6 +80,8 @@ def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
         lam: The multipliers of all rows.
         Bu: ``B u`` if known (else computed).
         friction: The solve's FrictionSolve, or None.
+        u_floor: A lower bound of the displacement scale ‖u‖∞ the lengths are measured
+            against (a Newton increment's: the total displacement, see :class:`KKTStop`).
 
     Returns:
         The residuals by name (module docstring) and the largest penetration (a length).
@@ -92,7 +98,7 @@ def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
         return comm.allreduce(float(a.max()) if a.size else default, op=MPI.MAX)
 
     lam_max = gmax(np.abs(lam_phys))
-    u_max = max(u.norm(PETSc.NormType.INFINITY), 1e-300)
+    u_max = max(u.norm(PETSc.NormType.INFINITY), u_floor, 1e-300)
     pen = gmax(viol[ineq], -np.inf)
     kkt = {
         "dual_feasibility": gmax(np.maximum(-lam_phys[ineq], 0.0)) / max(lam_max, 1e-300),
@@ -161,6 +167,11 @@ class KKTStop:
     Args:
         qp: The dual QP (:class:`.feti.chain.DualQP`).
         rtol: The tolerance of every residual of :data:`KEYS`.
+        u_floor: A lower bound of the displacement scale U. A Newton increment Δu tends to 0
+            while the multipliers stay the total forces: measured against ‖Δu‖∞ the bound
+            falls below the round-off of F λ and the QP solver runs to its budget (the 3D
+            friction runs under Newton that did not finish); the increment only needs to be
+            accurate against the total displacement.
 
     Attributes:
         checks: Exact checks made (recoveries of u), the last one included.
@@ -172,13 +183,13 @@ class KKTStop:
             check; before the first, ``‖b‖ / ‖A‖``).
     """
 
-    def __init__(self, qp, rtol: float) -> None:
-        self.rtol, self.comm = rtol, qp.system.comm
+    def __init__(self, qp, rtol: float, u_floor: float = 0.0) -> None:
+        self.rtol, self.comm, self.u_floor = rtol, qp.system.comm, u_floor
         scale, _, _ = row_data(qp)
         self.weight = 1.0 / scale[qp.row_index]
         b = qp.b.array_r
-        self.U = self.comm.allreduce(float(np.max(np.abs(b) * self.weight, initial=0.0)),
-                                     op=MPI.MAX)
+        self.U = max(u_floor, self.comm.allreduce(
+            float(np.max(np.abs(b) * self.weight, initial=0.0)), op=MPI.MAX))
         self.Lam = qp.b.norm() / max(qp.norm_A, 1e-300)
         # ‖G̃x‖ ≠ 0 moves B u − c by up to ‖PFP‖ ‖G̃x‖ (SMALBE's iterates leave ker G̃): in
         # lengths, times the largest weight
@@ -197,7 +208,8 @@ class KKTStop:
 
         ``loosen > 1`` asks for less accuracy (Coulomb's early fixed-point steps).
         """
-        self.test = MaxGradientTest(self.weight, self.tol_g * loosen, self.comm,
+        floor = ROUND_OFF * np.finfo(float).eps * self.eq_unit_max * self.Lam
+        self.test = MaxGradientTest(self.weight, max(self.tol_g * loosen, floor), self.comm,
                                     self.tol_e * loosen)
         return self.test
 
@@ -208,7 +220,7 @@ class KKTStop:
         of reach can make much larger than the displacements; a loosened bound (Coulomb's
         early steps) would then be no bound at all.
         """
-        U = u.norm(PETSc.NormType.INFINITY)
+        U = max(u.norm(PETSc.NormType.INFINITY), self.u_floor)
         if U > 0:
             self.U, self.Lam = U, lam_qp.norm()
             self.tol_g = min(self.tol_g, self.rtol * U)
@@ -242,7 +254,7 @@ class KKTStop:
         self.stalled, self.worst = self.flat >= 1, min(worst, self.worst)
         if self.stalled:
             return False
-        U = u.norm(PETSc.NormType.INFINITY)
+        U = max(u.norm(PETSc.NormType.INFINITY), self.u_floor)
         Lam = lam_qp.norm()
         tightened = False
         if primal > rtol:

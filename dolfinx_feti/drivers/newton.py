@@ -79,6 +79,12 @@ def _met(kkt: dict[str, float], rtol: float) -> bool:
     return max((v for key, v in kkt.items() if key != "coulomb_bound"), default=0.0) <= rtol
 
 
+#: An increment's QP measures its lengths against at least this fraction of ‖u‖∞ (the total
+#: displacement): against ‖Δu‖∞ alone the KKT test's bound falls below the round-off of the
+#: QP near the solution and it runs to its budget (3D friction: 10 000 F-multiplications per
+#: Newton iteration, drivers/kkt_stop.KKTStop).
+U_FLOOR = 1e-2
+
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
 
@@ -113,10 +119,7 @@ class NewtonOptions:
 
 
 def _check_obstacle(c: RigidObstacle, problem: ContactProblem) -> None:
-    """Rigid obstacles: the gap and normal of the current positions, any degree."""
-    if c.friction is not None and problem.mesh.gdim != 2:
-        raise InputError("large-deformation contact: friction under Newton is built and "
-                         "tested in 2D only (docs/large_deformation.md)")
+    """Rigid obstacles: current gaps and normals, any degree; friction in 2D and 3D."""
 
 
 def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
@@ -316,6 +319,9 @@ class NewtonSolver:
                 self._factor(current, rows, active, curved, k)
             self._fresh = False
             x0 = None if self._cold else self._start(start)
+            # the increment to the accuracy of the total displacement (KKTStop's u_floor),
+            # with two digits to spare for the equilibrium (K of the increment's error)
+            solver.u_floor = U_FLOOR * self.u.norm(PETSc.NormType.INFINITY)
             qp = solver.solve(COLD if self._cold else x0)
             if x0 is not None:
                 x0.destroy()

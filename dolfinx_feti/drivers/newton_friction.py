@@ -8,10 +8,13 @@ iterate u_k takes
   :func:`~dolfinx_feti.constraints.friction.tangent_basis`); for a plane they never change;
 - the right-hand side of the **slip increment of the load step**: the row of the increment
   Δu is t·Δu = t·(u_0 + Δd) − t·u_k, u_0 the node's displacement at the end of the last
-  converged step and Δd the obstacle's translation since then (a moved
-  :class:`~dolfinx_feti.Plane`'s ``point``, a moved :class:`~dolfinx_feti.Sphere`'s
-  ``center``: :data:`ORIGIN`). So B_t u − c_t = t·(u − u_0 − Δd) is the slip relative to the
-  obstacle in the step, a node that sticks keeps its position on the obstacle, and the
+  converged step and Δd how far the obstacle carried the material point of its surface at
+  the node's position x + u_0 since then (:func:`.obstacle_motion.obstacle_motion`: the
+  rigid motion of a :class:`~dolfinx_feti.RigidMotion` — a spinning or rolling disc — or the
+  translation of a moved :class:`~dolfinx_feti.Plane`'s ``point``, a moved
+  :class:`~dolfinx_feti.Sphere`'s ``center``). So B_t u − c_t = t·(u − u_0 − Δd) is the slip
+  relative to the obstacle in the step, a node that sticks keeps its position on the
+  obstacle, and the
   friction law (Tresca's bound, or Coulomb's fixed point over Tresca solves that every
   :meth:`FetiSolver.solve` runs) is that of the small-deformation load paths, per step.
 
@@ -30,22 +33,8 @@ from petsc4py import PETSc
 from ..constraints.friction import tangent_basis
 from ..constraints.rows import Kind
 from ..errors import InputError
-from ..problem.conditions import Cylinder, Plane, Sphere
 from ..problem.contact_problem import ContactProblem
-
-#: Obstacle type → the point that moves with it (its translation is the obstacle's motion
-#: between two load steps). An obstacle type missing here is taken to stand still.
-ORIGIN = {Plane: lambda o: o.point, Sphere: lambda o: o.center, Cylinder: lambda o: o.point}
-
-
-def obstacle_origins(problem: ContactProblem, gdim: int) -> np.ndarray:
-    """Per contact condition, the point that moves with its rigid obstacle (zeros otherwise)."""
-    out = np.zeros((len(problem.contact), gdim))
-    for i, c in enumerate(problem.contact):
-        at = ORIGIN.get(type(getattr(c, "obstacle", None)))
-        if at is not None:
-            out[i] = np.asarray(at(c.obstacle), dtype=float)[:gdim]
-    return out
+from .obstacle_motion import obstacle_motion
 
 
 class IncrementalSlip:
@@ -89,6 +78,8 @@ class IncrementalSlip:
             raise AssertionError("a tangential row's node has no entry for every component")
         self._u0 = np.zeros((self.t.size, self.gdim))
         self._d = np.zeros((self.t.size, self.gdim))
+        share = solver.qp.share  # the reference position of each row's node
+        self._x = share.points.x[np.searchsorted(share.point_ids, own.node[self.t])][:, :self.gdim]
         self._done: ContactProblem | None = None  # the problem of the last converged step
 
     def begin(self, u: PETSc.Vec, problem: ContactProblem) -> None:
@@ -98,8 +89,8 @@ class IncrementalSlip:
         if self._done is None:  # from the unloaded state: no slip history, no motion
             self._d = np.zeros_like(self._u0)
             return
-        d = obstacle_origins(problem, self.gdim) - obstacle_origins(self._done, self.gdim)
-        self._d = d[own.spec[self.t]]
+        self._d = obstacle_motion(self._done, problem, own.spec[self.t], self._x + self._u0,
+                                  translate=True)
 
     def converged(self, problem: ContactProblem) -> None:
         """The step to ``problem`` converged: the next one starts from it."""
@@ -123,4 +114,4 @@ class IncrementalSlip:
         coef[ent] = s[self._t_row] * t[self._t_row, own.e_comp[ent]]
 
 
-__all__ = ["ORIGIN", "IncrementalSlip", "obstacle_origins"]
+__all__ = ["IncrementalSlip"]

@@ -86,7 +86,8 @@ CONTINUE_BUDGET, CONTINUE_MIN = 1.0, 20
 def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              progress: Progress | None = None, timer: Timer | None = None,
              friction: FrictionSolve | None = None, preconditioner=None,
-             x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None) -> QPSolve:
+             x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None,
+             u_floor: float = 0.0) -> QPSolve:
     """Run the QP solver the dual QP needs and map its solution back (collective).
 
     Under the KKT stopping test a converged run is recovered and checked in physical units; a
@@ -105,6 +106,7 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
             start :meth:`.dual.DualQP.start`. Not used with friction (it starts cold).
         multiplier0: SMALBE's start for the multiplier of G̃ x = 0 (e.g. an earlier solve's
             ``result.multiplier`` on the same G̃); None for zeros.
+        u_floor: A lower bound of the KKT test's displacement scale (:class:`.KKTStop`).
     """
     report = Report() if report is None else report
     timer = Timer() if timer is None else timer
@@ -116,7 +118,7 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
                                                  explicit=qp.feti.operator == "explicit")
     report.warnings.extend(getattr(preconditioner, "notes", []))
     runs = _KKTRuns(qp, opts, report, Progress(qp.feti.comm, 0) if progress is None else
-                    progress, timer, friction, preconditioner, x0, multiplier0)
+                    progress, timer, friction, preconditioner, x0, multiplier0, u_floor)
     out = runs.solve()
     if own_precond and preconditioner is not None and hasattr(preconditioner, "destroy"):
         preconditioner.destroy()
@@ -171,7 +173,7 @@ class _KKTRuns:
 
     def __init__(self, qp: DualQP, opts: SolverOptions, report: Report, progress: Progress,
                  timer: Timer, friction: FrictionSolve | None, precond,
-                 x0: PETSc.Vec | None, multiplier0: np.ndarray | None):
+                 x0: PETSc.Vec | None, multiplier0: np.ndarray | None, u_floor: float = 0.0):
         self.qp, self.opts, self.report, self.progress, self.timer = \
             qp, opts, report, progress, timer
         self.friction, self.precond, self.multiplier0 = friction, precond, multiplier0
@@ -181,7 +183,7 @@ class _KKTRuns:
         if friction is not None:
             friction.relabel(self.qp_row)
         self.x = _start(qp, x0, self.n_ineq, friction)
-        self.stop = KKTStop(qp, opts.rtol) if opts.stop_test == "kkt" else None
+        self.stop = KKTStop(qp, opts.rtol, u_floor) if opts.stop_test == "kkt" else None
         self.rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
         self.runs: list[QPResult] = []
         self.check_mults = self.kplus = 0
@@ -279,7 +281,7 @@ class _KKTRuns:
         """The KKT residuals of the recovered solution; sets :attr:`done` when they hold."""
         scale, kind, ineq_all = row_data(self.qp)
         kkt, _ = kkt_residuals(self.qp.system, scale, kind, ineq_all, u, lam_all,
-                               friction=self.friction)
+                               friction=self.friction, u_floor=self.stop.u_floor)
         lam_qp = self.qp.multipliers(self.x)
         self.done = self.stop.accept(kkt, u, lam_qp, res.Dx_norm)
         lam_qp.destroy()

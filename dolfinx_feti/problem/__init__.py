@@ -20,7 +20,8 @@ from .conditions import (
     Tresca,
 )
 from .contact_problem import ContactProblem
+from .rigid_motion import RigidMotion
 
 __all__ = ["ByFunction", "ByTags", "ContactProblem", "Coulomb", "Cylinder", "Dirichlet",
-           "Mortar", "NodeToNode", "Parts", "Plane", "RigidObstacle", "SignedDistance",
-           "Sphere", "Tie", "Tresca"]
+           "Mortar", "NodeToNode", "Parts", "Plane", "RigidMotion", "RigidObstacle",
+           "SignedDistance", "Sphere", "Tie", "Tresca"]

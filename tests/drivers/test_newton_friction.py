@@ -20,8 +20,9 @@ import json
 import numpy as np
 import pytest
 from coulomb_kkt import coulomb_violations
-from element_models import box, rectangle, stacked_blocks
+from element_models import rectangle, stacked_blocks
 from mpi4py import MPI
+from newton_small_loads import small_load_ratios
 from path_files import check_xdmf_series
 
 import dolfinx_feti as df
@@ -95,8 +96,9 @@ def test_full_stick_equals_the_clamped_block(block, plane_shift, top_shift):
 def test_gross_sliding_force_ratio_is_the_coefficient(block, parts):
     """𝓕 = 0.2, the top sheared far: every node slips, −F_x / F_y = 𝓕 to solver tolerance."""
     dec = df.ByTags() if parts == 1 else df.Parts(2)
-    sols = df.solve_path(lambda t: sheared(block, t, df.Coulomb(0.2), decomposition=dec),
-                         [0.5, 1.0, 2.0, 3.0], **OPTS)
+    # the fixed point's tolerance below the per-node check's 1e-7 (its default is 1e-6)
+    sols = df.solve_path(lambda t: sheared(block, t, df.Coulomb(0.2, rtol=1e-9),
+                                           decomposition=dec), [0.5, 1.0, 2.0, 3.0], **OPTS)
     assert all(s.report.converged for s in sols)
     sol = sols[-1]
     assert np.all(sol.contact.state[sol.contact.force > 0] == 2)
@@ -130,34 +132,17 @@ def test_small_loads_tend_to_the_linear_coulomb_solution(block):
                                       friction=df.Coulomb(0.3, rtol=1e-12, max_steps=200))],
             decomposition=df.ByTags())
 
-    diffs = []
-    for d in (1e-3, 2e-3, 4e-3):
-        nl = df.solve(problem(d, df.NeoHookean(E, NU)), rtol=1e-13, newton_rtol=1e-12,
-                      method="fetidp")
-        lin = df.solve(problem(d, df.Elasticity(E, NU)), rtol=1e-13, method="fetidp")
-        assert nl.report.converged and lin.report.converged
-        assert np.array_equal(nl.contact.state, lin.contact.state)
-        assert 0 < np.count_nonzero(nl.contact.state == 2) < nl.contact.state.size
-        check_coulomb(nl, 0.3)
-        diffs.append(np.abs(nl.nodal_values() - lin.nodal_values()).max())
-    ratios = np.array(diffs[1:]) / np.array(diffs[:-1])
+    ratios = small_load_ratios(problem, 0.3, E, NU)
     assert np.all(np.abs(ratios - 4.0) < 0.1), ratios
 
 
-def test_friction_on_pairs_and_in_3d_refused_by_name():
+def test_friction_on_pairs_refused_by_name():
     mesh = df.build_mesh(stacked_blocks, gdim=2)
     problem = df.ContactProblem(
         mesh, df.NeoHookean(E, NU),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", -0.1, components=[1])],
         contact=[df.NodeToNode("upper_bottom", "lower_top", friction=df.Tresca(1.0))])
     with pytest.raises(df.InputError, match="rigid obstacles only"):
-        df.solve(problem)
-    cube = df.build_mesh(box, h=0.5, gdim=3)
-    problem = df.ContactProblem(
-        cube, df.NeoHookean(E, NU), dirichlet=[df.Dirichlet("z1", (0.0, 0.0, -0.1))],
-        contact=[df.RigidObstacle("z0", df.Plane((0.0, 0.0, 0.0), (0.0, 0.0, 1.0)),
-                                  friction=df.Coulomb(0.3))])
-    with pytest.raises(df.InputError, match="2D only"):
         df.solve(problem)
 
 
