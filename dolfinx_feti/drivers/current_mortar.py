@@ -237,15 +237,19 @@ class DeformedMortar:
                       lam: PETSc.Vec | None) -> sp.csr_matrix | None:
         """The derivatives of the mortar rows at u; the part of H the tangent takes (collective).
 
-        Keeps :attr:`derivs` (rank 0) for :func:`.mortar_step.exact_step`. Returns the
-        symmetric part of H on the pairs of dofs of one subdomain (:meth:`force_tangent`), or
-        None when the rows' derivatives are left out (``consistent`` False).
+        Keeps :attr:`derivs` and :attr:`remainder` = H (rank 0) for
+        :func:`.mortar_step.exact_step`; the tangent takes no term (None).
         """
         self.derivs = None
         if not self.consistent:
             return None
         self.derivs = self.derivatives(problem, u, old, lam)
-        return self.force_tangent(self.derivs)
+        # H stays out of the factored tangent: its symmetric part made the tangent of the
+        # blocks compressed 40 % indefinite (a failed factorization); all of it goes to the
+        # inner QPs' right-hand sides
+        if self.comm.rank == 0:
+            self.remainder = self.derivs.H
+        return None
 
     def relayout(self, problem: ContactProblem, rows: RankRows, c0: np.ndarray,
                  u: PETSc.Vec) -> tuple[RankRows, RankRows, np.ndarray]:
