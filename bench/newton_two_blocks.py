@@ -86,16 +86,11 @@ def curved() -> None:
     """The disk on the block, frozen rows against the rows' derivatives."""
     import time
 
-    from dolfinx_feti.io.meshes_occ import disk_on_block
-    mesh = df.build_mesh(disk_on_block, h_contact_disk=0.06, h_contact_block=0.1, h_far=0.5,
-                         R=1.0, width=3.0, height=1.5, refine=0.6, gdim=2)
+    from test_newton_mortar import disk_block_mesh, disk_pressed
+    mesh = disk_block_mesh()
 
     def problem(t):
-        return df.ContactProblem(
-            mesh, df.NeoHookean(1.0, 0.3),
-            dirichlet=[df.Dirichlet("load", -t, components=[1]),
-                       df.Dirichlet("symmetry", 0.0, components=[0]), df.Dirichlet("bottom")],
-            contact=[df.Mortar("disk_contact", "block_contact")])
+        return disk_pressed(mesh, t)
 
     out = {}
     for derivs in (False, True):
