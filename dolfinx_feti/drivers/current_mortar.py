@@ -89,6 +89,7 @@ class DeformedMortar:
         self.infos: list = []
         self.consistent = True  # the rows' derivatives in the Newton step (mortar_step.py)
         self.derivs: RowDerivatives | None = None  # rank 0: those of the last iterate
+        self.derived = False  # every rank: whether derivs are of the current iterate
         self.remainder: np.ndarray | None = None  # rank 0: H less the tangent's part
         surface = solver.qp.surface
         points = comm.bcast(surface.point_ids if comm.rank == 0 else None, root=0)
@@ -240,10 +241,11 @@ class DeformedMortar:
         Keeps :attr:`derivs` and :attr:`remainder` = H (rank 0) for
         :func:`.mortar_step.exact_step`; the tangent takes no term (None).
         """
-        self.derivs = None
+        self.derivs, self.derived = None, False
         if not self.consistent:
             return None
         self.derivs = self.derivatives(problem, u, old, lam)
+        self.derived = True
         # H stays out of the factored tangent: its symmetric part made the tangent of the
         # blocks compressed 40 % indefinite (a failed factorization); all of it goes to the
         # inner QPs' right-hand sides

@@ -336,7 +336,7 @@ class NewtonSolver:
             if qp.report.reason == "unbounded" and curved:  # once more without the term
                 self._factor(current, rows, active, False, k)
                 qp = solver.solve(COLD)
-            if self.mortar is not None and self.mortar.derivs is not None and \
+            if self.mortar is not None and self.mortar.derived and \
                     qp.report.converged:  # the rows' derivatives: inner QPs (mortar_step.py)
                 last_du = history[-1]["du_rel"] if history else 1.0
                 qp, inner = exact_step(solver, self.mortar, qp, rows, self._start,
