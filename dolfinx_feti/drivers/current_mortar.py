@@ -217,7 +217,9 @@ class DeformedMortar:
         """The symmetric part of H = ∂(Σ λ_j b_j)/∂u on this rank's K (collective).
 
         Only the entries of two dofs in one subdomain: K is block diagonal (the entries that
-        couple the two bodies, or two subdomains, are left out; module docstring).
+        couple the two bodies, or two subdomains, are left out). Not in Newton's tangent: it
+        left the curved case linear and made the flat blocks at 40 % indefinite
+        (docs/benchmarks_history.md); it splits H for the tests.
         """
         data = self.solver.data
         found = None

@@ -80,6 +80,8 @@ def _met(kkt: dict[str, float], rtol: float) -> bool:
     return max((v for key, v in kkt.items() if key != "coulomb_bound"), default=0.0) <= rtol
 
 
+INF = PETSc.NormType.INFINITY
+
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
 
@@ -224,7 +226,6 @@ class NewtonSolver:
         self._fresh = True  # the set-up's tangent and rows are those of u = 0
         self._cold = False
         self._lam: PETSc.Vec | None = None  # the last QP's multipliers: the active rows
-        self._mortar_shift = None  # the mortar rows' force derivative (drivers/current_mortar)
         data = self.solver.data
         self._kappa = comm.allreduce(
             float(abs(data.K).sum(axis=1).max()) if data.K.shape[0] else 0.0, op=MPI.MAX)
@@ -259,10 +260,8 @@ class NewtonSolver:
     def _factor(self, problem, rows, lam, curved: bool, k: int) -> None:
         """The tangent at the current iterate with the augmentation, refactored."""
         try:
-            shift = self.rows.augmentation(lam, curved)
-            if self._mortar_shift is not None:
-                shift = self._mortar_shift if shift is None else shift + self._mortar_shift
-            self.solver.update_stiffness(problem, rows=rows, shift=shift)
+            self.solver.update_stiffness(problem, rows=rows,
+                                         shift=self.rows.augmentation(lam, curved))
         except SolveError as e:  # K K⁺ K = K fails: a singular or indefinite tangent
             raise StepFailed(f"Newton iteration {k}: the tangent stiffness cannot be "
                              f"factored ({e}): a singular or indefinite tangent") from e
@@ -314,7 +313,7 @@ class NewtonSolver:
                 old, last = solver.qp.rows, lam if lam is not None else self._lam
                 rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
                 own0 = rows0.own
-                self._mortar_shift = self.mortar.linearization(current, self.u, old, last)
+                self.mortar.linearization(current, self.u, old, last)
                 if last is not None and not self._cold:
                     start = self.mortar.warm_start(old, last, rows)
             same = rows.own.size == solver.qp.rows.own.size and np.array_equal(
@@ -341,7 +340,7 @@ class NewtonSolver:
                 last_du = history[-1]["du_rel"] if history else 1.0
                 qp, inner = exact_step(solver, self.mortar, qp, rows, self._start,
                                        eta=min(0.1, last_du),
-                                       floor=0.1 * opts.rtol * self.u.norm(PETSc.NormType.INFINITY))
+                                       floor=0.1 * opts.rtol * self.u.norm(INF))
             else:
                 inner = 0
             du, lam = qp.u_vec, qp.lam
