@@ -11,9 +11,14 @@ on rollers, the left sides on a symmetry plane, one subdomain per body, FETI-DP)
    with node-to-node contact (5 × 3 cells each: matching): converged or not, Newton
    iterations and cut-backs per step, the error against the exact solution.
 
+3. curved mortar contact (the quarter disk pressed 0.1 and 0.2 into the block of
+   tests/drivers/test_newton_mortar.py): Newton iterations, inner QPs and seconds with the
+   rows' D, M, n frozen and with their derivatives (``newton_mortar_derivatives=True``,
+   drivers/mortar_step.py), the increments' history and the difference of the solutions.
+
 Run (serial; small dense eigenproblems):
 
-    OMP_NUM_THREADS=1 python bench/newton_two_blocks.py
+    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_two_blocks.py [--curved]
 """
 
 from __future__ import annotations
@@ -77,7 +82,37 @@ def path(mesh, interface) -> list[str]:
     return out
 
 
+def curved() -> None:
+    """The disk on the block, frozen rows against the rows' derivatives."""
+    import time
+
+    from test_newton_mortar import disk_block_mesh, disk_pressed
+    mesh = disk_block_mesh()
+
+    def problem(t):
+        return disk_pressed(mesh, t)
+
+    out = {}
+    for derivs in (False, True):
+        t0 = time.perf_counter()
+        out[derivs] = df.solve_path(problem, [0.1, 0.2], rtol=1e-12, newton_rtol=1e-10,
+                                    method="fetidp", newton_max_it=40, progress=False,
+                                    newton_mortar_derivatives=derivs)
+        print(f"derivatives={derivs}: {time.perf_counter() - t0:.1f} s")
+        for sol in out[derivs]:
+            hist = sol.report.extra["newton"]
+            steps = " ".join(f"{h['du_rel']:.1e}" for h in hist)
+            print(f"  converged {sol.report.converged}, {len(hist)} iterations, inner QPs "
+                  f"{[h.get('inner_qps', 0) for h in hist]}, du/u {steps}")
+    u0, u1 = out[False][-1].nodal_values(), out[True][-1].nodal_values()
+    diff = np.abs(u1 - u0).max() / np.abs(u0).max()
+    print(f"max |u_derivatives − u_frozen| / max |u| = {diff:.1e}")
+
+
 if __name__ == "__main__":
+    if "--curved" in sys.argv:
+        curved()
+        sys.exit()
     nonmatching = blocks(TWO_BLOCKS)
     print("strain | min eig K_t (Dirichlet held) | with the mortar rows held")
     for strain in (0.1, 0.2, 0.3, 0.35, 0.4):

@@ -244,6 +244,22 @@ class FetiSolver:
         self._forget_before()  # of another stiffness: no predictor
         self._M = None
 
+    def update_rhs(self, f: np.ndarray, rows) -> None:
+        """A new load ``f`` and new right-hand sides of the same rows (collective).
+
+        Nothing is assembled and B is kept (its coefficients must be those of the set-up's
+        rows): d, e, λ̂ and b are new, as in :meth:`update` (e.g. the inner iterations of a
+        Newton step whose unsymmetric terms go to the right-hand sides).
+
+        Args:
+            f: The load on this rank's primal dofs.
+            rows: This rank's rows in the current layout with the new right-hand sides.
+        """
+        self._refuse_boundary_elements("update_rhs")
+        with self._timer.phase("dual operators"):
+            qp = self.qp.for_load(self.qp.system.with_rhs(f, rows.own.rhs))
+        self._adopt(qp, rows)
+
     def rows_of(self, problem: ContactProblem, tangents_follow: bool = False):
         """This rank's rows with the right-hand sides of ``problem`` (collective).
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -39,6 +40,7 @@ from ..errors import InputError, collective
 from ..parallel.exchange import exclusive_scan
 from ..problem.contact_problem import ContactProblem, Mortar
 from ..setup.share import RankRows, row_subset
+from .mortar_linearization import RowDerivatives, row_derivatives
 
 
 def check_mortar(c: Mortar, problem: ContactProblem) -> None:
@@ -85,6 +87,10 @@ class DeformedMortar:
         self.specs = np.array([i for i, c in enumerate(problem.contact) if c.mortar],
                               dtype=np.int32)
         self.infos: list = []
+        self.consistent = True  # the rows' derivatives in the Newton step (mortar_step.py)
+        self.derivs: RowDerivatives | None = None  # rank 0: those of the last iterate
+        self.derived = False  # every rank: whether derivs are of the current iterate
+        self.remainder: np.ndarray | None = None  # rank 0: H less the tangent's part
         surface = solver.qp.surface
         points = comm.bcast(surface.point_ids if comm.rank == 0 else None, root=0)
         self._points = points  # the global dof points of the cells along the surfaces
@@ -135,22 +141,24 @@ class DeformedMortar:
         rows, cols, c, self.infos = self.comm.bcast(out, root=0)
         return rows, cols, c
 
-    def _build(self, problem: ContactProblem, U: np.ndarray):
-        """Rank 0: the rows on the deformed cells along the surfaces."""
-        surface = self.solver.qp.surface
-        layer = surface.problem.mesh
+    def _layer_rows(self, problem: ContactProblem, U: np.ndarray) -> tuple[Rows, list]:
+        """Rank 0: the rows on the deformed cells along the surfaces (the layer's points)."""
+        layer = self.solver.qp.surface.problem.mesh
         x = layer.x.copy()
         x[:, : self._gdim] += U[:, : self._gdim]
         deformed = replace(layer, x=x)
-        n = self._points.size
-        ptr = np.arange(n + 1)
+        ptr = np.arange(self._points.size + 1)
         blocks, infos = [], []
         for i in self.specs:
             rows, info = mortar_contact_rows(deformed, problem.contact[int(i)], int(i), ptr,
                                              self._first, self._bs)
             blocks.append(rows)
             infos.append(info)
-        rows = Rows.concatenate(blocks) if blocks else Rows.empty(self._gdim)
+        return (Rows.concatenate(blocks) if blocks else Rows.empty(self._gdim)), infos
+
+    def _build(self, problem: ContactProblem, U: np.ndarray):
+        """Rank 0: the rows on the deformed cells along the surfaces."""
+        rows, infos = self._layer_rows(problem, U)
         if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
             raise InputError("large-deformation contact: non-finite mortar rows at the "
                              "iterate (a surface turned inside out)")
@@ -160,6 +168,92 @@ class DeformedMortar:
         gmap = self._points
         rows = replace(rows, e_node=gmap[rows.e_node], node=gmap[rows.node])
         return rows, cols, rows.rhs + Bu, infos
+
+    def surface_dofs(self, problem: ContactProblem) -> np.ndarray:
+        """Rank 0: the flat (point, component) dofs of the mortar surfaces' nodes."""
+        layer = self.solver.qp.surface.problem.mesh
+        names = [n for i in self.specs for n in (problem.contact[int(i)].slave,
+                                                 problem.contact[int(i)].master)]
+        nodes = np.unique(np.concatenate([layer.facets(n).ravel() for n in names]))
+        return (nodes[:, None] * self._bs + np.arange(self._gdim)).ravel()
+
+    def derivatives(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
+                    lam: PETSc.Vec | None) -> RowDerivatives | None:
+        """The rows of x + u and their derivatives (:mod:`.mortar_linearization`; collective).
+
+        Args:
+            problem: The problem of the step.
+            u: The iterate.
+            old: The rows of the last QP (their layout), whose multipliers are ``lam``.
+            lam: The last QP's multipliers: the forces (physical, by slave node) of H.
+
+        Returns:
+            On rank 0 the derivatives, the surfaces' points as nodes; None elsewhere.
+        """
+        U = self._displacement(u)
+        own = old.own
+        mortar = (own.kind == Kind.CONTACT) & np.isin(own.spec, self.specs)
+        phys = np.zeros(int(mortar.sum())) if lam is None else \
+            lam.array_r[mortar] * own.scale[mortar]
+        parts = self.comm.gather((own.spec[mortar], own.node[mortar], phys), root=0)
+        out = None
+        with collective(self.comm, "constraints"):
+            if self.comm.rank == 0:
+                spec, node, val = (np.concatenate([p[i] for p in parts]) for i in range(3))
+                # the rows' nodes are global dof points: the layer's points are self._points
+                local = np.searchsorted(self._points, node)
+                base, _ = self._layer_rows(problem, U)
+                key = spec.astype(np.int64) * self._points.size + local
+                want = base.spec.astype(np.int64) * self._points.size + base.node
+                srt = np.argsort(key)
+                pos = np.minimum(np.searchsorted(key[srt], want), max(key.size - 1, 0))
+                hit = (key[srt][pos] == want) if key.size else np.zeros(want.size, bool)
+                lam_base = np.where(hit, val[srt][pos] if key.size else 0.0, 0.0)
+                out = row_derivatives(lambda V: self._layer_rows(problem, V)[0], U,
+                                      self.surface_dofs(problem), lam_base)
+        return out
+
+    def force_tangent(self, d: RowDerivatives | None) -> sp.csr_matrix:
+        """The symmetric part of H = ∂(Σ λ_j b_j)/∂u on this rank's K (collective).
+
+        Only the entries of two dofs in one subdomain: K is block diagonal (the entries that
+        couple the two bodies, or two subdomains, are left out). Not in Newton's tangent: it
+        left the curved case linear and made the flat blocks at 40 % indefinite
+        (docs/benchmarks_history.md); it splits H for the tests.
+        """
+        data = self.solver.data
+        found = None
+        if self.comm.rank == 0:
+            Hs = 0.5 * (d.H + d.H.T)
+            col = self._col.ravel()
+            sub = np.repeat(self._first, self._bs)
+            Hs[~((col[:, None] >= 0) & (col[None, :] >= 0) & (sub[:, None] == sub[None, :]))] = 0
+            a, b = np.nonzero(Hs)
+            found = (col[a], col[b], Hs[a, b])
+            self.remainder = d.H - Hs  # what the factored tangent does not hold
+        ca, cb, val = self.comm.bcast(found, root=0)
+        lo, n = data.primal_start, data.K.shape[0]
+        mine = (ca >= lo) & (ca < lo + n)
+        return sp.csr_matrix((val[mine], (ca[mine] - lo, cb[mine] - lo)), shape=(n, n))
+
+    def linearization(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
+                      lam: PETSc.Vec | None) -> sp.csr_matrix | None:
+        """The derivatives of the mortar rows at u; the part of H the tangent takes (collective).
+
+        Keeps :attr:`derivs` and :attr:`remainder` = H (rank 0) for
+        :func:`.mortar_step.exact_step`; the tangent takes no term (None).
+        """
+        self.derivs, self.derived = None, False
+        if not self.consistent:
+            return None
+        self.derivs = self.derivatives(problem, u, old, lam)
+        self.derived = True
+        # H stays out of the factored tangent: its symmetric part made the tangent of the
+        # blocks compressed 40 % indefinite (a failed factorization); all of it goes to the
+        # inner QPs' right-hand sides
+        if self.comm.rank == 0:
+            self.remainder = self.derivs.H
+        return None
 
     def relayout(self, problem: ContactProblem, rows: RankRows, c0: np.ndarray,
                  u: PETSc.Vec) -> tuple[RankRows, RankRows, np.ndarray]:

@@ -67,6 +67,7 @@ from ..solver import COLD, SOLVE_BY, FetiSolver
 from .current_mortar import DeformedMortar, check_mortar
 from .current_rows import CurrentRows, rows_with_rhs
 from .kkt_stop import kkt_residuals
+from .mortar_step import exact_step, gap_change
 from .newton_friction import IncrementalSlip
 from .qp_solve import UNMET_KKT
 
@@ -85,6 +86,8 @@ def _met(kkt: dict[str, float], rtol: float) -> bool:
 #: Newton iteration, drivers/kkt_stop.KKTStop).
 U_FLOOR = 1e-2
 
+INF = PETSc.NormType.INFINITY
+
 #: The obstacles' curvature term enters the tangent once the relative residual is below this.
 CURVATURE_FROM = 1e-3
 
@@ -101,16 +104,22 @@ class NewtonOptions:
         rtol: Bound on every KKT residual of the nonlinear problem and on ‖Δu‖∞/‖u‖∞.
         max_it: Newton iterations per load step.
         max_backtracks: Halvings of the step in the line search.
+        mortar_derivatives: Mortar rows: the Newton step with their derivatives (inner QPs,
+            :mod:`.mortar_step`: quadratic on curved surfaces, where the frozen rows converge
+            linearly; it fails on the flat blocks compressed 40 %, so it is asked for);
+            False: D, M and the normals frozen at the iterate.
     """
 
     rtol: float = 1e-9
     max_it: int = 25
     max_backtracks: int = 12
+    mortar_derivatives: bool = False
 
     @classmethod
     def pop(cls, kwargs: dict) -> NewtonOptions:
         """Take ``newton_<field>`` out of ``kwargs``."""
-        vals = {k: kwargs.pop(f"newton_{k}") for k in ("rtol", "max_it", "max_backtracks")
+        vals = {k: kwargs.pop(f"newton_{k}") for k in ("rtol", "max_it", "max_backtracks",
+                                                        "mortar_derivatives")
                 if f"newton_{k}" in kwargs}
         opts = cls(**vals)
         if not (0 < opts.rtol < 1) or opts.max_it < 1 or opts.max_backtracks < 0:
@@ -229,6 +238,7 @@ class NewtonSolver:
             c.mortar for c in problem.contact) else None
         if self.mortar is not None:
             self.mortar.quiet()
+            self.mortar.consistent = self.newton.mortar_derivatives
         self.slip = None if self.solver.qp.friction is None else \
             IncrementalSlip(self.solver, comm)
         self.rows.friction = self.slip
@@ -261,13 +271,14 @@ class NewtonSolver:
         if self.mortar is not None:
             self.mortar.quiet()
 
-    def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray
-               ) -> tuple[float, np.ndarray]:
+    def _merit(self, problem, u: PETSc.Vec, BTlam: np.ndarray, rows0, c0: np.ndarray,
+               shift: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         try:
             r = self._residual(problem, u.array_r)
         except InputError:  # non-finite: a cell turned inside out (J <= 0) at this trial
             return math.inf, None
-        v = self.rows.violation(self.rows.at(problem, rows0, c0, u)[0], rows0.own)
+        rhs = self.rows.at(problem, rows0, c0, u)[0]
+        v = self.rows.violation(rhs if shift is None else rhs + shift, rows0.own)
         s = float(np.sum((r - BTlam) ** 2)) + self._kappa ** 2 * float(np.sum(v ** 2))
         s = self.comm.allreduce(s, op=MPI.SUM)
         return (math.sqrt(s) if np.isfinite(s) else math.inf), r
@@ -305,6 +316,7 @@ class NewtonSolver:
                 old, last = solver.qp.rows, lam if lam is not None else self._lam
                 rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
                 own0 = rows0.own
+                self.mortar.linearization(current, self.u, old, last)
                 if last is not None and not self._cold:
                     start = self.mortar.warm_start(old, last, rows)
             same = rows.own.size == solver.qp.rows.own.size and np.array_equal(
@@ -329,6 +341,14 @@ class NewtonSolver:
             if qp.report.reason == "unbounded" and curved:  # once more without the term
                 self._factor(current, rows, active, False, k)
                 qp = solver.solve(COLD)
+            if self.mortar is not None and self.mortar.derived and \
+                    qp.report.converged:  # the rows' derivatives: inner QPs (mortar_step.py)
+                last_du = history[-1]["du_rel"] if history else 1.0
+                qp, inner = exact_step(solver, self.mortar, qp, rows, self._start,
+                                       eta=min(0.1, last_du),
+                                       floor=0.1 * opts.rtol * self.u.norm(INF))
+            else:
+                inner = 0
             du, lam = qp.u_vec, qp.lam
             self._lam = lam
             if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
@@ -350,10 +370,13 @@ class NewtonSolver:
             # below this the merit is round-off (of the forces and of K u)
             floor = 1e3 * np.finfo(float).eps * (math.sqrt(comm.allreduce(
                 float(BTlam @ BTlam), op=MPI.SUM)) + self._kappa * self.u.norm() + r_scale)
+            # the mortar rows' linearized gap moves with G, not B (mortar_step.py)
+            gap = gap_change(self.mortar, rows, du) if inner else None
             alpha, trial = 1.0, self.u.duplicate()
             for _ in range(opts.max_backtracks + 1):
                 trial.waxpy(alpha, du, self.u)
-                phi, r = self._merit(current, trial, BTlam, rows0, c0)
+                phi, r = self._merit(current, trial, BTlam, rows0, c0,
+                                     None if gap is None else alpha * gap)
                 if phi <= max((1 - 1e-4 * alpha) * phi0, floor):
                     break
                 alpha *= 0.5
@@ -370,6 +393,8 @@ class NewtonSolver:
             c_now = self.rows.c_at(current, rows0, c0, self.u)
             kkt = self._kkt(c_now, r, r_scale, lam, own0, qp.friction)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
+            if self.mortar is not None:
+                history[-1]["inner_qps"] = inner
             # quadratic convergence: the next increment would be of the order du_rel²
             if _met(kkt, opts.rtol) and du_rel <= math.sqrt(opts.rtol) and \
                     qp.report.converged and self.rows.dropped <= opts.rtol:
