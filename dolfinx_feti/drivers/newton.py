@@ -298,117 +298,152 @@ class NewtonSolver:
         if self.slip is not None:
             self.slip.begin(self.u, problem)
         rows0 = solver.rows_of(current, tangents_follow=True)
-        own0 = rows0.own
-        c0 = own0.rhs.copy()
+        c0 = rows0.own.rhs.copy()
         r = self._residual(current, self.u.array_r)
         r_scale = math.sqrt(comm.allreduce(float(r @ r), op=MPI.SUM))
         history: list[dict] = []
-        sol = None
         converged = False
         lam = None
         for k in range(opts.max_it):
             t0 = time.perf_counter()
-            self.state.set(solver.data, self.u.array_r)
-            rhs, coef, normal = self.rows.at(current, rows0, c0, self.u, keep=True)
-            rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
-            start, curved = None, False  # start: the last multipliers in a new layout
-            if self.mortar is not None:  # new mortar rows: maybe another layout
-                old, last = solver.qp.rows, lam if lam is not None else self._lam
-                rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
-                own0 = rows0.own
-                self.mortar.linearization(current, self.u, old, last)
-                if last is not None and not self._cold:
-                    start = self.mortar.warm_start(old, last, rows)
-            same = rows.own.size == solver.qp.rows.own.size and np.array_equal(
-                rows.own.rhs, solver.qp.rows.own.rhs)
-            if self._fresh and k == 0 and comm.allreduce(same, op=MPI.LAND):
-                pass  # the set-up is the linearization at u = 0 with these rows
-            else:
-                active = lam if lam is not None else self._lam
-                # the obstacles' curvature term (−λ ∂n/∂y) near the solution only: far from
-                # it an overshooting λ would make the tangent indefinite
-                curved = bool(history) and history[-1]["residual"] < CURVATURE_FROM
-                self._factor(current, rows, active, curved, k)
-            self._fresh = False
-            x0 = None if self._cold else self._start(start)
-            # the increment to the accuracy of the total displacement (KKTStop's u_floor),
-            # with two digits to spare for the equilibrium (K of the increment's error)
-            solver.u_floor = U_FLOOR * self.u.norm(PETSc.NormType.INFINITY)
-            qp = solver.solve(COLD if self._cold else x0)
-            if x0 is not None:
-                x0.destroy()
-            self._cold = False
-            if qp.report.reason == "unbounded" and curved:  # once more without the term
-                self._factor(current, rows, active, False, k)
-                qp = solver.solve(COLD)
-            if self.mortar is not None and self.mortar.derived and \
-                    qp.report.converged:  # the rows' derivatives: inner QPs (mortar_step.py)
-                last_du = history[-1]["du_rel"] if history else 1.0
-                qp, inner = exact_step(solver, self.mortar, qp, rows, self._start,
-                                       eta=min(0.1, last_du),
-                                       floor=0.1 * opts.rtol * self.u.norm(INF))
-            else:
-                inner = 0
+            rows, rows0, c0, start, curved, active = self._linearize(
+                current, rows0, c0, lam, history, k)
+            qp, inner = self._increment(current, rows, start, curved, active, history, k)
             du, lam = qp.u_vec, qp.lam
             self._lam = lam
             if qp.report.reason == "unbounded":  # the dual of an indefinite K̃_t
                 history.append(self._record(k, math.nan, 0.0, qp, t0, {}))
                 c_now = self.rows.c_at(current, rows0, c0, self.u)
-                sol = self._solution(problem, qp, c_now, r, r_scale, history, False)
-                sol.report.reason = "indefinite tangent"
-                sol.report.warnings.append(
-                    f"Newton iteration {k}: the tangent stiffness K̃_t is indefinite (the QP is "
-                    "unbounded): an instability of the structure, or of subdomains joined only "
-                    "at corners under compression; take smaller load steps (solve_path) or "
-                    "fewer subdomains")
-                return sol, False
-            w = solver.qp.system.B.createVecRight()
-            solver.qp.system.B.multTranspose(lam, w)
-            BTlam = w.array_r.copy()
-            w.destroy()
-            phi0, r_k = self._merit(current, self.u, BTlam, rows0, c0)
-            # below this the merit is round-off (of the forces and of K u)
-            floor = 1e3 * np.finfo(float).eps * (math.sqrt(comm.allreduce(
-                float(BTlam @ BTlam), op=MPI.SUM)) + self._kappa * self.u.norm() + r_scale)
-            # the mortar rows' linearized gap moves with G, not B (mortar_step.py)
-            gap = gap_change(self.mortar, rows, du) if inner else None
-            alpha, trial = 1.0, self.u.duplicate()
-            for _ in range(opts.max_backtracks + 1):
-                trial.waxpy(alpha, du, self.u)
-                phi, r = self._merit(current, trial, BTlam, rows0, c0,
-                                     None if gap is None else alpha * gap)
-                if phi <= max((1 - 1e-4 * alpha) * phi0, floor):
-                    break
-                alpha *= 0.5
-            else:
-                trial.destroy()
-                history.append(self._record(k, math.nan, alpha, qp, t0, {}))
+                return self._indefinite(problem, qp, c_now, r, r_scale, history, k), False
+            alpha, r, r_k = self._line_search(current, qp, rows, rows0, c0, inner, r_scale)
+            if alpha is None:
+                history.append(self._record(k, math.nan, 0.5 ** (opts.max_backtracks + 1),
+                                            qp, t0, {}))
                 c_now = self.rows.c_at(current, rows0, c0, self.u)
                 return self._solution(problem, qp, c_now, r_k, r_scale, history, False), False
             self.u.axpy(alpha, du)
-            trial.destroy()
             self.state.set(solver.data, self.u.array_r)
-            du_rel = alpha * du.norm(PETSc.NormType.INFINITY) / max(
-                self.u.norm(PETSc.NormType.INFINITY), 1e-300)
+            du_rel = alpha * du.norm(INF) / max(self.u.norm(INF), 1e-300)
             c_now = self.rows.c_at(current, rows0, c0, self.u)
-            kkt = self._kkt(c_now, r, r_scale, lam, own0, qp.friction)
+            kkt = self._kkt(c_now, r, r_scale, lam, rows0.own, qp.friction)
             history.append(self._record(k, du_rel, alpha, qp, t0, kkt))
             if self.mortar is not None:
                 history[-1]["inner_qps"] = inner
-            # quadratic convergence: the next increment would be of the order du_rel²
-            if _met(kkt, opts.rtol) and du_rel <= math.sqrt(opts.rtol) and \
-                    qp.report.converged and self.rows.dropped <= opts.rtol:
-                # mortar rows: checked again with the search and the integrals of u itself
-                exact = kkt if self.mortar is None else self.mortar.kkt_at(
-                    current, self.u, lam, c_now, r, r_scale)
-                if exact is not None and _met(exact, opts.rtol):
-                    history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}
-                    converged = True
-                    break
+            if self._solved(current, qp, kkt, du_rel, c_now, r, r_scale, history):
+                converged = True
+                break
         sol = self._solution(problem, qp, c_now, r, r_scale, history, converged)
         if converged and self.slip is not None:
             self.slip.converged(problem)
         return sol, converged
+
+    def _linearize(self, current, rows0, c0, lam, history, k) -> tuple:
+        """The rows at the iterate (a new mortar layout maybe) and the tangent factored.
+
+        Returns the rows, the reference rows and their right-hand side (new ones after a
+        mortar relayout), the start in a new layout, whether the obstacles' curvature term
+        is in the tangent, and the multipliers that chose the active rows of that term.
+        """
+        comm, solver = self.comm, self.solver
+        self.state.set(solver.data, self.u.array_r)
+        rhs, coef, normal = self.rows.at(current, rows0, c0, self.u, keep=True)
+        rows = rows_with_rhs(rows0, rhs, comm, coef, normal)
+        start, curved, active = None, False, None  # start: the last multipliers, new layout
+        if self.mortar is not None:  # new mortar rows: maybe another layout
+            old, last = solver.qp.rows, lam if lam is not None else self._lam
+            rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
+            self.mortar.linearization(current, self.u, old, last)
+            if last is not None and not self._cold:
+                start = self.mortar.warm_start(old, last, rows)
+        same = rows.own.size == solver.qp.rows.own.size and np.array_equal(
+            rows.own.rhs, solver.qp.rows.own.rhs)
+        if not (self._fresh and k == 0 and comm.allreduce(same, op=MPI.LAND)):
+            # (else the set-up is the linearization at u = 0 with these rows)
+            active = lam if lam is not None else self._lam
+            # the obstacles' curvature term (−λ ∂n/∂y) near the solution only: far from
+            # it an overshooting λ would make the tangent indefinite
+            curved = bool(history) and history[-1]["residual"] < CURVATURE_FROM
+            self._factor(current, rows, active, curved, k)
+        self._fresh = False
+        return rows, rows0, c0, start, curved, active
+
+    def _increment(self, current, rows, start, curved, active, history, k) -> tuple:
+        """The increment's contact QP solved; returns it and the number of inner QPs."""
+        solver = self.solver
+        x0 = None if self._cold else self._start(start)
+        # the increment to the accuracy of the total displacement (KKTStop's u_floor),
+        # with two digits to spare for the equilibrium (K of the increment's error)
+        solver.u_floor = U_FLOOR * self.u.norm(INF)
+        qp = solver.solve(COLD if self._cold else x0)
+        if x0 is not None:
+            x0.destroy()
+        self._cold = False
+        if qp.report.reason == "unbounded" and curved:  # once more without the term
+            self._factor(current, rows, active, False, k)
+            qp = solver.solve(COLD)
+        if self.mortar is not None and self.mortar.derived and \
+                qp.report.converged:  # the rows' derivatives: inner QPs (mortar_step.py)
+            last_du = history[-1]["du_rel"] if history else 1.0
+            return exact_step(solver, self.mortar, qp, rows, self._start,
+                              eta=min(0.1, last_du),
+                              floor=0.1 * self.newton.rtol * self.u.norm(INF))
+        return qp, 0
+
+    def _indefinite(self, problem, qp, c_now, r, r_scale, history, k) -> Solution:
+        """The solution at an indefinite tangent, with the reason and what to do."""
+        sol = self._solution(problem, qp, c_now, r, r_scale, history, False)
+        sol.report.reason = "indefinite tangent"
+        sol.report.warnings.append(
+            f"Newton iteration {k}: the tangent stiffness K̃_t is indefinite (the QP is "
+            "unbounded): an instability of the structure, or of subdomains joined only "
+            "at corners under compression; take smaller load steps (solve_path) or "
+            "fewer subdomains")
+        return sol
+
+    def _line_search(self, current, qp, rows, rows0, c0, inner, r_scale) -> tuple:
+        """Backtracking on the merit function along the increment.
+
+        Returns the step length (None if none was accepted), the residual at the accepted
+        point and the residual at the iterate.
+        """
+        comm = self.comm
+        w = self.solver.qp.system.B.createVecRight()
+        self.solver.qp.system.B.multTranspose(qp.lam, w)
+        BTlam = w.array_r.copy()
+        w.destroy()
+        phi0, r_k = self._merit(current, self.u, BTlam, rows0, c0)
+        # below this the merit is round-off (of the forces and of K u)
+        floor = 1e3 * np.finfo(float).eps * (math.sqrt(comm.allreduce(
+            float(BTlam @ BTlam), op=MPI.SUM)) + self._kappa * self.u.norm() + r_scale)
+        # the mortar rows' linearized gap moves with G, not B (mortar_step.py)
+        gap = gap_change(self.mortar, rows, qp.u_vec) if inner else None
+        alpha, trial = 1.0, self.u.duplicate()
+        try:
+            for _ in range(self.newton.max_backtracks + 1):
+                trial.waxpy(alpha, qp.u_vec, self.u)
+                phi, r = self._merit(current, trial, BTlam, rows0, c0,
+                                     None if gap is None else alpha * gap)
+                if phi <= max((1 - 1e-4 * alpha) * phi0, floor):
+                    return alpha, r, r_k
+                alpha *= 0.5
+            return None, r, r_k
+        finally:
+            trial.destroy()
+
+    def _solved(self, current, qp, kkt, du_rel, c_now, r, r_scale, history) -> bool:
+        """Whether Newton may stop at this iterate (history's last KKT made exact)."""
+        rtol = self.newton.rtol
+        # quadratic convergence: the next increment would be of the order du_rel²
+        if not (_met(kkt, rtol) and du_rel <= math.sqrt(rtol) and
+                qp.report.converged and self.rows.dropped <= rtol):
+            return False
+        # mortar rows: checked again with the search and the integrals of u itself
+        exact = kkt if self.mortar is None else self.mortar.kkt_at(
+            current, self.u, qp.lam, c_now, r, r_scale)
+        if exact is None or not _met(exact, rtol):
+            return False
+        history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}
+        return True
 
     def _start(self, full: np.ndarray | None) -> PETSc.Vec | None:
         """The QP's start from multipliers of all rows (None: the solver's last ones)."""
