@@ -13,6 +13,7 @@ Integer literals (exponents, indices) stay literals: they are part of the struct
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import ufl
@@ -20,6 +21,7 @@ from ufl.constantvalue import FloatValue
 from ufl.corealg.traversal import pre_traversal, unique_pre_traversal
 
 from .. import compat
+from ..errors import InputError
 
 
 def literals(expr) -> list[FloatValue]:
@@ -47,9 +49,17 @@ def structure(expr, lits: list[FloatValue]) -> tuple:
 
 
 def with_constants(expr, lits: list[FloatValue], mesh):
-    """``expr`` with runtime constants on ``mesh`` in the literals' places (made in order)."""
+    """``expr`` with runtime constants on ``mesh`` in the literals' places (made in order).
+
+    Raises:
+        InputError: A literal is NaN or infinite (named before any assembly).
+    """
     if not lits:
         return expr
+    bad = [float(lit) for lit in lits if not math.isfinite(float(lit))]
+    if bad:
+        raise InputError(f"a load given as a function of x is not finite: it contains the "
+                         f"number {bad[0]}")
     return ufl.replace(expr, {lit: compat.constant(mesh, float(lit)) for lit in lits})
 
 
