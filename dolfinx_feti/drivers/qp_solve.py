@@ -218,11 +218,9 @@ class _KKTRuns:
 
     def run(self) -> QPResult:
         """One run of the QP solver (with Coulomb friction: its fixed point) from ``x``."""
-        used = sum(r.iterations for r in self.runs)
         with self.timer.phase("iterations"):
-            def run_qp(mu=self.multiplier0, used=used, loosen=1.0,
-                       rho_factor=self.rho_factor):
-                return self._run_qp(mu, used, loosen, rho_factor)
+            def run_qp(mu=self.multiplier0, loosen=1.0, rho_factor=self.rho_factor):
+                return self._run_qp(mu, loosen, rho_factor)
             res = run_qp() if self.friction is None else self.friction.run(
                 run_qp, self.x, self.qp.lam_hat, self.qp.ineq, self.progress, self.opts.rtol,
                 self._rescale)
@@ -252,7 +250,7 @@ class _KKTRuns:
         return (res.reason == "max_it" and used < self.opts.max_it) or \
             (res.reason == "max_outer" and res.outer_iterations < self.opts.max_outer)
 
-    def _run_qp(self, mu, used: int, loosen: float, rho_factor: float) -> QPResult:
+    def _run_qp(self, mu, loosen: float, rho_factor: float) -> QPResult:
         # loosen: Coulomb's early fixed-point steps are solved to loosen·rtol
         opts, stop = self.opts, self.stop
         o = opts if loosen == 1.0 or stop is not None else opts.replace(rtol=opts.rtol * loosen)
