@@ -19,31 +19,18 @@ increment of a contact node relative to where the obstacle's surface point went
 
 from __future__ import annotations
 
-import gc
-
 import numpy as np
 import pytest
 from coulomb_kkt import coulomb_violations
 from element_models import box
-from mpi4py import MPI
 from scipy.spatial.transform import Rotation
 
 import dolfinx_feti as df
-from dolfinx_feti import compat
 from dolfinx_feti.io.meshes_rubber import ironing_block
 
 R, DEPTH, F = 1.0, 0.2, 0.3
 CENTER = (3.0, 2.0 + R)
 OPTS = {"rtol": 1e-11, "method": "fetidp", "progress": False}
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _release_petsc_objects():
-    """The paths' solvers go with the cyclic collector after the module: free what they
-    leave in PETSc's queue, which tests/test_feti_solver.py counts."""
-    yield
-    gc.collect()
-    compat.garbage_cleanup(MPI.COMM_WORLD)
 
 
 @pytest.fixture(scope="module")
