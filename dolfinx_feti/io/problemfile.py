@@ -748,9 +748,9 @@ class _Reader:
             c.fault("loading", "expected factors = [...] (the loads' factor per step), values = "
                     "{ <dirichlet group> = [[...], ...] } (a group's value per step), or both")
             return None, {}
-        if model is not None and model != "elasticity":
-            c.fault("loading", f"a load path needs model.type = 'elasticity' (its tractions, "
-                    f"body force and Dirichlet values are scaled), got {model!r}")
+        if model is not None and model not in SOLIDS:
+            c.fault("loading", f"a load path needs a solid model.type ({', '.join(SOLIDS)}: "
+                    f"its tractions, body force and Dirichlet values are scaled), got {model!r}")
             return None, {}
         factors = None
         if "factors" in t:
