@@ -35,16 +35,21 @@ plane = {{ point = [0.0, 0.0], normal = [0.0, 1.0] }}
 """
 
 
-@pytest.mark.serial
-@pytest.mark.parametrize("kind", ["neo-hookean", "svk"])
-def test_hyperelastic_model_in_a_problem_file(tmp_path, kind):
+def write_block_mesh(folder) -> None:
+    """The unit block of element_models.rectangle as ``folder/block.msh``."""
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         rectangle(h=0.3)
-        gmsh.write(str(tmp_path / "block.msh"))
+        gmsh.write(str(folder / "block.msh"))
     finally:
         gmsh.finalize()
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("kind", ["neo-hookean", "svk"])
+def test_hyperelastic_model_in_a_problem_file(tmp_path, kind):
+    write_block_mesh(tmp_path)
     path = tmp_path / "block.toml"
     path.write_text(TEXT.format(kind=kind))
     pf = problemfile.load(path)
@@ -107,13 +112,7 @@ def test_hyperelastic_load_path_in_a_problem_file(tmp_path):
     from dolfinx_feti.cli import main
     from dolfinx_feti.drivers.scaled import scaled
 
-    gmsh.initialize()
-    try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        rectangle(h=0.3)
-        gmsh.write(str(tmp_path / "block.msh"))
-    finally:
-        gmsh.finalize()
+    write_block_mesh(tmp_path)
     path = tmp_path / "block.toml"
     factors = (0.5, 1.0, 0.5)  # 15 %, 30 %, back to 15 %
     path.write_text(TEXT.format(kind="neo-hookean") + f"""
