@@ -10,13 +10,14 @@ affine traction of a problem file is scaled in its coefficients (compiled once p
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
 from ..errors import InputError
 from ..fem.forms import scaled_value
 from ..problem.conditions import Dirichlet
 from ..problem.contact_problem import ContactProblem
+from ..problem.rigid_motion import RigidMotion
 
 
 def scaled(problem: ContactProblem, s: float, values: Mapping | None = None) -> ContactProblem:
@@ -42,4 +43,26 @@ def scaled(problem: ContactProblem, s: float, values: Mapping | None = None) -> 
     return replace(problem, forms=by_factor(s), dirichlet=dirichlet)
 
 
-__all__ = ["scaled"]
+def moved(problem: ContactProblem, translations: Mapping[str, Sequence[float]]
+          ) -> ContactProblem:
+    """``problem`` with the rigid obstacles on the given contact groups translated.
+
+    Each moved obstacle carries a :class:`~dolfinx_feti.RigidMotion` whose centre is its
+    translation, so that friction on a load path measures the slip against the obstacle's
+    surface (a punch slid sideways drags the nodes stuck to it) — in small deformation as
+    under Newton.
+
+    Args:
+        problem: The problem.
+        translations: Contact group → the obstacle's translation from its position in
+            ``problem``.
+    """
+    if not translations:
+        return problem
+    contact = [replace(c, obstacle=c.obstacle.translated(translations[c.group]),
+                       motion=RigidMotion(tuple(float(v) for v in translations[c.group])))
+               if getattr(c, "group", None) in translations else c for c in problem.contact]
+    return replace(problem, contact=contact)
+
+
+__all__ = ["moved", "scaled"]
