@@ -11,14 +11,18 @@ on rollers, the left sides on a symmetry plane, one subdomain per body, FETI-DP)
    with node-to-node contact (5 × 3 cells each: matching): converged or not, Newton
    iterations and cut-backs per step, the error against the exact solution.
 
-3. curved mortar contact (the quarter disk pressed 0.1 and 0.2 into the block of
-   tests/drivers/test_newton_mortar.py): Newton iterations, inner QPs and seconds with the
+3. ``--curved``: curved mortar contact (the quarter disk pressed 0.1 and 0.2 into the block
+   of tests/drivers/test_newton_mortar.py): Newton iterations, inner QPs and seconds with the
    rows' D, M, n frozen and with their derivatives (``newton_mortar_derivatives=True``,
    drivers/mortar_step.py), the increments' history and the difference of the solutions.
+4. ``--flat``: the same two ways on the flat patch tests of tests/drivers/test_newton_mortar.py
+   (the two blocks, path [0.2, 0.4]; the 3D boxes, path [0.2, 0.3] and [0.2, 0.3, 0.4]):
+   converged or not, Newton iterations per step, inner QPs, the error against the exact
+   homogeneous solution.
 
 Run (serial; small dense eigenproblems):
 
-    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_two_blocks.py [--curved]
+    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_two_blocks.py [--curved | --flat]
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from test_newton_mortar import TWO_BLOCKS, stack  # noqa: E402
 import dolfinx_feti as df  # noqa: E402
 from dolfinx_feti.constraints.rows import Kind  # noqa: E402
 from dolfinx_feti.drivers.newton import NewtonSolver  # noqa: E402
+from dolfinx_feti.errors import SolveError  # noqa: E402
 
 
 def smallest_eigenvalues(mesh, strain: float) -> tuple[float, float]:
@@ -109,9 +114,64 @@ def curved() -> None:
     print(f"max |u_derivatives − u_frozen| / max |u| = {diff:.1e}")
 
 
+def _history(sols, times, error) -> None:
+    for sol, t in zip(sols, times, strict=False):
+        hist = sol.report.extra["newton"]
+        print(f"  {t:.0%}: {'converged' if sol.report.converged else 'FAILED'}, "
+              f"{len(hist)} iterations, {sol.report.extra['cutbacks']} cut-backs, inner QPs "
+              f"{[h.get('inner_qps', 0) for h in hist]}, error/strain {error(sol, t):.1e}")
+
+
+def flat() -> None:
+    """The flat patch tests (2D blocks, 3D boxes), frozen rows against the derivatives."""
+    import time
+
+    from test_newton_mortar import boxes, uniaxial_3d
+
+    from dolfinx_feti.io.meshes_occ import stacked_blocks
+    mesh2 = blocks(TWO_BLOCKS)
+    iface = df.Mortar("upper_bottom", "lower_top")
+
+    def error2(sol, t):
+        a, _ = neo_hookean_exact(t)
+        X, U = nodal(sol)
+        return np.abs(U - np.c_[(a - 1) * X[:, 0], -t * X[:, 1]]).max() / t
+
+    mesh3 = df.build_mesh(stacked_blocks, dim=3, h_lower=0.3, h_upper=0.45)
+    E, NU = 10.0, 0.3
+    mu, lmbda = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
+
+    def box(t):
+        return boxes(mesh3, t)
+
+    def error3(sol, t):
+        a, _ = uniaxial_3d(mu, lmbda, 1.0 - t)
+        X, U = mesh3.x, sol.nodal_values()
+        return np.abs(U - np.c_[(a - 1) * X[:, 0], (a - 1) * X[:, 1], -t * X[:, 2]]).max() / t
+
+    cases = [("2D blocks", lambda t: stack(mesh2, t, iface), [0.2, 0.4], error2),
+             ("3D boxes", box, [0.2, 0.3], error3),
+             ("3D boxes", box, [0.2, 0.3, 0.4], error3)]
+    for name, problem, times, error in cases:
+        for derivs in (False, True):
+            t0 = time.perf_counter()
+            try:
+                sols = df.solve_path(problem, times, rtol=1e-12, newton_rtol=1e-10,
+                                     method="fetidp", progress=False,
+                                     newton_mortar_derivatives=derivs)
+            except SolveError as e:  # a tangent that cannot be factored after the cut-backs
+                print(f"{name} {times}, derivatives={derivs}: FAILED: {e}")
+                continue
+            print(f"{name} {times}, derivatives={derivs}: {time.perf_counter() - t0:.1f} s")
+            _history(sols, times, error)
+
+
 if __name__ == "__main__":
     if "--curved" in sys.argv:
         curved()
+        sys.exit()
+    if "--flat" in sys.argv:
+        flat()
         sys.exit()
     nonmatching = blocks(TWO_BLOCKS)
     print("strain | min eig K_t (Dirichlet held) | with the mortar rows held")
