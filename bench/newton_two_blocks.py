@@ -20,14 +20,23 @@ on rollers, the left sides on a symmetry plane, one subdomain per body, FETI-DP)
    converged or not, Newton iterations per step, inner QPs, the error against the exact
    homogeneous solution.
 
+5. ``--spectrum``: on the two blocks at the states the frozen Newton path reaches (20, 30,
+   35, 40 %), with G and H as dense matrices (drivers/mortar_linearization.py): the spectral
+   radius of the plain inner fixed point of drivers/mortar_step.py (x ↦ Φ(x), all contact rows
+   active), and the least real part of the eigenvalues of the consistent Jacobian K_t + H on
+   the null space of the Dirichlet rows and G (below 0: the homogeneous state is unstable for
+   the mortar rows' own forces).
+
 Run (serial; small dense eigenproblems):
 
-    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_two_blocks.py [--curved | --flat]
+    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_two_blocks.py \
+        [--curved | --flat | --spectrum]
 """
 
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -47,16 +56,24 @@ from dolfinx_feti.drivers.newton import NewtonSolver  # noqa: E402
 from dolfinx_feti.errors import SolveError  # noqa: E402
 
 
-def smallest_eigenvalues(mesh, strain: float) -> tuple[float, float]:
-    """min eig of K_t at the exact state: Dirichlet dofs held; and mortar rows held too."""
+def smallest_eigenvalues(mesh, strain: float, first: bool = False) -> tuple[float, float]:
+    """min eig of K_t at the exact state: Dirichlet dofs held; and mortar rows held too.
+
+    ``first``: at the first Newton iterate of the step from 20 % to ``strain`` instead.
+    """
     problem = stack(mesh, strain, df.Mortar("upper_bottom", "lower_top"))
     run = NewtonSolver(problem, method="fetidp", rtol=1e-12)
-    a, _ = neo_hookean_exact(strain)
     data = run.solver.data
-    x = data.dof_x
-    run.u.array[:] = np.where(data.dof_comp == 0, (a - 1) * x[:, 0], -strain * x[:, 1])
+    if first:
+        run.step(stack(mesh, 0.2, df.Mortar("upper_bottom", "lower_top")))
+        run.newton = replace(run.newton, max_it=1)
+        run.step(problem)
+    else:
+        a, _ = neo_hookean_exact(strain)
+        x = data.dof_x
+        run.u.array[:] = np.where(data.dof_comp == 0, (a - 1) * x[:, 0], -strain * x[:, 1])
     current = run._at_state(problem)
-    run.state.set(data, run.u.array_r)
+    run.state.set(run.solver.data, run.u.array_r)
     rows0 = run.solver.rows_of(current)
     rows, _, _ = run.mortar.relayout(current, rows0, rows0.own.rhs.copy(), run.u)
     run.solver.update_stiffness(current, rows=rows)
@@ -166,7 +183,52 @@ def flat() -> None:
             _history(sols, times, error)
 
 
+def spectrum(mesh, strain: float) -> tuple[float, float]:
+    """(ρ of the plain inner fixed point, least real eigenvalue of K_t + H on null(B_D; G))."""
+    iface = df.Mortar("upper_bottom", "lower_top")
+    run = NewtonSolver(stack(mesh, 0.2, iface), method="fetidp", rtol=1e-12)
+    for t in sorted({0.2, strain}):
+        run.step(stack(mesh, t, iface))
+    current = run._at_state(stack(mesh, strain, iface))
+    solver, mortar = run.solver, run.mortar
+    at = mortar.rows_at_iterate(current, run.u, solver.qp.rows, run._lam)
+    d = at.dense(mortar.surface_dofs(current))
+    run.state.set(solver.data, run.u.array_r)
+    rows0 = solver.rows_of(current)
+    rows, _, _ = mortar.relayout(current, rows0, rows0.own.rhs.copy(), run.u)
+    solver.update_stiffness(current, rows=rows)
+    K = solver.data.K.toarray()
+    n = K.shape[0]
+    col = mortar._col.ravel()
+    P = np.zeros((col.size, n))
+    P[np.flatnonzero(col >= 0), col[col >= 0]] = 1.0
+    own = rows.own
+    B = np.zeros((own.size, n))
+    np.add.at(B, (own.e_row, rows.cols), own.e_coef / own.scale[own.e_row])
+    BD, Bm, G, H = B[own.kind == Kind.DIRICHLET], d.B @ P, d.G @ P, P.T @ d.H @ P
+    C = np.vstack([BD, Bm])
+    A0 = np.block([[K, C.T], [C, np.zeros((C.shape[0], C.shape[0]))]])
+    N = np.zeros_like(A0)
+    N[:n, :n] = H
+    N[n + BD.shape[0]:, :n] = G - Bm
+    rho = float(np.abs(np.linalg.eigvals(-np.linalg.solve(A0, N)[:n, :n])).max())
+    Z = sl.null_space(np.vstack([BD, G]))
+    least = float(np.linalg.eigvals(Z.T @ (K + H) @ Z).real.min())
+    run.destroy()
+    return rho, least
+
+
 if __name__ == "__main__":
+    if "--spectrum" in sys.argv:
+        mesh = blocks(TWO_BLOCKS)
+        print("strain | ρ(plain inner fixed point) | least Re λ(K_t + H on null(B_D; G))")
+        for strain in (0.2, 0.3, 0.35, 0.4):
+            rho, least = spectrum(mesh, strain)
+            print(f"{strain:.2f} | {rho:.3g} | {least:.3g}")
+        lo, hi = smallest_eigenvalues(mesh, 0.4, first=True)
+        print(f"min eig K_t at the first iterate of the step 20 % -> 40 %: {lo:.3g} (Dirichlet "
+              f"dofs held), {hi:.3g} (and the mortar rows)")
+        sys.exit()
     if "--curved" in sys.argv:
         curved()
         sys.exit()
