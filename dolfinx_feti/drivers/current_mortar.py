@@ -214,7 +214,7 @@ class DeformedMortar:
                 pos = np.minimum(np.searchsorted(key[srt], want), max(key.size - 1, 0))
                 hit = (key[srt][pos] == want) if key.size else np.zeros(want.size, bool)
                 lam_base = np.where(hit, val[srt][pos] if key.size else 0.0, 0.0)
-                out = RowsAt(build, U, lam_base)
+                out = RowsAt(build, U, lam_base, base=base)
         return out
 
     def derivatives(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,

@@ -89,6 +89,7 @@ class RowsAt:
         U: The displacement of the surfaces' points at which to differentiate.
         lam: The physical multiplier of every row of ``build(U)`` (for H), or None (zeros).
         eps: The perturbation along a direction (a length).
+        base: ``build(U)`` if already built.
 
     Attributes:
         base: The rows of ``build(U)``.
@@ -97,10 +98,11 @@ class RowsAt:
     """
 
     def __init__(self, build: Callable[[np.ndarray], Rows], U: np.ndarray,
-                 lam: np.ndarray | None = None, eps: float = EPS) -> None:
+                 lam: np.ndarray | None = None, eps: float = EPS,
+                 base: Rows | None = None) -> None:
         self._build, self.U, self.eps = build, U, eps
         self.npoints, self.bs = U.shape
-        self.base = build(U)
+        self.base = build(U) if base is None else base
         key = _keys(self.base, self.npoints)
         self._order = np.argsort(key)
         self._sorted = key[self._order]
