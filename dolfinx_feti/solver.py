@@ -226,19 +226,24 @@ class FetiSolver:
         self._refuse_boundary_elements("update_stiffness")
         if problem is not None:
             check_same_structure(self.problem, problem, stiffness=False)
-            self.problem = problem
-        self._data = assemble_subdomains(self.problem, self._shared.share, self.comm,
-                                         self._timer, self._data.assemblers,
-                                         keep=self._data.assemblers is not None)
+        else:
+            problem = self.problem
+        data = assemble_subdomains(problem, self._shared.share, self.comm, self._timer,
+                                   self._data.assemblers,
+                                   keep=self._data.assemblers is not None)
         if shift is not None:
-            self._data = replace(self._data, K=(self._data.K + shift).tocsr())
+            data = replace(data, K=(data.K + shift).tocsr())
         if rows is None:
-            rows = self.rows_of(self.problem)
-        self._shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
-        self._loads = LoadRows(self._shared.share, self.problem.value_size)
-        qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
+            rows = self.rows_of(problem)
+        shared = replace(self._shared, share=replace(self._shared.share, rows=rows))
+        qp = qp_of_share(problem, shared, data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
                          dual_operator=self.options.dual_operator, nearby=self.qp)
+        # only now, the set-up built: a failure above (a tangent that cannot be factored)
+        # leaves the solver as it was, its rows with their own B (a Newton cut-back goes on
+        # from it; the new rows with the old B gave rows_of rows of another layout than B)
+        self.problem, self._data, self._shared = problem, data, shared
+        self._loads = LoadRows(shared.share, problem.value_size)
         self._adopt(qp, rows)
         self._new_preconditioner()
         self._forget_before()  # of another stiffness: no predictor

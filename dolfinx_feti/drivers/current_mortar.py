@@ -30,7 +30,6 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import scipy.sparse as sp
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -40,7 +39,7 @@ from ..errors import InputError, collective
 from ..parallel.exchange import exclusive_scan
 from ..problem.contact_problem import ContactProblem, Mortar
 from ..setup.share import RankRows, row_subset
-from .mortar_linearization import RowDerivatives, row_derivatives
+from .mortar_linearization import RowDerivatives, RowsAt
 
 
 def check_mortar(c: Mortar, problem: ContactProblem) -> None:
@@ -88,9 +87,9 @@ class DeformedMortar:
                               dtype=np.int32)
         self.infos: list = []
         self.consistent = True  # the rows' derivatives in the Newton step (mortar_step.py)
-        self.derivs: RowDerivatives | None = None  # rank 0: those of the last iterate
+        self.derivs: RowsAt | None = None  # rank 0: the rows of the last iterate
         self.derived = False  # every rank: whether derivs are of the current iterate
-        self.remainder: np.ndarray | None = None  # rank 0: H less the tangent's part
+        self.dofs: np.ndarray | None = None  # rank 0: the surfaces' dofs (derivs' domain)
         surface = solver.qp.surface
         points = comm.bcast(surface.point_ids if comm.rank == 0 else None, root=0)
         self._points = points  # the global dof points of the cells along the surfaces
@@ -177,9 +176,11 @@ class DeformedMortar:
         nodes = np.unique(np.concatenate([layer.facets(n).ravel() for n in names]))
         return (nodes[:, None] * self._bs + np.arange(self._gdim)).ravel()
 
-    def derivatives(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
-                    lam: PETSc.Vec | None) -> RowDerivatives | None:
-        """The rows of x + u and their derivatives (:mod:`.mortar_linearization`; collective).
+    def rows_at_iterate(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
+                        lam: PETSc.Vec | None) -> RowsAt | None:
+        """The rows of x + u with their derivatives' products (:mod:`.mortar_linearization`).
+
+        Collective.
 
         Args:
             problem: The problem of the step.
@@ -188,7 +189,7 @@ class DeformedMortar:
             lam: The last QP's multipliers: the forces (physical, by slave node) of H.
 
         Returns:
-            On rank 0 the derivatives, the surfaces' points as nodes; None elsewhere.
+            On rank 0 the rows, the surfaces' points as nodes; None elsewhere.
         """
         U = self._displacement(u)
         own = old.own
@@ -202,58 +203,46 @@ class DeformedMortar:
                 spec, node, val = (np.concatenate([p[i] for p in parts]) for i in range(3))
                 # the rows' nodes are global dof points: the layer's points are self._points
                 local = np.searchsorted(self._points, node)
-                base, _ = self._layer_rows(problem, U)
+
+                def build(V: np.ndarray) -> Rows:
+                    return self._layer_rows(problem, V)[0]
+
+                base = build(U)
                 key = spec.astype(np.int64) * self._points.size + local
                 want = base.spec.astype(np.int64) * self._points.size + base.node
                 srt = np.argsort(key)
                 pos = np.minimum(np.searchsorted(key[srt], want), max(key.size - 1, 0))
                 hit = (key[srt][pos] == want) if key.size else np.zeros(want.size, bool)
                 lam_base = np.where(hit, val[srt][pos] if key.size else 0.0, 0.0)
-                out = row_derivatives(lambda V: self._layer_rows(problem, V)[0], U,
-                                      self.surface_dofs(problem), lam_base)
+                out = RowsAt(build, U, lam_base, base=base)
         return out
 
-    def force_tangent(self, d: RowDerivatives | None) -> sp.csr_matrix:
-        """The symmetric part of H = ∂(Σ λ_j b_j)/∂u on this rank's K (collective).
+    def derivatives(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
+                    lam: PETSc.Vec | None) -> RowDerivatives | None:
+        """G and H of the rows of x + u as matrices on the surfaces' dofs (collective).
 
-        Only the entries of two dofs in one subdomain: K is block diagonal (the entries that
-        couple the two bodies, or two subdomains, are left out). Not in Newton's tangent: it
-        left the curved case linear and made the flat blocks at 40 % indefinite
-        (docs/benchmarks_history.md); it splits H for the tests.
+        Arguments as :meth:`rows_at_iterate`; on rank 0 the derivatives, None elsewhere.
         """
-        data = self.solver.data
-        found = None
-        if self.comm.rank == 0:
-            Hs = 0.5 * (d.H + d.H.T)
-            col = self._col.ravel()
-            sub = np.repeat(self._first, self._bs)
-            Hs[~((col[:, None] >= 0) & (col[None, :] >= 0) & (sub[:, None] == sub[None, :]))] = 0
-            a, b = np.nonzero(Hs)
-            found = (col[a], col[b], Hs[a, b])
-            self.remainder = d.H - Hs  # what the factored tangent does not hold
-        ca, cb, val = self.comm.bcast(found, root=0)
-        lo, n = data.primal_start, data.K.shape[0]
-        mine = (ca >= lo) & (ca < lo + n)
-        return sp.csr_matrix((val[mine], (ca[mine] - lo, cb[mine] - lo)), shape=(n, n))
+        at = self.rows_at_iterate(problem, u, old, lam)
+        return None if at is None else at.dense(self.surface_dofs(problem))
 
     def linearization(self, problem: ContactProblem, u: PETSc.Vec, old: RankRows,
-                      lam: PETSc.Vec | None) -> sp.csr_matrix | None:
-        """The derivatives of the mortar rows at u; the part of H the tangent takes (collective).
+                      lam: PETSc.Vec | None) -> None:
+        """The rows of u and their derivatives' products for :func:`.mortar_step.exact_step`.
 
-        Keeps :attr:`derivs` and :attr:`remainder` = H (rank 0) for
-        :func:`.mortar_step.exact_step`; the tangent takes no term (None).
+        Keeps :attr:`derivs` (rank 0) and :attr:`dofs`, the surfaces' dofs (collective).
+        None of it enters the factored tangent: H is unsymmetric and couples the two bodies
+        (FETI's K is symmetric and block diagonal), and its symmetric part made the tangent
+        of the blocks compressed 40 % indefinite; all of it goes to the inner QPs'
+        right-hand sides.
         """
         self.derivs, self.derived = None, False
         if not self.consistent:
-            return None
-        self.derivs = self.derivatives(problem, u, old, lam)
-        self.derived = True
-        # H stays out of the factored tangent: its symmetric part made the tangent of the
-        # blocks compressed 40 % indefinite (a failed factorization); all of it goes to the
-        # inner QPs' right-hand sides
+            return
+        self.derivs = self.rows_at_iterate(problem, u, old, lam)
         if self.comm.rank == 0:
-            self.remainder = self.derivs.H
-        return None
+            self.dofs = self.surface_dofs(problem)
+        self.derived = True
 
     def relayout(self, problem: ContactProblem, rows: RankRows, c0: np.ndarray,
                  u: PETSc.Vec) -> tuple[RankRows, RankRows, np.ndarray]:

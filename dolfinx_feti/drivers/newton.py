@@ -104,9 +104,10 @@ class NewtonOptions:
         rtol: Bound on every KKT residual of the nonlinear problem and on ‖Δu‖∞/‖u‖∞.
         max_it: Newton iterations per load step.
         max_backtracks: Halvings of the step in the line search.
-        mortar_derivatives: Mortar rows: the Newton step with their derivatives (inner QPs,
-            :mod:`.mortar_step`: quadratic on curved surfaces, where the frozen rows converge
-            linearly; it fails on the flat blocks compressed 40 %, so it is asked for);
+        mortar_derivatives: Mortar rows: the Newton step with their derivatives (inner QPs
+            mixed by Anderson, :mod:`.mortar_step`: quadratic on curved surfaces, where the
+            frozen rows converge linearly; asked for, as the flat blocks compressed 40 % fail
+            with it: an indefinite tangent at their first iterate, docs/large_deformation.md);
             False: D, M and the normals frozen at the iterate.
     """
 

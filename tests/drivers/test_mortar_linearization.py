@@ -9,14 +9,21 @@ positive multipliers, checked against what does not come from the difference quo
   a gap): G is not B;
 - under that rotation the contact forces turn with the configuration: H v = ω × F;
 - the derivatives against the rows of x + u ± h w (the solver's own row assembly and its
-  global columns, the forces Bᵀλ assembled by PETSc) along a random direction w, and the
-  tangent's part (:meth:`DeformedMortar.force_tangent`) plus the remainder equal to H w.
+  global columns) along a random direction w, and the directional products
+  (:meth:`RowsAt.derivative`, what Newton uses) equal to the matrices times w;
+- on the flat blocks pressed 20 %, whose interface's ends stay together (where the rows are
+  not differentiable), a homogeneous motion (a translation, a stretch) moves no contact force
+  (H v = 0) and no gap beyond the frozen rows ((G − B) v = 0) along the direction, while the
+  dof-by-dof matrices take the kink's mean.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from hand_meshes import blocks
+from test_newton import neo_hookean_exact
+from test_newton_mortar import TWO_BLOCKS, stack
 
 import dolfinx_feti as df
 from dolfinx_feti.drivers.current_mortar import DeformedMortar
@@ -48,10 +55,16 @@ def setup():
     solver.destroy()
 
 
-def derivatives(mortar, problem, rows, u, lam_phys):
-    """The derivatives at u with the physical multipliers ``lam_phys`` of ``rows``' own rows."""
+def _physical(mortar, rows, lam_phys):
+    """A Vec of the QP multipliers of ``rows``' own rows of the physical ``lam_phys``."""
     lam = mortar.solver.qp.system.B.createVecLeft()
     lam.array[:] = lam_phys / rows.own.scale
+    return lam
+
+
+def derivatives(mortar, problem, rows, u, lam_phys):
+    """The derivatives at u with the physical multipliers ``lam_phys`` of ``rows``' own rows."""
+    lam = _physical(mortar, rows, lam_phys)
     d = mortar.derivatives(problem, u, rows, lam)
     lam.destroy()
     return d
@@ -88,7 +101,7 @@ def test_rotation_leaves_the_gaps(setup):
 
 def test_derivatives_against_the_solvers_rows(setup):
     """G w and H w against central differences of the rows the solver assembles (rows_at:
-    global columns, B assembled by PETSc), and force_tangent + remainder = H."""
+    global columns), and the directional products equal to the matrices times w."""
     solver, problem, mortar, rows, u = setup
     rng = np.random.default_rng(5)
     lam_phys = rng.uniform(0.5, 1.5, rows.own.size)
@@ -132,14 +145,41 @@ def test_derivatives_against_the_solvers_rows(setup):
     np.add.at(got, col[here] - data.primal_start, Hw[here])
     assert np.abs(ref).max() > 1e-2
     assert np.abs(got - ref).max() < 1e-6 * np.abs(ref).max()
-    # the tangent's symmetric part of one subdomain plus the remainder: H again
-    S = mortar.force_tangent(d).toarray()
-    full = np.zeros((data.K.shape[0], data.K.shape[0]))
-    a, b = np.meshgrid(np.flatnonzero(here), np.flatnonzero(here), indexing="ij")
-    np.add.at(full, (col[a] - data.primal_start, col[b] - data.primal_start),
-              mortar.remainder[a, b])
-    Wg = np.zeros(data.K.shape[0])
-    Wg[col[here] - data.primal_start] = W[here]
-    assert np.abs((S + full) @ Wg - got).max() < 1e-10 * np.abs(got).max()
-    assert np.abs(S - S.T).max() == 0.0
+    # the directional products Newton takes: the matrices times w
+    at = mortar.rows_at_iterate(problem, u, rows, _physical(mortar, rows, lam_phys))
+    Gv, Hv = at.derivative(W)
+    assert np.abs(Gv - d.G @ W).max() < 1e-6 * np.abs(d.G @ W).max()
+    assert np.abs(Hv - d.H @ W).max() < 1e-6 * np.abs(d.H @ W).max()
+    assert np.abs(at.frozen(W) - d.B @ W).max() < 1e-12 * np.abs(d.B @ W).max()
     w.destroy()
+
+
+def test_homogeneous_motion_on_the_flat_blocks():
+    """The flat blocks pressed 20 % (the exact homogeneous state): along a translation or a
+    stretch the directional products give H v = 0 and (G − B) v = 0 to round-off; the
+    dof-by-dof H does not (its columns at the interface's ends average the two sides)."""
+    mesh = blocks(TWO_BLOCKS)
+    problem = stack(mesh, 0.2, df.Mortar("upper_bottom", "lower_top"))
+    solver = df.FetiSolver(problem, method="fetidp", keep_meshes=True)
+    data = solver.data
+    a, p22 = neo_hookean_exact(0.2)
+    u = solver.qp.system.B.createVecRight()
+    u.array[:] = np.where(data.dof_comp == 0, (a - 1) * data.dof_x[:, 0], -0.2 * data.dof_x[:, 1])
+    mortar = DeformedMortar(solver, problem, solver.comm)
+    rows, _, _ = mortar.relayout(problem, solver.qp.rows, solver.qp.rows.own.rhs, u)
+    lam = _physical(mortar, rows, np.full(rows.own.size, -p22 * 0.4))
+    at = mortar.rows_at_iterate(problem, u, rows, lam)
+    d = at.dense(mortar.surface_dofs(problem))
+    y = positions(mortar, u)
+    assert np.abs(at.gap).max() < 1e-12 and at.lam.min() > 0.1
+    kink = 0.0
+    for v in (np.c_[np.ones(len(y)), np.zeros(len(y))], np.c_[y[:, 0], np.zeros(len(y))],
+              np.c_[np.zeros(len(y)), y[:, 1]]):
+        Gv, Hv = at.derivative(v.ravel())
+        assert np.abs(Hv).max() < 1e-9 * at.lam.max()
+        assert np.abs(Gv - at.frozen(v.ravel())).max() < 1e-9
+        kink = max(kink, np.abs(d.H @ v.ravel()).max())
+    assert kink > 1e-7 * at.lam.max()  # the matrices' mean of the kink's two sides
+    lam.destroy()
+    u.destroy()
+    solver.destroy()

@@ -20,6 +20,7 @@ from test_newton import LX, NU, E, neo_hookean_exact, nodal, residuals
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
 from dolfinx_feti.drivers.current_mortar import DeformedMortar
+from dolfinx_feti.errors import SolveError, inject_fault
 from dolfinx_feti.io.meshes_occ import disk_on_block, stacked_blocks
 
 #: Both blocks' bottom/top/left; the upper block 5 cells across, the lower one 7: no node of
@@ -93,6 +94,16 @@ def uniaxial_3d(mu: float, lmbda: float, s: float) -> tuple[float, float]:
     return a, mu * (s - 1 / s) + lmbda * np.log(a * a * s) / s
 
 
+def boxes(mesh, strain: float) -> df.ContactProblem:
+    """The two boxes of ``stacked_blocks`` (3D), the top moved down by 2·strain, the bottom
+    and two sides on symmetry planes, mortar contact."""
+    return df.ContactProblem(
+        mesh, df.NeoHookean(E, NU),
+        dirichlet=[df.Dirichlet("bottom", 0.0, [2]), df.Dirichlet("top", -2 * strain, [2]),
+                   df.Dirichlet("sym0", 0.0, [0]), df.Dirichlet("sym1", 0.0, [1])],
+        contact=[df.Mortar("upper_bottom", "lower_top")], decomposition=df.ByTags())
+
+
 def test_two_boxes_mortar_patch_test_3d():
     """3D: two unit boxes meshed apart (tetrahedra of 0.3 and 0.45), pressed 20 % and 30 %,
     laterally free: the homogeneous state u = ((a − 1) x, (a − 1) y, −strain · z) with
@@ -100,15 +111,8 @@ def test_two_boxes_mortar_patch_test_3d():
     Newton with the frozen D, M, n does not converge on this mesh: docs/large_deformation.md.)"""
     mesh = df.build_mesh(stacked_blocks, dim=3, h_lower=0.3, h_upper=0.45)
     mu, lmbda = E / (2 * (1 + NU)), E * NU / ((1 + NU) * (1 - 2 * NU))
-
-    def problem(t):
-        return df.ContactProblem(
-            mesh, df.NeoHookean(E, NU),
-            dirichlet=[df.Dirichlet("bottom", 0.0, [2]), df.Dirichlet("top", -2 * t, [2]),
-                       df.Dirichlet("sym0", 0.0, [0]), df.Dirichlet("sym1", 0.0, [1])],
-            contact=[df.Mortar("upper_bottom", "lower_top")], decomposition=df.ByTags())
-
-    sols = df.solve_path(problem, [0.2, 0.3], rtol=1e-12, newton_rtol=1e-10, method="fetidp")
+    sols = df.solve_path(lambda t: boxes(mesh, t), [0.2, 0.3], rtol=1e-12, newton_rtol=1e-10,
+                         method="fetidp")
     for sol, strain in zip(sols, (0.2, 0.3), strict=True):
         assert sol.report.converged, sol.report.extra["newton"]
         a, p33 = uniaxial_3d(mu, lmbda, 1.0 - strain)
@@ -177,38 +181,77 @@ def test_rows_change_with_the_deformed_surfaces(disk_block):
     assert (force > 1e-6 * force.max()).sum() >= 4
 
 
-def test_update_rows_takes_rows_of_another_number():
-    """FetiSolver.update_rows with mortar rows of another number of slave nodes: the rows of
-    the upper block moved 0.5 to the right (its slave nodes beyond the lower block's edge lose
-    their rows) give the linear solve of the mesh built with the upper block there."""
-    spec = [{"name": "lower", "n": (7, 4), "size": (LX, 1.0)},
-            {"name": "upper", "n": (5, 3), "origin": (0.0, 1.0), "size": (LX, 1.0)}]
-    moved = blocks([spec[0], {**spec[1], "origin": (0.5, 1.0)}])
+SHIFTED = [{"name": "lower", "n": (7, 4), "size": (LX, 1.0)},
+           {"name": "upper", "n": (5, 3), "origin": (0.0, 1.0), "size": (LX, 1.0)}]
 
-    def problem(mesh):
-        return df.ContactProblem(
-            mesh, df.Elasticity(E, NU),
-            dirichlet=[df.Dirichlet("lower_bottom"), df.Dirichlet("upper_left", 0.0, [0]),
-                       df.Dirichlet("upper_top", -0.01, [1])],
-            contact=[df.Mortar("upper_bottom", "lower_top")], decomposition=df.ByTags())
 
-    solver = df.FetiSolver(problem(blocks(spec)), method="fetidp", rtol=1e-12)
-    solver.solve()
+def linear_blocks(mesh) -> df.ContactProblem:
+    return df.ContactProblem(
+        mesh, df.Elasticity(E, NU),
+        dirichlet=[df.Dirichlet("lower_bottom"), df.Dirichlet("upper_left", 0.0, [0]),
+                   df.Dirichlet("upper_top", -0.01, [1])],
+        contact=[df.Mortar("upper_bottom", "lower_top")], decomposition=df.ByTags())
+
+
+def moved_rows(solver):
+    """The solver's rows with the mortar rows of the upper block moved 0.5 to the right
+    (its slave nodes beyond the lower block's edge lose their rows: another layout)."""
     shift = solver.qp.system.B.createVecRight()
     data = solver.data
     upper = data.local_subs[np.array([b == "upper" for b in data.bodies], dtype=bool)]
     shift.array[:] = np.where((data.dof_comp == 0) & np.isin(data.dof_sub, upper), 0.5, 0.0)
     mortar = DeformedMortar(solver, solver.problem, solver.comm)
     rows, _, _ = mortar.relayout(solver.problem, solver.qp.rows, solver.qp.rows.own.rhs, shift)
+    shift.destroy()
+    return rows
+
+
+def test_update_rows_takes_rows_of_another_number():
+    """FetiSolver.update_rows with mortar rows of another number of slave nodes: the rows of
+    the upper block moved 0.5 to the right give the linear solve of the mesh built with the
+    upper block there."""
+    moved = blocks([SHIFTED[0], {**SHIFTED[1], "origin": (0.5, 1.0)}])
+    solver = df.FetiSolver(linear_blocks(blocks(SHIFTED)), method="fetidp", rtol=1e-12)
+    solver.solve()
+    rows = moved_rows(solver)
     before = solver.comm.allreduce(int(solver.qp.rows.own.size))
     solver.update_rows(rows)
     assert solver.comm.allreduce(int(solver.qp.rows.own.size)) < before
     sol = solver.solve()
-    ref = df.solve(problem(moved), method="fetidp", rtol=1e-12)
+    ref = df.solve(linear_blocks(moved), method="fetidp", rtol=1e-12)
     assert sol.report.converged and ref.report.converged
     u, r = sol.nodal_values(), ref.nodal_values()
     assert np.abs(u - r).max() < 1e-8 * np.abs(r).max()
     assert sol.contact.force.size == ref.contact.force.size
+    solver.destroy()
+
+
+def test_failed_update_stiffness_keeps_the_rows_of_its_b():
+    """An update_stiffness with rows of a mortar relayout that fails (the factorization:
+    a Newton tangent that cannot be factored) leaves the solver as it was: rows_of gives
+    rows of the layout of its B (not the failed update's, of another number), the solve is
+    the one before; the same update then succeeds and solves the moved blocks."""
+    problem = linear_blocks(blocks(SHIFTED))
+    solver = df.FetiSolver(problem, method="fetidp", rtol=1e-12)
+    first = solver.solve()
+    rows = moved_rows(solver)
+    comm = solver.comm
+    size = comm.allreduce(int(solver.qp.rows.own.size))
+    assert comm.allreduce(int(rows.own.size)) < size
+    with inject_fault("factorization", 0), pytest.raises(SolveError):
+        solver.update_stiffness(rows=rows)
+    assert comm.allreduce(int(solver.rows_of(problem).own.size)) == size
+    assert solver.rows_of(problem).own.size == solver.qp.system.B.getLocalSize()[0]
+    again = solver.solve()
+    assert np.abs(again.nodal_values() - first.nodal_values()).max() < \
+        1e-8 * np.abs(first.nodal_values()).max()
+    solver.update_stiffness(rows=rows)
+    assert comm.allreduce(int(solver.rows_of(problem).own.size)) < size
+    sol = solver.solve()
+    moved = blocks([SHIFTED[0], {**SHIFTED[1], "origin": (0.5, 1.0)}])
+    ref = df.solve(linear_blocks(moved), method="fetidp", rtol=1e-12)
+    assert np.abs(sol.nodal_values() - ref.nodal_values()).max() < \
+        1e-8 * np.abs(ref.nodal_values()).max()
     solver.destroy()
 
 
