@@ -110,6 +110,7 @@ class FetiSolver:
         self._mu: np.ndarray | None = None
         self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
         self._normal_force: np.ndarray | None = None  # of the last friction solve
+        self._normal_before: np.ndarray | None = None  # of the friction solve of the case before
         # a lower bound of the KKT test's displacement scale: a Newton increment is solved
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
@@ -397,8 +398,8 @@ class FetiSolver:
         mults0 = qp.feti.hessian_mults
         start, scale, omega = self._start(x0)
         if friction is not None and start is not None:
-            friction.start_from(self._normal_force * scale if x0 is None and
-                                self._normal_force is not None else None)
+            normal, predicted = self._normal_start(scale, omega) if x0 is None else (None, False)
+            friction.start_from(normal, predicted)
         mu, mu_kind = self._mu_start(scale, omega, start) if x0 is None and start is not None \
             else (None, None)
         start_mults = qp.feti.hessian_mults - mults0
@@ -412,8 +413,11 @@ class FetiSolver:
         report.extra["warm_start_multiplier"] = mu_kind
         if start is not None:
             start.destroy()
+        new_case = self._new_case
         self._remember(out)
         if friction is not None:
+            if new_case:  # another solve of the same case only replaces the last
+                self._normal_before = self._normal_force
             self._normal_force = friction.normal_force
         sol = self._solution(out, report, friction)
         warn_loose_stop(report, opts.rtol)
@@ -481,6 +485,21 @@ class FetiSolver:
             return self.qp.multiplier_estimate(start), "estimate"
         return None, None
 
+    def _normal_start(self, scale: float, omega: float | None
+                      ) -> tuple[np.ndarray | None, bool]:
+        """The normal forces a warm Coulomb solve's slip bounds start from, and if predicted.
+
+        Where the start is the secant predictor (``omega``: a load path from its third case),
+        the last two cases' normal forces extrapolated as λ is (predicted); else the last
+        one's scaled by the load factor; None (g = ∞) without a last friction solve.
+        """
+        last, before = self._normal_force, self._normal_before
+        if last is None:
+            return None, False
+        if omega is not None and before is not None and before.shape == last.shape:
+            return last + omega * (last - before), True
+        return last * scale, False
+
     def _smalbe_runs(self) -> bool:
         """Whether the QP has a coarse space and inequality rows (SMALBE takes a multiplier)."""
         qp = self.qp
@@ -511,6 +530,7 @@ class FetiSolver:
         self._mu = None if mu is None else np.array(mu, dtype=float)
 
     def _forget_before(self) -> None:
+        self._normal_before = None  # Coulomb's predictor goes with λ's
         if self._before is not None:
             for v in self._before[:2]:
                 v.destroy()

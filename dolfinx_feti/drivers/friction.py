@@ -87,6 +87,7 @@ class FrictionSolve:
         self._ub: PETSc.Vec | None = None
         self._r = math.inf  # the Coulomb residual of the last fixed-point step
         self._eta: float | None = None  # the inner accuracy of the next step (None: from _r)
+        self._predicted = False  # the bounds start from a prediction: every step accurate
 
     def relabel(self, index: np.ndarray) -> None:
         """Renumber the local rows: local row ``i`` becomes ``index[i]``.
@@ -97,14 +98,22 @@ class FrictionSolve:
         self.t = index[self.t]
         self.n = index[self.n]
 
-    def start_from(self, normal_force: np.ndarray | None) -> None:
+    def start_from(self, normal_force: np.ndarray | None, predicted: bool = False) -> None:
         """Start warm; Coulomb's slip bounds from the normal forces of an earlier solve.
 
         Args:
             normal_force: Per local tangential row, as :attr:`normal_force` of that solve;
                 None: Coulomb's fixed point starts from g = ∞ (no slip).
+            predicted: The normal forces are a prediction of this case's (a load path's
+                secant extrapolation), not an earlier case's: every Tresca solve of the fixed
+                point is then solved to its final accuracy, as the bounds are about right from
+                the start (the 2D Coulomb path: the residual after the first step 5e-5 against
+                1.7e-3 from the last case's forces; solved to 1e-2 and then to a tenth of the
+                residual, as for a far start, the accuracy they lacked cost more steps:
+                docs/benchmarks_history.md § 22).
         """
         self.warm = True
+        self._predicted = predicted and normal_force is not None
         if normal_force is not None:
             self.g = np.where(self.coulomb_rows,
                               np.where(self.coulomb_rows, self.coef, 0.0)
@@ -174,7 +183,8 @@ class FrictionSolve:
         results = []
         fp_converged = False
         c = self.coulomb_rows
-        eta = self._eta if self._eta is not None else max(eta_min, min(ETA_MAX, 0.1 * self._r))
+        eta = self._eta if self._eta is not None else \
+            eta_min if self._predicted else max(eta_min, min(ETA_MAX, 0.1 * self._r))
         for _ in range(self.data.max_steps - len(steps)):
             res = run_qp(loosen=eta / rtol)
             results.append(res)
@@ -200,7 +210,8 @@ class FrictionSolve:
             # the next inner accuracy: a tenth of the outer residual; cut tenfold when the
             # residual stalls (the inner error is then what it measures)
             stalled = math.isfinite(self._r) and r > STALL * self._r
-            eta = max(eta_min, min(ETA_MAX, 0.1 * r, 0.1 * eta if stalled else math.inf))
+            eta = eta_min if self._predicted else \
+                max(eta_min, min(ETA_MAX, 0.1 * r, 0.1 * eta if stalled else math.inf))
             self._r = min(r, self._r) if stalled else r
             self.g = g_new
             self.multiplier = res.multiplier

@@ -368,6 +368,34 @@ def test_proportional_loading_does_not_slip(disk):
 
 
 
+def test_coulomb_start_predicted_along_the_path(disk):
+    """Where λ's start is the secant predictor, Coulomb's slip bounds start from the normal
+    forces extrapolated alike: the fixed point's first residual is smaller than a scaled
+    start's, its Tresca solves are solved to the final accuracy from the first, and each step
+    equals the cold solve of the same step (same slip history). The secant first serves the
+    fourth case: the tangential rows' right-hand sides (the slip history) enter d from the
+    second case on, so the first step of d is off the line of the later ones."""
+    qs = (0.3, 0.33, 0.363, 0.3993)  # Q / (𝓕P), 10 % steps
+    opts = {"rtol": 1e-8, "method": "tfeti"}
+    solver = df.FetiSolver(disk_problem(disk, P, qs[0] * F * P), **opts)
+    cold = df.FetiSolver(disk_problem(disk, P, qs[0] * F * P), **opts)
+    prev, sols = solver.solve(), []
+    for q in qs[1:]:
+        solver.update(disk_problem(disk, P, q * F * P), slip_from=prev)
+        cold.update(disk_problem(disk, P, q * F * P), slip_from=prev)
+        prev = solver.solve()
+        assert_same(prev, cold.solve(x0="cold"))
+        sols.append(prev.report.extra)
+    assert [e["warm_start_secant"] is not None for e in sols] == [False, False, True]
+    steps = [e["friction"]["steps"] for e in sols]
+    eta_min = min(opts["rtol"], 0.5 * df.Coulomb(F).rtol)
+    assert steps[0][0]["inner_rtol"] > eta_min  # the scaled start: solved loosely first
+    assert all(s["inner_rtol"] == pytest.approx(eta_min) for s in steps[2])
+    assert steps[2][0]["change"] < steps[0][0]["change"]
+    solver.destroy()
+    cold.destroy()
+
+
 # --- the [loading] table of a problem file ---------------------------------------------------
 @contextmanager
 def command_path(root, name: str, capsys, problem_at_of):
