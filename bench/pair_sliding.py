@@ -17,7 +17,7 @@ iterations, seconds and F-multiplications per iteration. Then one linear contact
 (df.Elasticity, the same mesh, decomposition, method and friction, at the first press step).
 Writes ``output/bench/pair_sliding.json``; prints a Markdown table. Run:
 
-    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/pair_sliding.py [--n 12] [--parts 1]
+    OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/pair_sliding.py [--n 8] [--parts 1]
 """
 
 from __future__ import annotations
@@ -43,12 +43,12 @@ E, NU, LX = 10.0, 0.3, 2.0
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=12)
+    ap.add_argument("--n", type=int, default=8)
     ap.add_argument("--parts", type=int, default=1)
     ap.add_argument("--press", type=float, default=0.1)
-    ap.add_argument("--slide", type=float, default=0.3)
+    ap.add_argument("--slide", type=float, default=0.18)
     ap.add_argument("--press-steps", type=int, default=2)
-    ap.add_argument("--slide-steps", type=int, default=10)
+    ap.add_argument("--slide-steps", type=int, default=6)
     ap.add_argument("--coefficient", type=float, default=0.3)
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--newton-rtol", type=float, default=1e-9)
