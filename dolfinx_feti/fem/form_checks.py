@@ -147,3 +147,22 @@ def _release_traversers() -> None:
             if isinstance(attr, functools.singledispatchmethod) and \
                     isinstance(cache, weakref.WeakKeyDictionary):
                 cache.clear()
+
+
+def check_finite_literals(expr, what: str) -> None:
+    """Refuse a NaN or infinite number in a form or expression, naming ``what``.
+
+    FFCx would write it into C code that fails to build (a bare compiler error); a load whose
+    literals become runtime constants would assemble NaN instead.
+
+    Raises:
+        InputError: A literal is NaN or infinite.
+    """
+    if isinstance(expr, ufl.Form):
+        integrands = [i.integrand() for i in expr.integrals()]
+    else:  # an expression, or no form at all (None, 0)
+        integrands = [expr] if isinstance(expr, ufl.core.expr.Expr) else []
+    for integrand in integrands:
+        for node in unique_pre_traversal(integrand):
+            if isinstance(node, ufl.constantvalue.ScalarValue) and not np.isfinite(node.value()):
+                raise InputError(f"{what} is not finite: it contains the number {node.value()}")

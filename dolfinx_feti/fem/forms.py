@@ -59,6 +59,25 @@ def per_body_values(value, mesh, what: str) -> dict[str, float]:
     return dict.fromkeys(mesh.body_names, float(value))
 
 
+def scaled_value(v, s: float):
+    """A traction, body force or Dirichlet value times ``s`` (None stays None).
+
+    A value that knows how to scale itself (``v.scaled(s)``, e.g. a problem file's affine
+    traction) does; a function of x is wrapped; numbers are multiplied.
+    """
+    if v is None:
+        return None
+    scale = getattr(v, "scaled", None)
+    if callable(scale):
+        return scale(s)
+    if callable(v):
+        def times(x, _v=v):
+            return s * _v(x)
+        return times
+    a = np.asarray(v, dtype=float) * s
+    return float(a) if a.ndim == 0 else tuple(float(c) for c in a)
+
+
 def scaled_form(L, factor: float, V):
     """``factor · L`` with the factor a runtime constant (None for no linear form)."""
     if not isinstance(L, ufl.Form):
@@ -176,6 +195,16 @@ class Elasticity:
     def stiffness_key(self) -> tuple:
         """What the bilinear form depends on (a new load case keeps it; see FetiSolver)."""
         return "Elasticity", _frozen(self.E), _frozen(self.nu), self.degree
+
+    def loads_scaled(self, s: float) -> Elasticity:
+        """The same material with its tractions and body force times ``s`` (a load step).
+
+        Constant loads stay runtime constants (no compilation per factor); an affine traction
+        of a problem file is scaled in its coefficients.
+        """
+        return Elasticity(self.E, self.nu,
+                          tractions={g: scaled_value(t, s) for g, t in self.tractions.items()},
+                          body_force=scaled_value(self.body_force, s), degree=self.degree)
 
     def _loads(self, sub) -> list:
         """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""

@@ -105,6 +105,16 @@ class Hyperelastic:
         new._state, new._cache = state, {}
         return new
 
+    def loads_scaled(self, s: float) -> Hyperelastic:
+        """A copy whose dead loads are ``s`` times these (a step of a ``[loading]`` path).
+
+        The factor multiplies the load factor, a runtime constant of the forms: the material
+        and the compiled forms' shape stay.
+        """
+        new = copy.copy(self)
+        new.load_factor, new._cache = self.load_factor * float(s), {}
+        return new
+
     def check(self, mesh) -> None:
         """Validate the loads against ``mesh`` (a vector problem: 2D or 3D)."""
         if mesh.gdim not in (2, 3):

@@ -13,7 +13,6 @@ Integer literals (exponents, indices) stay literals: they are part of the struct
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import ufl
@@ -21,7 +20,7 @@ from ufl.constantvalue import FloatValue
 from ufl.corealg.traversal import pre_traversal, unique_pre_traversal
 
 from .. import compat
-from ..errors import InputError
+from .form_checks import check_finite_literals
 
 
 def literals(expr) -> list[FloatValue]:
@@ -56,10 +55,7 @@ def with_constants(expr, lits: list[FloatValue], mesh):
     """
     if not lits:
         return expr
-    bad = [float(lit) for lit in lits if not math.isfinite(float(lit))]
-    if bad:
-        raise InputError(f"a load given as a function of x is not finite: it contains the "
-                         f"number {bad[0]}")
+    check_finite_literals(expr, "a load given as a function of x")
     return ufl.replace(expr, {lit: compat.constant(mesh, float(lit)) for lit in lits})
 
 

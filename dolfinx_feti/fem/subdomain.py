@@ -13,7 +13,6 @@ import numpy as np
 import scipy.sparse as sp
 import ufl
 from mpi4py import MPI
-from ufl.corealg.traversal import unique_pre_traversal
 
 from .. import compat
 from ..errors import InputError
@@ -22,7 +21,12 @@ from ..mesh.data import MeshData
 from ..mesh.dofpoints import DofPoints, dof_points
 from ..mesh.topology import row_keys
 from .dofmap import cell_dof_points
-from .form_checks import check_form_kinds, check_magnitudes, check_symmetric
+from .form_checks import (
+    check_finite_literals,
+    check_form_kinds,
+    check_magnitudes,
+    check_symmetric,
+)
 from .load_form import LoadForm
 
 _NO_FACET = 2**30  # a tag value no facet carries: an integral over it is zero
@@ -34,16 +38,6 @@ def _is_zero(L) -> bool:
         return True
     return isinstance(L, ufl.Form) and (L.empty() or all(
         isinstance(i.integrand(), ufl.constantvalue.Zero) for i in L.integrals()))
-
-
-def _check_finite_literals(form, what: str) -> None:
-    """Refuse NaN/Inf literals in a form: FFCx would write them into C code that fails to build."""
-    if not isinstance(form, ufl.Form):
-        return
-    for integral in form.integrals():
-        for node in unique_pre_traversal(integral.integrand()):
-            if isinstance(node, ufl.constantvalue.ScalarValue) and not np.isfinite(node.value()):
-                raise InputError(f"{what} is not finite: it contains the number {node.value()}")
 
 
 class Subdomain:
@@ -312,7 +306,7 @@ class Subdomain:
         check_form_kinds(a, None if _is_zero(L) else L, self._where)
         self._check_space(((a, "bilinear"), (L, "linear")), V)
         for form, what in ((a, "bilinear"), (L, "linear")):
-            _check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
+            check_finite_literals(form, f"subdomain(s) {self._ids} ({', '.join(self.bodies)}): "
                                    f"the {what} form")
         return a, L
 

@@ -52,6 +52,7 @@ from ..mesh.gmsh_input import gmsh_initialize
 from ..options import DECLARED, SolverOptions, kind, option_value, parse_text
 from ..problem.contact_problem import ContactProblem
 from .condition_tables import ConditionReader
+from .loading_table import read_loading
 from .mixed_checks import checking_view, method_fault, mixed_faults
 from .schema import (
     AFFINE_KEYS,
@@ -59,7 +60,6 @@ from .schema import (
     BOX_KEYS,
     DECOMPOSITION_KEYS,
     GLUING,
-    LOADING_KEYS,
     MODEL_KEYS,
     OUTPUT_KEYS,
     PLOT_KEYS,
@@ -182,6 +182,8 @@ class ProblemFile:
         loading: The load factors of a load path (``[loading] factors``), or None: one solve.
         loading_values: Per Dirichlet group, its value at each step (``[loading] values``;
             they replace the group's value times the factor).
+        loading_translations: Per rigid obstacle's contact group, its translation at each step
+            (``[loading] translations``).
     """
 
     path: Path
@@ -195,17 +197,19 @@ class ProblemFile:
     command_line: list[tuple[str, str]] = field(default_factory=list)
     loading: tuple[float, ...] | None = None
     loading_values: dict[str, tuple] = field(default_factory=dict)
+    loading_translations: dict[str, tuple] = field(default_factory=dict)
 
     def problem_at(self, t: float) -> ContactProblem:
         """The problem of step ``int(t)`` of the load path.
 
         Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
-        their value of the step.
+        their value of the step, the obstacles of ``loading_translations`` their position.
         """
-        from ..drivers.scaled import scaled
+        from ..drivers.scaled import moved, scaled
         k = int(t)
-        return scaled(self.problem, self.loading[k],
-                      {g: v[k] for g, v in self.loading_values.items()})
+        return moved(scaled(self.problem, self.loading[k],
+                            {g: v[k] for g, v in self.loading_values.items()}),
+                     {g: v[k] for g, v in self.loading_translations.items()})
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
@@ -367,7 +371,8 @@ class _Reader:
                 c.fault("method", f"{method!r} here, but solver.method is "
                         f"{solver['method']!r}: give it once")
             solver["method"] = method
-        loading, loading_values = self._loading(model, dirichlet, value_size)
+        loading = read_loading(c, self.data.get("loading"), model, dirichlet, contact,
+                               value_size, None if self.mesh is None else self.mesh.gdim)
         output = self._output(contact, loading is not None)
         pairs, faults = check_command_line(self.command_line)
         c.faults.extend(faults)
@@ -388,7 +393,9 @@ class _Reader:
             raise ProblemFileError(self.path, c.faults)
         pf = ProblemFile(path=self.path, title=title, model=model, mesh=mesh,
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
-                         command_line=pairs, loading=loading, loading_values=loading_values)
+                         command_line=pairs, **({} if loading is None else {
+                             "loading": loading.factors, "loading_values": loading.values,
+                             "loading_translations": loading.translations}))
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
             opts = pf.solver_options()
         except InputError as e:
@@ -734,85 +741,6 @@ class _Reader:
         except InputError as e:
             c.fault("solver", str(e))
         return out
-
-    def _loading(self, model: str | None, dirichlet: list, value_size: int | None
-                 ) -> tuple[tuple[float, ...] | None, dict[str, tuple]]:
-        """The load factors and the per-step Dirichlet values of ``[loading]``."""
-        c = self.c
-        if "loading" not in self.data:
-            return None, {}
-        t = c.table(self.data["loading"], "loading", LOADING_KEYS)
-        if t is None:
-            return None, {}
-        if "factors" not in t and "values" not in t:
-            c.fault("loading", "expected factors = [...] (the loads' factor per step), values = "
-                    "{ <dirichlet group> = [[...], ...] } (a group's value per step), or both")
-            return None, {}
-        if model is not None and model != "elasticity":
-            c.fault("loading", f"a load path needs model.type = 'elasticity' (its tractions, "
-                    f"body force and Dirichlet values are scaled), got {model!r}")
-            return None, {}
-        factors = None
-        if "factors" in t:
-            factors = c.vector(t["factors"], "loading.factors", None, "load factors")
-            if factors is not None and len(factors) == 0:
-                c.fault("loading.factors", "expected at least one load factor")
-                factors = None
-            if factors is None:
-                return None, {}
-        values = self._loading_values(t.get("values", {}), dirichlet, value_size,
-                                      None if factors is None else len(factors))
-        if values is None:
-            return None, {}
-        if factors is None and not values:
-            c.fault("loading.values", "expected at least one Dirichlet group")
-            return None, {}
-        if factors is None:  # the values alone: the other loads as given
-            factors = [1.0] * len(next(iter(values.values())))
-        return tuple(float(v) for v in factors), values
-
-    def _loading_values(self, v: Any, dirichlet: list, value_size: int | None,
-                        steps: int | None) -> dict[str, tuple] | None:
-        """``[loading] values``: Dirichlet group → one value per step (None on a fault)."""
-        c, key = self.c, "loading.values"
-        if not isinstance(v, dict):
-            c.fault(key, f"expected a table {{ <dirichlet group> = [[...], ...] }}, got "
-                    f"{describe(v)}")
-            return None
-        out, good = {}, True
-        for group, rows in v.items():
-            gkey = key_path(key, group)
-            conds = [d for d in dirichlet if d.group == group]
-            if not conds:
-                c.fault(gkey, f"not the group of a [[dirichlet]] condition (those are "
-                        f"{sorted({d.group for d in dirichlet})})")
-                good = False
-                continue
-            n = {len(d.components) if d.components is not None else value_size for d in conds}
-            if not isinstance(rows, list) or not rows:
-                c.fault(gkey, f"expected an array of one value per step, got {describe(rows)}")
-                good = False
-                continue
-            vals = [c.vector(r, key_path(gkey, i), None) if isinstance(r, list) else
-                    c.number(r, key_path(gkey, i), "a number or an array of one per component")
-                    for i, r in enumerate(rows)]
-            if any(x is None for x in vals):
-                good = False
-                continue
-            bad = [i for i, x in enumerate(vals) if isinstance(x, list)
-                   and len(x) != 1 and len(x) not in n]
-            if bad:
-                c.fault(key_path(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
-                        f"constrained component), got {len(vals[bad[0]])}")
-                good = False
-                continue
-            if steps is not None and len(vals) != steps:
-                c.fault(gkey, f"expected {steps} values (one per load factor), got {len(vals)}")
-                good = False
-                continue
-            steps = len(vals)
-            out[group] = tuple(tuple(x) if isinstance(x, list) else x for x in vals)
-        return out if good else None
 
     def _output(self, contact: list, path: bool = False) -> OutputSpec:
         c, stem = self.c, self.path.stem

@@ -37,7 +37,8 @@ class RigidMotion:
         angle: The body's rotation angle about ``center`` from its reference orientation, in
             radians, counter-clockwise (2D) or right-handed about ``axis`` (3D). A disc of
             radius R rolling without slip to +x: ``angle = −(translation)/R``.
-        axis: 3D only: the rotation axis (any length, not zero).
+        axis: 3D only: the rotation axis (any length, not zero); not needed for ``angle = 0``
+            (a translation).
     """
 
     center: Sequence[float]
@@ -50,7 +51,7 @@ class RigidMotion:
         if len(self.center) != gdim:
             raise InputError(f"{where}.center has {len(self.center)} coordinates, the mesh is "
                              f"{gdim}D")
-        if gdim == 3 and self.axis is None:
+        if gdim == 3 and self.axis is None and self.angle != 0.0:
             raise InputError(f"{where}: a rotation in 3D needs its axis (RigidMotion(center, "
                              "angle, axis=(ax, ay, az)))")
         if gdim == 2 and self.axis is not None:
@@ -59,6 +60,8 @@ class RigidMotion:
 
     def rotation(self) -> np.ndarray:
         """The rotation matrix (gdim × gdim) of the pose."""
+        if self.angle == 0.0:  # a translation (3D needs no axis then)
+            return np.eye(len(self.center))
         c, s = np.cos(self.angle), np.sin(self.angle)
         if self.axis is None:
             return np.array([[c, -s], [s, c]])

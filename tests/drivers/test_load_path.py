@@ -425,6 +425,17 @@ def test_problem_file_loading(root, capsys):
         assert not any(f.startswith(".") for f in files_in(out))
 
 
+def load_faults(path, text: str) -> str:
+    """The faults a problem file of ``text`` written at ``path`` is refused with."""
+    from cli_helpers import write_text
+
+    from dolfinx_feti.io import problemfile
+
+    with pytest.raises(problemfile.ProblemFileError) as e:
+        problemfile.load(write_text(path, text))
+    return str(e.value)
+
+
 def test_problem_file_loading_checked(root, tmp_path):
     from cli_helpers import write_text
 
@@ -441,13 +452,10 @@ def test_problem_file_loading_checked(root, tmp_path):
     assert "loading.factors: expected an array of load factors" in msg
     assert "loading.steps" in msg  # an unknown key, named
     text = (root / "problems/load_path3d.toml").read_text()
-    bad = write_text(folder / "bad3d.toml", text.replace(
+    msg = load_faults(folder / "bad3d.toml", text.replace(
         "values.top = [[0.0, 0.0, -0.02], [0.005, 0.0, -0.02],",
         "factors = [1.0, 1.0]\nvalues.lid = [[0.0]]\n"
         "values.bottom = [[0.0, 0.0], [0.005, 0.0, -0.02],"))
-    with pytest.raises(problemfile.ProblemFileError) as e:
-        problemfile.load(bad)
-    msg = str(e.value)
     assert "loading.values.lid: not the group of a [[dirichlet]] condition" in msg
     assert "loading.values.bottom[0]: expected one number or [3]" in msg
 
@@ -475,3 +483,52 @@ def test_problem_file_values_path(root, capsys):
         assert [s["hessian_mults"] for s in steps] == [s.report.hessian_mults for s in sols]
         # back at the first shift, with tractions locked in: not the first state
         assert ref.rel_max_diff(sols[-1].nodal_values(), sols[0].nodal_values()) > 1e-3
+
+
+def test_problem_file_translations_path(root, capsys):
+    """``problems/ironing_path.toml`` ([loading] translations: a rigid die pressed into a
+    neo-Hookean block and slid) through the command against the same path written with the
+    Python API (the die at each position, its RigidMotion the translation); while it slides
+    the die drags the block's surface: the tangential force on the block points along the
+    motion and stays below 𝓕 times the normal one (every node at |λ_T| ≤ 𝓕λ_N)."""
+    from dolfinx_feti.io.meshes_rubber import ironing_block
+
+    def api(pf):
+        moves = pf.loading_translations["top"]
+        mesh = df.build_mesh(ironing_block, h_top=0.25, h_far=0.75)
+
+        def at(t):
+            d = moves[int(t)]
+            return df.ContactProblem(
+                mesh, df.NeoHookean(1.0, 0.3), dirichlet=[df.Dirichlet("bottom")],
+                contact=[df.RigidObstacle("top", df.Sphere((3.0 + d[0], 4.0 + d[1]), 1.0),
+                                          friction=df.Coulomb(0.3), motion=df.RigidMotion(d))],
+                decomposition=df.Parts(2))
+
+        return at, len(moves)
+
+    with command_path(root, "ironing_path", capsys, api) as (out, pf, sols):
+        moves = pf.loading_translations["top"]
+        assert set(pf.loading) == {1.0} and len(moves) == 5
+        history = json.loads((out / "ironing_path_history.json").read_text())["steps"]
+        for s, sol in zip(history, sols, strict=True):
+            assert np.allclose(s["contact_force"], sol.total_contact_force, rtol=1e-6,
+                               atol=1e-9)
+        for k in (2, 3, 4):  # sliding to +x
+            fx, fy = sols[k].total_contact_force
+            assert fy < 0 and 0.2 * 0.3 * -fy < fx <= 0.3 * -fy * (1 + 1e-6)
+
+
+def test_problem_file_translations_checked(root, tmp_path):
+    text = (root / "problems/ironing_path.toml").read_text()
+    folder = MPI.COMM_WORLD.bcast(tmp_path if MPI.COMM_WORLD.rank == 0 else None, root=0)
+    msg = load_faults(folder / "bad.toml", text.replace(
+        "translations.top = [[0.0, -0.05],",
+        "translations.bottom = [[0.0, 0.0]]\nvalues.bottom = [0.0, 0.0]\n"
+        "translations.top = [[0.0, -0.05, 0.0],"))
+    assert "loading.translations.bottom: not the group of a [[contact]] condition with a " \
+        "rigid obstacle (those are ['top'])" in msg
+    assert "loading.translations.top[0]: expected an array of 2 coordinates" in msg
+    assert "loading.translations.top: a sphere with friction cannot move in small " \
+        "deformation" in load_faults(folder / "small.toml", text.replace(
+            'type = "neo-hookean"', 'type = "elasticity"'))

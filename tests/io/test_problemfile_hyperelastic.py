@@ -35,16 +35,21 @@ plane = {{ point = [0.0, 0.0], normal = [0.0, 1.0] }}
 """
 
 
-@pytest.mark.serial
-@pytest.mark.parametrize("kind", ["neo-hookean", "svk"])
-def test_hyperelastic_model_in_a_problem_file(tmp_path, kind):
+def write_block_mesh(folder) -> None:
+    """The unit block of element_models.rectangle as ``folder/block.msh``."""
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         rectangle(h=0.3)
-        gmsh.write(str(tmp_path / "block.msh"))
+        gmsh.write(str(folder / "block.msh"))
     finally:
         gmsh.finalize()
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("kind", ["neo-hookean", "svk"])
+def test_hyperelastic_model_in_a_problem_file(tmp_path, kind):
+    write_block_mesh(tmp_path)
     path = tmp_path / "block.toml"
     path.write_text(TEXT.format(kind=kind))
     pf = problemfile.load(path)
@@ -95,3 +100,49 @@ def test_shipped_rubber_hemisphere_matches_the_python_api(root, tmp_path):
     u = sol.nodal_values()
     assert np.abs(data["u"] - u).max() <= 1e-8 * np.abs(u).max()
     assert sol.total_contact_force[2] > 0  # pressed onto the plane
+
+
+@pytest.mark.serial
+def test_hyperelastic_load_path_in_a_problem_file(tmp_path):
+    """``[loading]`` on a neo-Hookean model: Newton at each factor on one set-up, through the
+    command; every step equals the exact homogeneous state of its compression (the block on
+    a frictionless plane, laterally free), and the history has a record per step."""
+    import json
+
+    from dolfinx_feti.cli import main
+    from dolfinx_feti.drivers.scaled import scaled
+
+    write_block_mesh(tmp_path)
+    path = tmp_path / "block.toml"
+    factors = (0.5, 1.0, 0.5)  # 15 %, 30 %, back to 15 %
+    path.write_text(TEXT.format(kind="neo-hookean") + f"""
+[loading]
+factors = {list(factors)}
+
+[solver]
+rtol = 1e-12
+
+[output]
+nodal_values = "block_nodal.npz"
+""")
+    pf = problemfile.load(path)
+    assert pf.loading == factors
+    steps = [pf.problem_at(k) for k in range(len(factors))]
+    assert all(type(p.forms) is df.NeoHookean for p in steps)
+    assert [p.forms.load_factor for p in steps] == list(factors)
+    assert [p.dirichlet[0].value for p in steps] == [(-0.15,), (-0.3,), (-0.15,)]
+    sols = df.solve_path(pf.problem_at, range(len(factors)), rtol=1e-12, newton_rtol=1e-10)
+    for sol, f in zip(sols, factors, strict=True):
+        a, _ = neo_hookean_exact(0.3 * f)
+        X, U = nodal(sol)
+        assert np.abs(U - np.c_[(a - 1) * X[:, 0], -0.3 * f * X[:, 1]]).max() < 1e-9
+    # the command (Newton's default rtol 1e-9): the last step's nodal values, a history
+    # record per step
+    assert main([str(path), "-o", str(tmp_path / "out"), "-q"]) == 0
+    u = np.load(tmp_path / "out" / "block_nodal.npz")["u"]
+    assert np.abs(u - sols[-1].nodal_values()).max() < 1e-8 * np.abs(u).max()
+    history = json.loads((tmp_path / "out" / "block_history.json").read_text())
+    records = history if isinstance(history, list) else history["steps"]
+    assert len(records) == len(factors)
+    with pytest.raises(df.InputError, match="cannot be scaled"):
+        scaled(df.ContactProblem(pf.problem.mesh, df.Poisson(source=1.0)), 2.0)

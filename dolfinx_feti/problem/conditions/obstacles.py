@@ -6,7 +6,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Protocol
 
 import numpy as np
@@ -14,6 +14,10 @@ import numpy as np
 from ...validation import Function, Real, Vector, checked
 from .base import POINT_FUNCTION
 from .file_table import file_table
+
+
+def _plus(p: Sequence[float], d: Sequence[float]) -> tuple[float, ...]:
+    return tuple(float(a) + float(b) for a, b in zip(p, d, strict=True))
 
 
 class Obstacle(Protocol):
@@ -35,9 +39,17 @@ class Plane:
     point: Sequence[float]
     normal: Sequence[float]
 
+    #: A translation leaves the normal at every point as it was (friction rows of a small-
+    #: deformation path can follow it; a curved obstacle's cannot).
+    keeps_normals = True
+
     def coordinates(self) -> dict[str, Sequence[float]]:
         """The vectors that need one coordinate per dimension of the mesh."""
         return {"point": self.point, "normal": self.normal}
+
+    def translated(self, d: Sequence[float]) -> Plane:
+        """The same obstacle moved by ``d`` (a load step of a moving obstacle)."""
+        return replace(self, point=_plus(self.point, d))
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         n = np.asarray(self.normal, dtype=float)
@@ -59,6 +71,10 @@ class Sphere:
         """The vectors that need one coordinate per dimension of the mesh."""
         return {"center": self.center}
 
+    def translated(self, d: Sequence[float]) -> Sphere:
+        """The same obstacle moved by ``d`` (a load step of a moving obstacle)."""
+        return replace(self, center=_plus(self.center, d))
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         d = x - np.asarray(self.center, dtype=float)
         r = np.linalg.norm(d, axis=1)
@@ -79,6 +95,10 @@ class Cylinder:
         """The vectors that need one coordinate per dimension of the mesh."""
         return {"point": self.point, "axis": self.axis}
 
+    def translated(self, d: Sequence[float]) -> Cylinder:
+        """The same obstacle moved by ``d`` (a load step of a moving obstacle)."""
+        return replace(self, point=_plus(self.point, d))
+
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         a = np.asarray(self.axis, dtype=float)
         a = a / np.linalg.norm(a)
@@ -97,3 +117,8 @@ class SignedDistance:
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # noqa: D102
         return self.fn(x)
+
+    def translated(self, d: Sequence[float]) -> SignedDistance:
+        """The same obstacle moved by ``d``: φ(x − d)."""
+        shift = np.asarray(d, dtype=float)
+        return SignedDistance(lambda x, _fn=self.fn: _fn(x - shift[: x.shape[1]]))
