@@ -58,8 +58,10 @@ def _tie(c: SurfaceCondition):
 @rows_of(NodeToNode)
 def _node_to_node(c: SurfaceCondition):
     p = c.problem
+    # solved by Newton, a pair's normal turns with the deformed master surface
+    newton = getattr(p.forms, "solve_by", None) == "newton"
     return node_to_node_rows(p.mesh, c.spec, c.index, c.node_ptr, c.node_subs, p.value_size,
-                             p.dof_points), None
+                             p.dof_points, all_components=newton), None
 
 
 @rows_of(RigidObstacle)

@@ -77,8 +77,14 @@ def check_own_nodes(mesh: MeshData, name: str, s_nodes: np.ndarray, m_nodes: np.
 
 
 def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np.ndarray,
-                      node_subs: np.ndarray, bs: int, points: DofPoints | None = None) -> Rows:
-    """Rows (u_m − u_s)·n <= gap for matched pairs of dof points, scaled to unit norm."""
+                      node_subs: np.ndarray, bs: int, points: DofPoints | None = None,
+                      all_components: bool = False) -> Rows:
+    """Rows (u_m − u_s)·n <= gap for matched pairs of dof points, scaled to unit norm.
+
+    ``all_components``: keep an entry for every component of both nodes, zero ones too
+    (under large deformation the normal of the deformed master surface turns, and with it
+    the row and its friction rows: drivers/current_rows.py); else the zero ones are left out.
+    """
     points = dof_points(mesh, 1) if points is None else points
     s_nodes, s_normals, _ = surface(mesh, spec.slave, points)
     m_nodes, m_normals, _ = surface(mesh, spec.master, points)
@@ -127,7 +133,7 @@ def node_to_node_rows(mesh: MeshData, spec: NodeToNode, index: int, node_ptr: np
     e_node = np.concatenate([np.repeat(s_nodes, bs), np.repeat(m, bs)])
     e_comp = np.tile(np.arange(bs), 2 * npair)
     e_coef = scale * np.concatenate([coef_s.ravel(), coef_m.ravel()])
-    keep = e_coef != 0.0
+    keep = (e_coef != 0.0) | (all_components and bs > 1)
     normal = n if bs > 1 else np.zeros((npair, mesh.gdim))
     return Rows(e_row=e_row[keep], e_sub=e_sub[keep].astype(np.int32), e_node=e_node[keep],
                 e_comp=e_comp[keep].astype(np.int8), e_coef=e_coef[keep], rhs=scale * gap,

@@ -126,9 +126,11 @@ def with_tangential_rows(normal: Rows, fixed: np.ndarray | None = None) -> Rows:
     e_node = np.repeat(u_node, nt * d)
     e_sub = np.repeat(u_sub, nt * d)
     e_comp = np.tile(np.arange(d), u_row.size * nt)
-    # an obstacle node keeps every component: its tangents turn with the current normal
-    # under large deformation (drivers/newton_friction.py)
-    keep = (e_coef != 0.0) | np.repeat(normal.kind[u_row] == Kind.OBSTACLE, nt * d)
+    # a node whose normal row has every component (an obstacle's; a pair's under large
+    # deformation) keeps them all: its tangents turn with the current normal
+    # (drivers/newton_friction.py)
+    full = np.bincount(inv, minlength=uniq.size) == d
+    keep = (e_coef != 0.0) | np.repeat(full, nt * d)
     tangential = Rows(
         e_row=e_row[keep], e_sub=e_sub[keep].astype(np.int32), e_node=e_node[keep],
         e_comp=e_comp[keep].astype(np.int8), e_coef=e_coef[keep], rhs=np.zeros(nrow),

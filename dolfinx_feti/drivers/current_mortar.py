@@ -56,7 +56,7 @@ def check_mortar(c: Mortar, problem: ContactProblem) -> None:
                          "mesh whole")
     if c.friction is not None:
         raise InputError("large-deformation contact: friction under Newton is built for rigid "
-                         "obstacles only (not mortar pairs)")
+                         "obstacles and node-to-node pairs only (not mortar pairs)")
 
 
 def _permuted_cols(rows: Rows, cols: np.ndarray, order: np.ndarray) -> np.ndarray:

@@ -47,6 +47,23 @@ def rows_with_rhs(rows, rhs: np.ndarray, comm: MPI.Comm, coef: np.ndarray | None
     return replace(rows, own=own, contact=contact)
 
 
+def pair_displacements(solver, comm: MPI.Comm, contact, u: PETSc.Vec, mesh) -> np.ndarray:
+    """The displacements (points, gdim) of the node-to-node pairs' nodes, on every rank.
+
+    Zero at every other point of ``mesh`` (the problem's); gathered from the ranks holding
+    them (surfaces only).
+    """
+    data = solver.data
+    pairs = (contact.kind == Kind.CONTACT) & (contact.partner >= 0)
+    points = np.unique(np.r_[contact.node[pairs], contact.partner[pairs]])
+    mine = np.isin(data.dof_node, points)
+    parts = comm.allgather((data.dof_node[mine], data.dof_comp[mine], u.array_r[mine]))
+    U = np.zeros((mesh.num_nodes, mesh.gdim))
+    for nodes, comps, vals in parts:  # copies of a point agree to the gluing's round-off
+        U[nodes, comps] = vals
+    return U
+
+
 class CurrentRows:
     """The rows of the iterate for one FetiSolver (collective methods).
 
@@ -67,6 +84,7 @@ class CurrentRows:
         self.geometry = None
         self.dropped = 0.0
         self.friction = None  # the tangential rows' hook (drivers/newton_friction.py)
+        self.pair_u = None  # the pairs' nodes' displacements of the last at() (all ranks)
 
     def augmentation(self, lam: PETSc.Vec | None, curved: bool = True):
         """κ Σ b_r b_rᵀ over the rows active in the last QP (λ_r > 0), b_r in physical units.
@@ -155,8 +173,16 @@ class CurrentRows:
         if np.any(pairs):  # the same on every rank (the contact rows are replicated)
             self._pairs_at(problem, rows0, u, rhs, coef, normal)
         obst = np.flatnonzero(own.kind == Kind.OBSTACLE)
-        if not self.comm.allreduce(obst.size, op=MPI.SUM):
-            return rhs, coef, normal
+        if self.comm.allreduce(obst.size, op=MPI.SUM):
+            self._obstacles_at(problem, rows0, u, obst, rhs, coef, normal, keep)
+        if self.friction is not None:
+            self.friction.at(u, rhs, coef, normal, self.pair_u)
+        return rhs, coef, normal
+
+    def _obstacles_at(self, problem, rows0, u: PETSc.Vec, obst: np.ndarray, rhs, coef, normal,
+                      keep: bool) -> None:
+        """Obstacle rows at u, in place: the gap and the normal of the nodes' positions."""
+        own = rows0.own
         data, share = self.solver.data, self.solver.qp.share
         pos = np.full(own.size, -1)
         pos[obst] = np.arange(obst.size)
@@ -175,9 +201,6 @@ class CurrentRows:
             self.geometry = (obst, x, problem)
         coef[ent] = -n[pos[own.e_row[ent]], own.e_comp[ent]] * own.scale[own.e_row[ent]]
         normal[obst] = n
-        if self.friction is not None:
-            self.friction.at(u, rhs, coef, normal)
-        return rhs, coef, normal
 
     def _pairs_at(self, problem, rows0, u: PETSc.Vec, rhs, coef, normal) -> None:
         """Node-to-node rows at u, in place (collective).
@@ -185,17 +208,12 @@ class CurrentRows:
         The normal of the deformed master surface at the master node, the gap of the current
         positions. The displacements of the pairs' nodes are gathered on every rank (surfaces only).
         """
-        own, contact, data = rows0.own, rows0.contact, self.solver.data
+        own, contact = rows0.own, rows0.contact
         mesh = problem.mesh
         pairs = (contact.kind == Kind.CONTACT) & (contact.partner >= 0)
-        points = np.unique(np.r_[contact.node[pairs], contact.partner[pairs]])
-        mine = np.isin(data.dof_node, points)
-        parts = self.comm.allgather((data.dof_node[mine], data.dof_comp[mine],
-                                     u.array_r[mine]))
+        U = pair_displacements(self.solver, self.comm, contact, u, mesh)
+        self.pair_u = U
         gdim = mesh.gdim
-        U = np.zeros((mesh.num_nodes, gdim))
-        for nodes, comps, vals in parts:  # copies of a point agree to the gluing's round-off
-            U[nodes, comps] = vals
         y = mesh.x[:, :gdim] + U
         n_at = np.zeros((mesh.num_nodes, gdim))
         for spec in np.unique(contact.spec[pairs]):

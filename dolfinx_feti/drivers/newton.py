@@ -32,9 +32,9 @@ The choices:
   solution; node-to-node pairs the normal of the deformed master surface and the gap of the
   current positions; mortar contact the search and the integrals redone on every iterate's
   surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
-  reference surfaces (they glue material points); friction on rigid obstacles acts on the slip
-  increment of the load step in the current tangents (:mod:`.newton_friction`). Friction on
-  pairs (node-to-node, mortar) is refused by name.
+  reference surfaces (they glue material points); friction on rigid obstacles and on
+  node-to-node pairs acts on the slip increment of the load step in the current tangents
+  (:mod:`.newton_friction`). Friction on mortar pairs is refused by name.
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
@@ -133,15 +133,13 @@ def _check_obstacle(c: RigidObstacle, problem: ContactProblem) -> None:
 
 
 def _check_pair(c: NodeToNode, problem: ContactProblem) -> None:
+    """Node-to-node pairs: degree 1, a vector problem; friction in 2D and 3D."""
     if c.gap is not None or problem.value_size == 1:
         raise InputError("large-deformation contact: node-to-node contact takes its gap "
                          "from the geometry (no gap override, a vector problem)")
     if problem.degree != 1:
         raise InputError("large-deformation contact: node-to-node contact of degree-1 "
                          "meshes only")
-    if c.friction is not None:
-        raise InputError("large-deformation contact: friction under Newton is built for rigid "
-                         "obstacles only (not node-to-node pairs)")
 
 
 #: The contact conditions the Newton driver takes, each with its check: the rows of the current

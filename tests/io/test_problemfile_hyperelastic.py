@@ -5,7 +5,7 @@ from __future__ import annotations
 import gmsh
 import numpy as np
 import pytest
-from element_models import rectangle
+from element_models import rectangle, stacked_blocks
 from rubber_cases import rubber_cylinder
 from test_newton import neo_hookean_exact, nodal
 
@@ -35,13 +35,14 @@ plane = {{ point = [0.0, 0.0], normal = [0.0, 1.0] }}
 """
 
 
-def write_block_mesh(folder) -> None:
-    """The unit block of element_models.rectangle as ``folder/block.msh``."""
+def write_block_mesh(folder, name: str = "block.msh", model=lambda: rectangle(h=0.3)) -> None:
+    """A gmsh model of element_models as ``folder/name``: by default the unit block of
+    ``rectangle``."""
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
-        rectangle(h=0.3)
-        gmsh.write(str(folder / "block.msh"))
+        model()
+        gmsh.write(str(folder / name))
     finally:
         gmsh.finalize()
 
@@ -146,3 +147,46 @@ nodal_values = "block_nodal.npz"
     assert len(records) == len(factors)
     with pytest.raises(df.InputError, match="cannot be scaled"):
         scaled(df.ContactProblem(pf.problem.mesh, df.Poisson(source=1.0)), 2.0)
+
+
+PAIR_TEXT = """mesh = "stack.msh"
+
+[model]
+type = "neo-hookean"
+E = 10.0
+nu = 0.3
+
+[[dirichlet]]
+group = "bottom"
+
+[[dirichlet]]
+group = "top"
+value = [0.05, -0.05]
+
+[[contact]]
+type = "node_to_node"
+slave = "upper_bottom"
+master = "lower_top"
+friction = { type = "coulomb", coefficient = 0.3 }
+"""
+
+
+@pytest.mark.serial
+def test_node_to_node_friction_in_a_hyperelastic_problem_file(tmp_path):
+    """Two neo-Hookean blocks with Coulomb friction on a node-to-node pair, from a file: the
+    Python API's solution (friction on pairs under Newton)."""
+    write_block_mesh(tmp_path, "stack.msh", stacked_blocks)
+    path = tmp_path / "stack.toml"
+    path.write_text(PAIR_TEXT)
+    pf = problemfile.load(path)
+    opts = {"rtol": 1e-12, "newton_rtol": 1e-10, "method": "fetidp"}
+    sol = df.solve(pf.problem, **opts)
+    api = df.ContactProblem(
+        pf.problem.mesh, df.NeoHookean(10.0, 0.3),
+        dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", (0.05, -0.05))],
+        contact=[df.NodeToNode("upper_bottom", "lower_top", friction=df.Coulomb(0.3))],
+        decomposition=pf.problem.decomposition)
+    ref = df.solve(api, **opts)
+    assert sol.report.converged and ref.report.converged
+    assert 0 < np.count_nonzero(sol.contact.state == 2) < sol.contact.state.size
+    assert np.abs(sol.nodal_values() - ref.nodal_values()).max() < 1e-10

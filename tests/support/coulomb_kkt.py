@@ -8,6 +8,9 @@ the slip opposite to q.
 from __future__ import annotations
 
 import numpy as np
+from mpi4py.MPI import SUM
+
+from dolfinx_feti.constraints.rows import Kind
 
 
 def coulomb_violations(sol, coefficient: float) -> dict[str, float]:
@@ -36,3 +39,28 @@ def coulomb_violations(sol, coefficient: float) -> dict[str, float]:
         "direction": float(np.max((nq * ns + np.einsum("ij,ij->i", q, s))[slipping],
                                   initial=0.0)) / (pmax * umax),
     }
+
+
+def check_tresca_sliding(sol, bound_force: float) -> None:
+    """A converged solution in gross sliding under Tresca along −x: every node slips, the
+    friction force is −``bound_force`` (the traction bound times the width) along x, and the
+    solver's friction residuals are at round-off."""
+    assert sol.report.converged
+    assert np.all(sol.contact.state == 2)
+    assert abs(sol.total_contact_force[0] + bound_force) < 1e-8 * bound_force
+    assert sol.report.kkt["friction_feasibility"] < 1e-10
+    assert sol.report.kkt["friction_complementarity"] < 1e-8
+
+
+def dirichlet_force(sol, where, comm) -> np.ndarray:
+    """The force the Dirichlet conditions exert on the body at the nodes ``where(x)`` picks,
+    −Σ λ_D per component (the Lagrangian's +λ(Bu − c): a row's force on the body is −Bᵀλ);
+    collective."""
+    own = sol.rows.own
+    lam = sol.lam.array_r * own.scale
+    rows = np.flatnonzero(own.kind == Kind.DIRICHLET)
+    picked = where(sol.problem.mesh.x[own.node[rows]])
+    comp = own.e_comp[np.searchsorted(own.e_row, rows)]  # one entry per Dirichlet row
+    gdim = sol.problem.mesh.gdim
+    out = np.array([lam[rows[picked & (comp == j)]].sum() for j in range(gdim)])
+    return -comm.allreduce(out, op=SUM)

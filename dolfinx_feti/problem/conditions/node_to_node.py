@@ -40,7 +40,9 @@ class NodeToNode(SurfacePair):
             placed by the mesher independently (on an arc at its mid-angle, on a segment at
             its midpoint) and may be off by ~h²/R along the surface: raise it (e.g. 1e-2).
         friction: ``None`` (frictionless), :class:`Tresca` or :class:`Coulomb`. The relative
-            slip is the tangential part of u_slave − u_master.
+            slip is the tangential part of u_slave − u_master (under Newton, hyperelastic
+            forms: its increment in each load step, in the tangents of the deformed master
+            surface; the nodes stay paired, so the slip must stay within an element).
     """
 
     slave: str
