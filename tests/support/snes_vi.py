@@ -29,7 +29,7 @@ def neo_hookean(mu: float, lmbda: float) -> Callable:
 
 
 def snes_vi(mesh, psi: Callable, fixed: Callable[[np.ndarray, float], tuple], y_plane: float,
-            loads: Sequence[float], rtol: float = 1e-14):
+            loads: Sequence[float], rtol: float = 1e-14, factor: str | None = None):
     """Minimize ∫ψ(I + ∇u) s.t. the bounds, for each load of ``loads`` in turn.
 
     Args:
@@ -39,6 +39,8 @@ def snes_vi(mesh, psi: Callable, fixed: Callable[[np.ndarray, float], tuple], y_
             repeated per component, n × gdim, and the component), which dofs are prescribed.
         y_plane: The rigid plane's height (the last coordinate): x_last + u_last >= y_plane.
         loads: The load values, in order.
+        rtol: SNES's relative tolerance on the residual norm.
+        factor: The LU package of each Newton step (PETSc's own when None; e.g. "mumps").
 
     Returns:
         (coordinates of the nodes (n, gdim), displacements (n, gdim), residual R = ∂Π/∂u per
@@ -94,6 +96,8 @@ def snes_vi(mesh, psi: Callable, fixed: Callable[[np.ndarray, float], tuple], y_
         snes.setTolerances(atol=0.0, rtol=rtol, stol=0.0, max_it=100)
         snes.getKSP().setType("preonly")
         snes.getKSP().getPC().setType("lu")
+        if factor is not None:
+            snes.getKSP().getPC().setFactorSolverType(factor)
         snes.solve(None, x)
         if snes.getConvergedReason() <= 0:
             raise RuntimeError(f"SNES VI did not converge at load {load}: reason "
