@@ -162,6 +162,15 @@ def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return own.scale, own.kind, own.inequality
 
 
+#: The residuals measured in lengths against U (what the weighted gradient bounds).
+LENGTHS = ("primal_feasibility", "equality", "complementarity")
+
+
+def _lengths(kkt: dict[str, float]) -> float:
+    """The largest residual of :data:`LENGTHS` (relative to U)."""
+    return max(kkt.get(k, 0.0) for k in LENGTHS)
+
+
 class KKTStop:
     """The stopping test of one solve: a bound during the iterations, the exact check after.
 
@@ -277,7 +286,9 @@ class KKTStop:
         if Dx_norm and math.isfinite(g_last):
             # what ‖G̃x‖ moved B u − c by at most, measured: the excess of the exact violation
             # over the gradient bound (the worst case ‖PFP‖ max 1/scale over-solves 5–50×)
-            measured = max(primal * U, g_last) / Dx_norm
+            # (lengths only: violation_force is a force, and read as a length it made the
+            # unit 100x too large and the next run over-solve ‖G̃x‖, FETI-DP on 2D Hertz)
+            measured = max(_lengths(kkt) * U, g_last) / Dx_norm
             self.eq_unit = min(self.eq_unit_max, max(measured, 1e-3 * self.eq_unit_max))
         if not tightened:  # the measured scales say the bound held: tighten it anyway
             self.tol_g *= 0.1
