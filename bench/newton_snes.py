@@ -14,6 +14,8 @@ u_ref| / max|u_ref| at the last step, and the relative error of the force on the
 process (SNES VI runs on one rank). Run:
 
     OMP_NUM_THREADS=1 PYTHONPATH=$PWD python bench/newton_snes.py [--h 0.1,0.07,0.05]
+
+(uniform meshes: ``--h`` is the element size everywhere).
 """
 
 from __future__ import annotations
@@ -38,7 +40,8 @@ def floats(text: str) -> list[float]:
 
 
 parser = argparse.ArgumentParser(description=__doc__)
-parser.add_argument("--h", type=floats, default=[0.1, 0.07, 0.05], help="sizes at the contact")
+parser.add_argument("--h", type=floats, default=[0.1, 0.07, 0.05],
+                    help="element sizes (at the contact and away from it)")
 parser.add_argument("--delta", type=float, default=0.15, help="travel of the top / R")
 parser.add_argument("--steps", type=int, default=4)
 parser.add_argument("--parts", type=int, default=4)
@@ -97,7 +100,7 @@ def error(u, f, u_ref, f_ref) -> tuple[float, float]:
 
 rows = []
 for h in args.h:
-    mesh = df.build_mesh(quarter_hemisphere, R=R, h_contact=h, h_far=0.2)
+    mesh = df.build_mesh(quarter_hemisphere, R=R, h_contact=h, h_far=h)
     dofs = 3 * mesh.x.shape[0]
     ref = snes(mesh, 1e-14)[:2]
 

@@ -65,4 +65,19 @@ def moved(problem: ContactProblem, translations: Mapping[str, Sequence[float]]
     return replace(problem, contact=contact)
 
 
-__all__ = ["moved", "scaled"]
+def with_friction(problem: ContactProblem, values: Mapping[str, float]) -> ContactProblem:
+    """``problem`` with the friction value of the contact conditions on the given groups.
+
+    Args:
+        problem: The problem.
+        values: A contact condition's first group (an obstacle's group, a pair's slave) → its
+            friction law's value: Tresca's slip bound or Coulomb's coefficient.
+    """
+    if not values:
+        return problem
+    contact = [replace(c, friction=c.friction.with_value(values[c.groups[0]]))
+               if c.groups[0] in values else c for c in problem.contact]
+    return replace(problem, contact=contact)
+
+
+__all__ = ["moved", "scaled", "with_friction"]

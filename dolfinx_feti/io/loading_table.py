@@ -25,11 +25,14 @@ class Loading:
             factor).
         translations: Contact group of a rigid obstacle → the obstacle's translation at each
             step, from its position in the file.
+        friction: A contact condition's first group → its friction value at each step
+            (Tresca's slip bound, Coulomb's coefficient).
     """
 
     factors: tuple[float, ...]
     values: dict[str, tuple] = field(default_factory=dict)
     translations: dict[str, tuple] = field(default_factory=dict)
+    friction: dict[str, tuple] = field(default_factory=dict)
 
 
 def read_loading(c: Checker, table: Any, model: str | None, dirichlet: list, contact: list,
@@ -40,10 +43,11 @@ def read_loading(c: Checker, table: Any, model: str | None, dirichlet: list, con
     t = c.table(table, "loading", LOADING_KEYS)
     if t is None:
         return None
-    if not {"factors", "values", "translations"} & set(t):
+    if not {"factors", "values", "translations", "friction"} & set(t):
         c.fault("loading", "expected factors = [...] (the loads' factor per step), values = "
                 "{ <dirichlet group> = [[...], ...] } (a group's value per step), translations "
-                "= { <obstacle's contact group> = [[...], ...] } (its position per step), or "
+                "= { <obstacle's contact group> = [[...], ...] } (its position per step), "
+                "friction = { <contact group> = [...] } (its friction value per step), or "
                 "several of them")
         return None
     if model is not None and model not in SOLIDS:
@@ -68,14 +72,19 @@ def read_loading(c: Checker, table: Any, model: str | None, dirichlet: list, con
                                  small=model == "elasticity")
     if translations is None:
         return None
-    if factors is None and not values and not translations:
-        c.fault("loading", "expected at least one Dirichlet group (values) or obstacle "
-                "(translations)")
+    if translations:
+        steps = len(next(iter(translations.values())))
+    friction = _friction(c, t.get("friction", {}), contact, steps)
+    if friction is None:
+        return None
+    per_step = values or translations or friction
+    if factors is None and not per_step:
+        c.fault("loading", "expected at least one Dirichlet group (values), obstacle "
+                "(translations) or friction value (friction)")
         return None
     if factors is None:  # the loads as given at every step
-        steps = len(next(iter((values or translations).values())))
-        factors = [1.0] * steps
-    return Loading(tuple(float(v) for v in factors), values, translations)
+        factors = [1.0] * len(next(iter(per_step.values())))
+    return Loading(tuple(float(v) for v in factors), values, translations, friction)
 
 
 def _per_step(c: Checker, key: str, rows: Any) -> list | None:
@@ -95,47 +104,69 @@ def _same_steps(c: Checker, key: str, entries: list, steps: int | None) -> bool:
     return True
 
 
-def _values(c: Checker, v: Any, dirichlet: list, value_size: int | None,
-            steps: int | None) -> dict[str, tuple] | None:
-    """``[loading] values``: Dirichlet group → one value per step (None on a fault)."""
-    key = "loading.values"
+def _per_group(c: Checker, key: str, v: Any, shape: str, conds: dict, known: str, parse,
+               steps: int | None, refuse=None) -> dict[str, tuple] | None:
+    """A table ``group → [entry per step]`` (None on a fault, which ``c`` records).
+
+    Args:
+        c: The checker.
+        key: The table's key path.
+        v: The table as read.
+        shape: How the table looks (for the fault of a value that is not a table).
+        conds: The groups it may name → what ``parse`` and ``refuse`` take.
+        known: What those groups are (for the fault of another group).
+        parse: ``parse(cond, key, entry)`` → the step's value (None after a fault).
+        steps: The number of steps the other keys gave (None: any).
+        refuse: ``refuse(cond)`` → why the group cannot be given (None: it can).
+    """
     if not isinstance(v, dict):
-        c.fault(key, f"expected a table {{ <dirichlet group> = [[...], ...] }}, got "
-                f"{describe(v)}")
+        c.fault(key, f"expected a table {shape}, got {describe(v)}")
         return None
     out, good = {}, True
     for group, rows in v.items():
         gkey = key_path(key, group)
-        conds = [d for d in dirichlet if d.group == group]
-        if not conds:
-            c.fault(gkey, f"not the group of a [[dirichlet]] condition (those are "
-                    f"{sorted({d.group for d in dirichlet})})")
+        if group not in conds:
+            c.fault(gkey, f"not {known} (those are {sorted(conds)})")
             good = False
             continue
-        n = {len(d.components) if d.components is not None else value_size for d in conds}
+        why = None if refuse is None else refuse(conds[group])
+        if why is not None:
+            c.fault(gkey, why)
+            good = False
+            continue
         rows = _per_step(c, gkey, rows)
         if rows is None:
             good = False
             continue
-        vals = [c.vector(r, key_path(gkey, i), None) if isinstance(r, list) else
-                c.number(r, key_path(gkey, i), "a number or an array of one per component")
-                for i, r in enumerate(rows)]
-        if any(x is None for x in vals):
-            good = False
-            continue
-        bad = [i for i, x in enumerate(vals) if isinstance(x, list)
-               and len(x) != 1 and len(x) not in n]
-        if bad:
-            c.fault(key_path(gkey, bad[0]), f"expected one number or {sorted(n)} (one per "
-                    f"constrained component), got {len(vals[bad[0]])}")
-            good = False
-            continue
-        if not _same_steps(c, gkey, vals, steps):
+        vals = [parse(conds[group], key_path(gkey, i), r) for i, r in enumerate(rows)]
+        if any(x is None for x in vals) or not _same_steps(c, gkey, vals, steps):
             good = False
             continue
         steps = len(vals)
-        out[group] = tuple(tuple(x) if isinstance(x, list) else x for x in vals)
+        out[group] = tuple(vals)
     return out if good else None
+
+
+def _values(c: Checker, v: Any, dirichlet: list, value_size: int | None,
+            steps: int | None) -> dict[str, tuple] | None:
+    """``[loading] values``: Dirichlet group → one value per step (None on a fault)."""
+    sizes = {}
+    for d in dirichlet:
+        sizes.setdefault(d.group, set()).add(len(d.components) if d.components is not None
+                                             else value_size)
+
+    def parse(n: set, key: str, r: Any):
+        if not isinstance(r, list):
+            return c.number(r, key, "a number or an array of one per component")
+        x = c.vector(r, key, None)
+        if x is not None and len(x) != 1 and len(x) not in n:
+            c.fault(key, f"expected one number or {sorted(n)} (one per constrained "
+                    f"component), got {len(x)}")
+            return None
+        return None if x is None else tuple(x)
+
+    return _per_group(c, "loading.values", v, "{ <dirichlet group> = [[...], ...] }", sizes,
+                      "the group of a [[dirichlet]] condition", parse, steps)
 
 
 def _translations(c: Checker, v: Any, contact: list, gdim: int | None,
@@ -146,41 +177,39 @@ def _translations(c: Checker, v: Any, contact: list, gdim: int | None,
     obstacle (its normals change under the nodes): refused here rather than at its second
     step.
     """
-    key = "loading.translations"
-    if not isinstance(v, dict):
-        c.fault(key, f"expected a table {{ <obstacle's contact group> = [[...], ...] }}, got "
-                f"{describe(v)}")
-        return None
-    movable = sorted(cond.group for cond in contact
-                     if hasattr(getattr(cond, "obstacle", None), "translated"))
-    out, good = {}, True
-    for group, rows in v.items():
-        gkey = key_path(key, group)
-        if group not in movable:
-            c.fault(gkey, f"not the group of a [[contact]] condition with a rigid obstacle "
-                    f"(those are {movable})")
-            good = False
-            continue
-        cond = next(cond for cond in contact if getattr(cond, "group", None) == group)
+    movable = {cond.group: cond for cond in contact
+               if hasattr(getattr(cond, "obstacle", None), "translated")}
+
+    def refuse(cond) -> str | None:
         if small and cond.friction is not None and \
                 not getattr(cond.obstacle, "keeps_normals", False):
-            c.fault(gkey, f"a {type(cond.obstacle).__name__.lower()} with friction cannot move "
-                    "in small deformation (its normals change under the nodes): a plane can, "
-                    "or a hyperelastic model.type (Newton) can")
-            good = False
-            continue
-        rows = _per_step(c, gkey, rows)
-        if rows is None:
-            good = False
-            continue
-        vecs = [c.vector(r, key_path(gkey, i), gdim, "coordinates")
-                for i, r in enumerate(rows)]
-        if any(x is None for x in vecs) or not _same_steps(c, gkey, vecs, steps):
-            good = False
-            continue
-        steps = len(vecs)
-        out[group] = tuple(tuple(float(a) for a in x) for x in vecs)
-    return out if good else None
+            return (f"a {type(cond.obstacle).__name__.lower()} with friction cannot move in "
+                    "small deformation (its normals change under the nodes): a plane can, or "
+                    "a hyperelastic model.type (Newton) can")
+        return None
+
+    def parse(cond, key: str, r: Any):
+        x = c.vector(r, key, gdim, "coordinates")
+        return None if x is None else tuple(x)
+
+    return _per_group(c, "loading.translations", v, "{ <obstacle's contact group> = "
+                      "[[...], ...] }", movable, "the group of a [[contact]] condition with a "
+                      "rigid obstacle", parse, steps, refuse)
+
+
+def _friction(c: Checker, v: Any, contact: list, steps: int | None
+              ) -> dict[str, tuple] | None:
+    """``[loading] friction``: a condition's first group → its friction value per step."""
+    with_friction = {cond.groups[0]: cond for cond in contact
+                     if getattr(cond, "friction", None) is not None}
+
+    def parse(cond, key: str, r: Any):
+        return c.number(r, key, "a friction value >= 0 (Tresca's slip bound, Coulomb's "
+                        "coefficient)", ok=lambda x: x >= 0)
+
+    return _per_group(c, "loading.friction", v, "{ <contact group> = [...] }", with_friction,
+                      "the (first) group of a [[contact]] condition with friction", parse,
+                      steps)
 
 
 __all__ = ["Loading", "read_loading"]

@@ -184,6 +184,8 @@ class ProblemFile:
             they replace the group's value times the factor).
         loading_translations: Per rigid obstacle's contact group, its translation at each step
             (``[loading] translations``).
+        loading_friction: Per contact condition's first group, its friction value at each
+            step (``[loading] friction``).
     """
 
     path: Path
@@ -198,18 +200,23 @@ class ProblemFile:
     loading: tuple[float, ...] | None = None
     loading_values: dict[str, tuple] = field(default_factory=dict)
     loading_translations: dict[str, tuple] = field(default_factory=dict)
+    loading_friction: dict[str, tuple] = field(default_factory=dict)
 
     def problem_at(self, t: float) -> ContactProblem:
         """The problem of step ``int(t)`` of the load path.
 
         Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
-        their value of the step, the obstacles of ``loading_translations`` their position.
+        their value of the step, the obstacles of ``loading_translations`` their position, the
+        conditions of ``loading_friction`` their friction value.
         """
-        from ..drivers.scaled import moved, scaled
+        from ..drivers.scaled import moved, scaled, with_friction
         k = int(t)
-        return moved(scaled(self.problem, self.loading[k],
-                            {g: v[k] for g, v in self.loading_values.items()}),
-                     {g: v[k] for g, v in self.loading_translations.items()})
+
+        def at(table: dict) -> dict:
+            return {g: v[k] for g, v in table.items()}
+
+        return with_friction(moved(scaled(self.problem, self.loading[k], at(self.loading_values)),
+                                   at(self.loading_translations)), at(self.loading_friction))
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:
@@ -395,7 +402,8 @@ class _Reader:
                          mesh_source=mesh_source, problem=problem, solver=solver, output=output,
                          command_line=pairs, **({} if loading is None else {
                              "loading": loading.factors, "loading_values": loading.values,
-                             "loading_translations": loading.translations}))
+                             "loading_translations": loading.translations,
+                             "loading_friction": loading.friction}))
         try:  # the options together (e.g. mprgp_alpha 'bb' with an expansion other than 'fixed')
             opts = pf.solver_options()
         except InputError as e:

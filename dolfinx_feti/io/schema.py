@@ -49,7 +49,7 @@ DECOMPOSITION_KEYS = {"tags": ("type", "gluing"),
 #: ``[output]`` keys.
 OUTPUT_KEYS = ("directory", "xdmf", "report", "nodal_values", "pressure_plot")
 #: ``[loading]`` keys.
-LOADING_KEYS = ("factors", "values", "translations", "history")
+LOADING_KEYS = ("factors", "values", "translations", "friction", "history")
 #: ``[output.pressure_plot]`` keys.
 PLOT_KEYS = ("file", "surface", "along")
 #: ``[solver]`` keys: the fields of :class:`~dolfinx_feti.SolverOptions`.

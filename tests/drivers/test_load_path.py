@@ -421,23 +421,28 @@ def command_path(root, name: str, capsys, problem_at_of):
         remove_shared(out)
 
 
+def load_path_api(pf):
+    """``problems/load_path.toml``'s path written with the Python API (the affine traction
+    times each factor, by hand)."""
+    def at(t):
+        f = pf.loading[int(t)]
+        return df.ContactProblem(
+            pf.mesh, df.Elasticity(200.0, 0.3, tractions={"load": lambda x: ufl.as_vector(
+                (f * 0.125, f * (-0.625 + 0.046875 * x[0])))}),
+            dirichlet=[df.Dirichlet("bottom")],
+            contact=[df.NodeToNode("disk_contact", "block_contact",
+                                   friction=df.Coulomb(0.4))],
+            decomposition=df.Parts(2))
+
+    return at, len(pf.loading)
+
+
 def test_problem_file_loading(root, capsys):
     """``problems/load_path.toml`` through the command against the same path written with the
     Python API (the affine traction times each factor, by hand)."""
     from cli_helpers import files_in
 
-    def api(pf):
-        def at(t):
-            f = pf.loading[int(t)]
-            return df.ContactProblem(
-                pf.mesh, df.Elasticity(200.0, 0.3, tractions={"load": lambda x: ufl.as_vector(
-                    (f * 0.125, f * (-0.625 + 0.046875 * x[0])))}),
-                dirichlet=[df.Dirichlet("bottom")],
-                contact=[df.NodeToNode("disk_contact", "block_contact",
-                                       friction=df.Coulomb(0.4))],
-                decomposition=df.Parts(2))
-
-        return at, len(pf.loading)
+    api = load_path_api
 
     with command_path(root, "load_path", capsys, api) as (out, pf, sols):
         factors = pf.loading
@@ -488,23 +493,30 @@ def test_problem_file_loading_checked(root, tmp_path):
     assert "loading.values.bottom[0]: expected one number or [3]" in msg
 
 
+def blocks_path_api(pf, mus=None):
+    """``problems/load_path3d.toml``'s path written with the Python API: the top's value per
+    step, Coulomb's coefficient per step (0.3 throughout if None)."""
+    tops = pf.loading_values["top"]
+
+    def at(t):
+        mu = 0.3 if mus is None else mus[int(t)]
+        return df.ContactProblem(
+            pf.mesh, df.Elasticity(1.0, 0.3),
+            dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=tops[int(t)])],
+            contact=[df.NodeToNode("contact_upper", "contact_lower",
+                                   friction=df.Coulomb(mu))],
+            decomposition=df.Parts(4))
+
+    return at, len(tops)
+
+
 def test_problem_file_values_path(root, capsys):
     """``problems/load_path3d.toml`` ([loading] values: the top's displacement per step)
     through the command against the same path written with the Python API."""
 
     def api(pf):
-        tops = pf.loading_values["top"]
-        assert len(pf.loading) == len(tops) and set(pf.loading) == {1.0}
-
-        def at(t):
-            return df.ContactProblem(
-                pf.mesh, df.Elasticity(1.0, 0.3),
-                dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", value=tops[int(t)])],
-                contact=[df.NodeToNode("contact_upper", "contact_lower",
-                                       friction=df.Coulomb(0.3))],
-                decomposition=df.Parts(4))
-
-        return at, len(tops)
+        assert len(pf.loading) == len(pf.loading_values["top"]) and set(pf.loading) == {1.0}
+        return blocks_path_api(pf)
 
     with command_path(root, "load_path3d", capsys, api) as (out, _, sols):
         steps = json.loads((out / "load_path3d_history.json").read_text())["steps"]
@@ -560,3 +572,45 @@ def test_problem_file_translations_checked(root, tmp_path):
     assert "loading.translations.top: a sphere with friction cannot move in small " \
         "deformation" in load_faults(folder / "small.toml", text.replace(
             'type = "neo-hookean"', 'type = "elasticity"'))
+
+
+def test_problem_file_friction_per_step(root, tmp_path, capsys):
+    """``[loading] friction``: Coulomb's coefficient per step from the command line (the 3D
+    blocks pressed and sheared, the friction lowered as they slide) equals the same path with
+    the coefficients set by hand in Python, and differs from the path at a constant 0.3; a
+    group without friction and a negative value are refused by name."""
+    from cli_helpers import remove_shared, shared_dir, write_text
+
+    from dolfinx_feti.cli import main
+    from dolfinx_feti.io import problemfile
+
+    text = (root / "problems/load_path3d.toml").read_text()
+    start = text.index("values.top = [")
+    end = text.index("\n\n", start)
+    mus = [0.3, 0.3, 0.1, 0.1]
+    text = text[:start] + (
+        "values.top = [[0.0, 0.0, -0.02], [0.01, 0.0, -0.02], [0.02, 0.0, -0.02], "
+        f"[0.03, 0.0, -0.02]]\nfriction.contact_upper = {mus}") + text[end:]
+    folder = MPI.COMM_WORLD.bcast(tmp_path if MPI.COMM_WORLD.rank == 0 else None, root=0)
+    path = write_text(folder / "load_path3d.toml", text)
+    pf = problemfile.load(path)
+    assert pf.loading_friction == {"contact_upper": tuple(mus)}
+    assert [pf.problem_at(k).contact[0].friction.coefficient for k in range(4)] == mus
+    out = shared_dir("feti-friction-")
+    try:
+        assert main([str(path), "-o", str(out), "-q"]) == 0, capsys.readouterr().err
+        u = np.load(out / "load_path3d_nodal.npz")["u"]
+    finally:
+        remove_shared(out)
+    at, steps = blocks_path_api(pf, mus)
+    sols = df.solve_path(at, range(steps), rtol=1e-8, progress=False)
+    assert ref.rel_max_diff(u, sols[-1].nodal_values()) <= 1e-6
+    at, steps = blocks_path_api(pf)  # 0.3 throughout: less slip, another last state
+    fixed = df.solve_path(at, range(steps), rtol=1e-8, progress=False)
+    assert ref.rel_max_diff(fixed[-1].nodal_values(), sols[-1].nodal_values()) > 1e-3
+    msg = load_faults(folder / "bad.toml", text.replace(
+        f"friction.contact_upper = {mus}",
+        "friction.contact_lower = [0.1]\nfriction.contact_upper = [0.3, -0.1, 0, 0]"))
+    assert "loading.friction.contact_lower: not the (first) group of a [[contact]] " \
+        "condition with friction (those are ['contact_upper'])" in msg
+    assert "loading.friction.contact_upper[1]: expected a friction value >= 0" in msg

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -40,6 +40,10 @@ class Tresca:
         """Tresca is solved by one QP: no fixed point."""
         return None
 
+    def with_value(self, value: float) -> Tresca:
+        """The same law with the slip bound ``value`` (a step of a ``[loading]`` path)."""
+        return replace(self, bound=float(value))
+
 
 @file_table("friction", "coulomb", needs_elasticity="friction")
 @dataclass(frozen=True)
@@ -73,6 +77,10 @@ class Coulomb:
     def fixed_point(self) -> tuple[float, int]:
         """The fixed point's stopping residual and budget of steps."""
         return float(self.rtol), int(self.max_steps)
+
+    def with_value(self, value: float) -> Coulomb:
+        """The same law with the coefficient ``value`` (a step of a ``[loading]`` path)."""
+        return replace(self, coefficient=float(value))
 
 
 
