@@ -67,7 +67,7 @@ class CornerSystem(RowOperands):
         types: Local row types of the kept rows.
     """
 
-    def __init__(self, step: EliminateCorners, B: PETSc.Mat, c: np.ndarray, f: PETSc.Vec,
+    def __init__(self, step: _CornerAlgebra, B: PETSc.Mat, c: np.ndarray, f: PETSc.Vec,
                  types: np.ndarray) -> None:
         self._step = step
         self.comm = step.parent.comm
@@ -124,23 +124,13 @@ class CornerSystem(RowOperands):
                 setattr(step, name, None)
 
 
-class EliminateCorners:
-    """Keep the corner dofs primal: the FETI-DP transform of a block system.
+class _CornerAlgebra:
+    """The operators of :class:`EliminateCorners`: everything but its child.
 
-    Args:
-        parent: The system (FETI-1 form: Dirichlet conditions eliminated).
-        coarse: Per local dof of ``parent``, the index of its corner unknown, or −1.
-        n_coarse: Number of corner unknowns.
-        modes: Candidate kernel of K̃: the rigid motions of each floating body (connected set
-            of subdomains) evaluated at the parent's local dofs, n_local × m with the same
-            m columns on every rank (m = 0 when every body is held). They must vanish on the
-            parent's fixed dofs and be continuous across subdomain copies.
-        mode_bodies: The body of each column of ``modes``, for messages.
-
-    Attributes:
-        child: The :class:`CornerSystem`.
-        kept: Local mask of the parent's rows that the child keeps.
-        is_corner: Local mask of the parent's dofs that are corner copies.
+    Kept apart so that the child can hold it without holding the step that holds the child:
+    no reference cycle, so the PETSc objects go when the last owner drops them (a cycle is
+    collected by each rank's garbage collector at its own moment, and petsc4py destroys a
+    parallel object only when every rank has let it go).
     """
 
     def __init__(self, parent: BlockSystem, coarse: np.ndarray, n_coarse: int,
@@ -202,7 +192,7 @@ class EliminateCorners:
         Zr = np.where(self.is_corner[:, None], 0.0, modes)
         self.kernel_local = sp.csr_matrix(np.vstack([Zr, Zc]) if rank == 0 else Zr)
         self.kernel_bodies = list(mode_bodies)
-        self.child = CornerSystem(self, B, c, f, parent.types[self.kept])
+        self.child_parts = (B, c, f, parent.types[self.kept])  # taken by EliminateCorners
         self.Krr_plus: BlockwiseInverse | None = None
         self.S_plus: FixingNodesInverse | None = None
         self._psi: list = []  # ((first row, end), corner unknowns, dense Ψ block) per block
@@ -219,7 +209,7 @@ class EliminateCorners:
         self.E.multTranspose(parent.f, f)
         return f, c[self.kept]
 
-    def adopt_factors(self, other: EliminateCorners) -> None:
+    def adopt_factors(self, other: EliminateCorners | _CornerAlgebra) -> None:
         """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other``: same matrices and corners (collective).
 
         Raises:
@@ -232,19 +222,6 @@ class EliminateCorners:
         for name in ("Krr_plus", "_psi", "_psi_csr", "S", "S_plus", "_t"):
             if hasattr(other, name):
                 setattr(self, name, getattr(other, name))
-
-    def for_load(self, parent: BlockSystem) -> EliminateCorners:
-        """This step applied to ``parent``, a new load case of its parent (same K and B).
-
-        The corner factorizations, Ψ and S_cc are shared; only the child's f and c are new.
-        """
-        new = copy.copy(self)
-        new.parent = parent
-        f, c = self._rhs(parent, self.child.B)
-        new.child = self.child.with_rhs(f.array_r, c)
-        f.destroy()
-        new.child._step = new
-        return new
 
     # --- the coarse problem ----------------------------------------------------------------
     @property
@@ -373,3 +350,64 @@ class EliminateCorners:
         lp.array[self.kept] = lam.array_r
         recover_multipliers(self.parent, up, lp, ~self.kept)
         return up, lp
+
+
+class EliminateCorners:
+    """Keep the corner dofs primal: the FETI-DP transform of a block system.
+
+    Args:
+        parent: The system (FETI-1 form: Dirichlet conditions eliminated).
+        coarse: Per local dof of ``parent``, the index of its corner unknown, or −1.
+        n_coarse: Number of corner unknowns.
+        modes: Candidate kernel of K̃: the rigid motions of each floating body (connected set
+            of subdomains) evaluated at the parent's local dofs, n_local × m with the same
+            m columns on every rank (m = 0 when every body is held). They must vanish on the
+            parent's fixed dofs and be continuous across subdomain copies.
+        mode_bodies: The body of each column of ``modes``, for messages.
+
+    Every other attribute and method (``parent``, ``kept``, ``is_corner``, ``factorize``,
+    ``adopt_factors``, ``map_back``, ...) is its operators' (:class:`_CornerAlgebra`), which
+    the child shares.
+
+    Attributes:
+        child: The :class:`CornerSystem`.
+        kept: Local mask of the parent's rows that the child keeps.
+        is_corner: Local mask of the parent's dofs that are corner copies.
+    """
+
+    def __init__(self, parent: BlockSystem, coarse: np.ndarray, n_coarse: int,
+                 modes: np.ndarray, mode_bodies: list[str]) -> None:
+        core = _CornerAlgebra(parent, coarse, n_coarse, modes, mode_bodies)
+        parts = core.child_parts
+        del core.child_parts
+        self._adopt(core, CornerSystem(core, *parts))
+
+    def _adopt(self, core: _CornerAlgebra, child: CornerSystem) -> None:
+        object.__setattr__(self, "_core", core)
+        object.__setattr__(self, "child", child)
+
+    def __getattr__(self, name: str):
+        if name.startswith("__") or name == "_core":  # copy/pickle probes before _adopt
+            raise AttributeError(name)
+        return getattr(self._core, name)
+
+    def __setattr__(self, name: str, value) -> None:
+        if name == "child":
+            object.__setattr__(self, name, value)
+        else:
+            setattr(self._core, name, value)
+
+    def for_load(self, parent: BlockSystem) -> EliminateCorners:
+        """This step applied to ``parent``, a new load case of its parent (same K and B).
+
+        The corner factorizations, Ψ and S_cc are shared; only the child's f and c are new.
+        """
+        core = copy.copy(self._core)
+        core.parent = parent
+        f, c = core._rhs(parent, self.child.B)
+        child = self.child.with_rhs(f.array_r, c)
+        f.destroy()
+        child._step = core
+        new = EliminateCorners.__new__(EliminateCorners)
+        new._adopt(core, child)
+        return new
