@@ -67,7 +67,7 @@ class CornerSystem(RowOperands):
         types: Local row types of the kept rows.
     """
 
-    def __init__(self, step: _CornerAlgebra, B: PETSc.Mat, c: np.ndarray, f: PETSc.Vec,
+    def __init__(self, step: CornerAlgebra, B: PETSc.Mat, c: np.ndarray, f: PETSc.Vec,
                  types: np.ndarray) -> None:
         self._step = step
         self.comm = step.parent.comm
@@ -124,13 +124,15 @@ class CornerSystem(RowOperands):
                 setattr(step, name, None)
 
 
-class _CornerAlgebra:
-    """The operators of :class:`EliminateCorners`: everything but its child.
+class CornerAlgebra:
+    """The operators of :class:`EliminateCorners`: everything of the step but its child.
 
-    Kept apart so that the child can hold it without holding the step that holds the child:
-    no reference cycle, so the PETSc objects go when the last owner drops them (a cycle is
+    E, B̃, the blocks of K̃, K_rr⁺, Ψ, S_cc. Kept apart so that the child can hold it without
+    holding the step that holds the child: no reference cycle, so the PETSc objects go when
+    the last owner drops them (a cycle is
     collected by each rank's garbage collector at its own moment, and petsc4py destroys a
-    parallel object only when every rank has let it go).
+    parallel object only when every rank has let it go). Arguments as
+    :class:`EliminateCorners`'.
     """
 
     def __init__(self, parent: BlockSystem, coarse: np.ndarray, n_coarse: int,
@@ -163,7 +165,7 @@ class _CornerAlgebra:
         B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)), (n_dp, N_dp),
                       comm)
         self.B_parent = select_rows(parent.B, self.kept)
-        f, c = self._rhs(parent, B)
+        self.B = B  # the child's (shared with it; the child destroys it)
 
         # the blocks of K̃
         K = parent.K
@@ -192,24 +194,23 @@ class _CornerAlgebra:
         Zr = np.where(self.is_corner[:, None], 0.0, modes)
         self.kernel_local = sp.csr_matrix(np.vstack([Zr, Zc]) if rank == 0 else Zr)
         self.kernel_bodies = list(mode_bodies)
-        self.child_parts = (B, c, f, parent.types[self.kept])  # taken by EliminateCorners
         self.Krr_plus: BlockwiseInverse | None = None
         self.S_plus: FixingNodesInverse | None = None
         self._psi: list = []  # ((first row, end), corner unknowns, dense Ψ block) per block
         self._psi_csr: sp.csr_matrix | None = None
 
-    def _rhs(self, parent: BlockSystem, B: PETSc.Mat) -> tuple[PETSc.Vec, np.ndarray]:
-        """The child's load Eᵀ f and its kept right-hand sides (local), checked."""
+    def rhs(self, parent: BlockSystem) -> tuple[PETSc.Vec, np.ndarray]:
+        """The child's load Eᵀ f and kept right-hand sides (local) of ``parent``'s, checked."""
         c = parent.c.array_r
         bad = np.abs(c[~self.kept]) > 1e-12 * max(np.abs(c).max(initial=0.0), 1e-300)
         if parent.comm.allreduce(bool(np.any(bad)), op=MPI.LOR):
             raise InputError("FETI-DP: an equality row between copies of one corner dof has a "
                              "nonzero right-hand side")
-        f = B.createVecRight()
+        f = self.B.createVecRight()
         self.E.multTranspose(parent.f, f)
         return f, c[self.kept]
 
-    def adopt_factors(self, other: EliminateCorners | _CornerAlgebra) -> None:
+    def adopt_factors(self, other: CornerAlgebra) -> None:
         """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other``: same matrices and corners (collective).
 
         Raises:
@@ -365,49 +366,78 @@ class EliminateCorners:
             parent's fixed dofs and be continuous across subdomain copies.
         mode_bodies: The body of each column of ``modes``, for messages.
 
-    Every other attribute and method (``parent``, ``kept``, ``is_corner``, ``factorize``,
-    ``adopt_factors``, ``map_back``, ...) is its operators' (:class:`_CornerAlgebra`), which
-    the child shares.
+    The operators (E, the blocks of K̃, K_rr⁺, Ψ, S_cc) live in a :class:`CornerAlgebra`
+    that the child shares; the child holds that, not this step, so that the step and its child
+    form no reference cycle.
 
     Attributes:
         child: The :class:`CornerSystem`.
-        kept: Local mask of the parent's rows that the child keeps.
-        is_corner: Local mask of the parent's dofs that are corner copies.
+        algebra: The :class:`CornerAlgebra` (shared with the child).
     """
 
     def __init__(self, parent: BlockSystem, coarse: np.ndarray, n_coarse: int,
                  modes: np.ndarray, mode_bodies: list[str]) -> None:
-        core = _CornerAlgebra(parent, coarse, n_coarse, modes, mode_bodies)
-        parts = core.child_parts
-        del core.child_parts
-        self._adopt(core, CornerSystem(core, *parts))
+        self.algebra = core = CornerAlgebra(parent, coarse, n_coarse, modes, mode_bodies)
+        f, c = core.rhs(parent)
+        self.child = CornerSystem(core, core.B, c, f, parent.types[core.kept])
 
-    def _adopt(self, core: _CornerAlgebra, child: CornerSystem) -> None:
-        object.__setattr__(self, "_core", core)
-        object.__setattr__(self, "child", child)
+    @property
+    def parent(self) -> BlockSystem:
+        """The system the step was applied to."""
+        return self.algebra.parent
 
-    def __getattr__(self, name: str):
-        if name.startswith("__") or name == "_core":  # copy/pickle probes before _adopt
-            raise AttributeError(name)
-        return getattr(self._core, name)
+    @property
+    def kept(self) -> np.ndarray:
+        """Local mask of the parent's rows that the child keeps."""
+        return self.algebra.kept
 
-    def __setattr__(self, name: str, value) -> None:
-        if name == "child":
-            object.__setattr__(self, name, value)
-        else:
-            setattr(self._core, name, value)
+    @property
+    def is_corner(self) -> np.ndarray:
+        """Local mask of the parent's dofs that are corner copies."""
+        return self.algebra.is_corner
+
+    @property
+    def coarse(self) -> np.ndarray:
+        """Per local dof of the parent, the index of its corner unknown, or −1."""
+        return self.algebra.coarse
+
+    @property
+    def n_coarse(self) -> int:
+        """Number of corner unknowns."""
+        return self.algebra.n_coarse
+
+    @property
+    def kernels_rr(self) -> list:
+        """Per subdomain, the kernel of its K_rr (the corners held)."""
+        return self.algebra.kernels_rr
+
+    def factorize(self, factor: str | None = None, site: str = "") -> None:
+        """Factor K_rr, build Ψ and S_cc, factor S_cc (collective)."""
+        self.algebra.factorize(factor, site)
+
+    def adopt_factors(self, other: EliminateCorners) -> None:
+        """Take K_rr⁺, Ψ, S_cc and S_cc⁺ of ``other``: same matrices and corners (collective)."""
+        self.algebra.adopt_factors(other.algebra)
+
+    def map_primal(self, Z: np.ndarray) -> np.ndarray:
+        """Primal vectors (columns, local rows) of the child → of the parent: E Z."""
+        return self.algebra.map_primal(Z)
+
+    def map_back(self, u: PETSc.Vec, lam: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
+        """The parent's (u, λ) of the child's."""
+        return self.algebra.map_back(u, lam)
 
     def for_load(self, parent: BlockSystem) -> EliminateCorners:
         """This step applied to ``parent``, a new load case of its parent (same K and B).
 
         The corner factorizations, Ψ and S_cc are shared; only the child's f and c are new.
         """
-        core = copy.copy(self._core)
+        core = copy.copy(self.algebra)
         core.parent = parent
-        f, c = core._rhs(parent, self.child.B)
+        f, c = core.rhs(parent)
         child = self.child.with_rhs(f.array_r, c)
         f.destroy()
         child._step = core
         new = EliminateCorners.__new__(EliminateCorners)
-        new._adopt(core, child)
+        new.algebra, new.child = core, child
         return new

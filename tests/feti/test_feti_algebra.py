@@ -311,12 +311,12 @@ def test_corner_system(mem):
     # Ψ (kept as dense blocks per subdomain) solves K_rr Ψ = K_rc, zero on the corner copies;
     # S_cc = K_cc − K_rcᵀ Ψ summed over the ranks (the corners hold every block here)
     assert all(k.shape[1] == 0 for k in s2.kernels_rr)
-    Psi, Krc = s2.Psi.toarray(), s2.K_rc.toarray()
+    Psi, Krc = s2.algebra.Psi.toarray(), s2.algebra.K_rc.toarray()
     assert not Psi[s2.is_corner].any()
     scale = max(comm.allreduce(float(np.abs(Krc).max(initial=0.0)), op=MPI.MAX), 1e-300)
-    assert np.abs(s2.K_rr @ Psi - Krc)[~s2.is_corner].max(initial=0.0) <= 1e-12 * scale
-    S = comm.allreduce(s2._K_cc_local.toarray() - Krc.T @ Psi)
-    assert np.abs(s2.S.toarray() - S).max() <= 1e-12 * np.abs(S).max()
+    assert np.abs(s2.algebra.K_rr @ Psi - Krc)[~s2.is_corner].max(initial=0.0) <= 1e-12 * scale
+    S = comm.allreduce(s2.algebra._K_cc_local.toarray() - Krc.T @ Psi)
+    assert np.abs(s2.algebra.S.toarray() - S).max() <= 1e-12 * np.abs(S).max()
 
 
 def _gather_dense(M) -> np.ndarray:
@@ -335,6 +335,6 @@ def _gather_dense_csr(K, start: int, n: int) -> np.ndarray:
 def _dp_columns(step, n: int, nc: int) -> np.ndarray:
     """Global DP-layout index → index in [non-corner layout (n), corners (nc)]: rank 0 holds
     the corners after its own entries."""
-    n0 = comm.bcast(step._n_local if comm.rank == 0 else None)
+    n0 = comm.bcast(step.parent.K.shape[0] if comm.rank == 0 else None)
     order = np.r_[np.arange(n0), n + np.arange(nc), np.arange(n0, n)]
     return order
