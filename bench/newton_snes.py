@@ -32,6 +32,7 @@ import dolfinx_feti as df
 from dolfinx_feti.io.meshes_rubber import quarter_hemisphere
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "support"))
+from rubber_cases import hemisphere_bounds, rubber_hemisphere  # noqa: E402
 from snes_vi import match, neo_hookean, snes_vi  # noqa: E402
 
 
@@ -54,17 +55,10 @@ mu, lmbda = E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
 loads = args.delta * R * np.arange(1, args.steps + 1) / args.steps
 
 
-def fixed(X, comp, load):
-    top = (comp == 2) & (np.abs(X[:, 2]) < 1e-12)
-    sym = ((comp == 0) & (np.abs(X[:, 0]) < 1e-12)) | ((comp == 1) & (np.abs(X[:, 1]) < 1e-12))
-    m = top | sym
-    return m, np.where(top, -load, 0.0)[m]
-
-
 def snes(mesh, rtol):
     """(u in the mesh's node order, force on the plane, SNES iterations, seconds)."""
     wall = time.perf_counter()
-    X, U, Rv, its = snes_vi(mesh, neo_hookean(mu, lmbda), fixed, -R, loads, rtol=rtol,
+    X, U, Rv, its = snes_vi(mesh, neo_hookean(mu, lmbda), hemisphere_bounds, -R, loads, rtol=rtol,
                             factor="mumps")
     wall = time.perf_counter() - wall
     touching = X[:, 2] + U[:, 2] + R < 1e-9
@@ -73,18 +67,10 @@ def snes(mesh, rtol):
 
 def feti(mesh, newton_rtol):
     """(u, force on the plane, Newton iterations, F-multiplications, seconds)."""
-    def problem_at(t):
-        return df.ContactProblem(
-            mesh, df.NeoHookean(E, nu),
-            dirichlet=[df.Dirichlet("top", -t, components=[2]),
-                       df.Dirichlet("x0", 0.0, components=[0]),
-                       df.Dirichlet("y0", 0.0, components=[1])],
-            contact=[df.RigidObstacle("sphere", df.Plane((0.0, 0.0, -R), (0.0, 0.0, 1.0)))],
-            decomposition=df.Parts(args.parts))
-
     wall = time.perf_counter()
-    sols = df.solve_path(problem_at, loads, method="fetidp", rtol=min(1e-6, newton_rtol),
-                         newton_rtol=newton_rtol, progress=False)
+    sols = df.solve_path(lambda t: rubber_hemisphere(mesh, t, args.parts, E, nu, R), loads,
+                         method="fetidp", rtol=min(1e-6, newton_rtol), newton_rtol=newton_rtol,
+                         progress=False)
     wall = time.perf_counter() - wall
     last = sols[-1]
     assert all(s.report.converged for s in sols)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import ufl
 from element_models import rectangle, stacked_blocks
-from rubber_cases import rubber_cylinder
+from rubber_cases import hemisphere_bounds, rubber_cylinder, rubber_hemisphere
 from scipy.optimize import brentq
 from snes_vi import match, neo_hookean, snes_vi
 
@@ -205,27 +205,13 @@ def test_hemisphere_against_snes_vi():
     mesh = df.build_mesh(quarter_hemisphere, R=R, h_contact=0.05, h_far=0.2)
     loads = [0.0375, 0.075, 0.1125, 0.15]
 
-    def problem(t):
-        return df.ContactProblem(
-            mesh, df.NeoHookean(Ec, nuc),
-            dirichlet=[df.Dirichlet("top", -t, components=[2]),
-                       df.Dirichlet("x0", 0.0, components=[0]),
-                       df.Dirichlet("y0", 0.0, components=[1])],
-            contact=[df.RigidObstacle("sphere", df.Plane((0.0, 0.0, -R), (0.0, 0.0, 1.0)))],
-            decomposition=df.Parts(4))
-
-    sols = df.solve_path(problem, loads, rtol=1e-12, newton_rtol=1e-11)
+    sols = df.solve_path(lambda t: rubber_hemisphere(mesh, t, 4, Ec, nuc, R), loads,
+                         rtol=1e-12, newton_rtol=1e-11)
     assert all(s.report.converged for s in sols)
     assert all(s.report.extra["newton_iterations"] <= 8 for s in sols)
 
-    def fixed(X, comp, load):
-        top = (comp == 2) & (np.abs(X[:, 2]) < 1e-12)
-        sym = ((comp == 0) & (np.abs(X[:, 0]) < 1e-12)) | ((comp == 1) & (np.abs(X[:, 1]) < 1e-12))
-        m = top | sym
-        return m, np.where(top, -load, 0.0)[m]
-
     mu, lmbda = Ec / (2 * (1 + nuc)), Ec * nuc / ((1 + nuc) * (1 - 2 * nuc))
-    Xr, Ur, Rr, _ = snes_vi(mesh, neo_hookean(mu, lmbda), fixed, -R, loads)
+    Xr, Ur, Rr, _ = snes_vi(mesh, neo_hookean(mu, lmbda), hemisphere_bounds, -R, loads)
     u = sols[-1].u
     X, U = u.function_space.tabulate_dof_coordinates(), u.x.array.reshape(-1, 3)
     assert np.abs(U - Ur[match(Xr, X)]).max() < 1e-8 * np.abs(Ur).max()
