@@ -204,7 +204,8 @@ class Elasticity:
         """
         return Elasticity(self.E, self.nu,
                           tractions={g: scaled_value(t, s) for g, t in self.tractions.items()},
-                          body_force=scaled_value(self.body_force, s), degree=self.degree)
+                          body_force=scaled_value(self.body_force, s), degree=self.degree,
+                          load_factor=self.load_factor)
 
     def _loads(self, sub) -> list:
         """The loads on ``sub`` in the order :meth:`__call__` makes them: (where, value)."""

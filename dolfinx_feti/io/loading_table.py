@@ -67,24 +67,28 @@ def read_loading(c: Checker, table: Any, model: str | None, dirichlet: list, con
     values = _values(c, t.get("values", {}), dirichlet, value_size, steps)
     if values is None:
         return None
-    steps = steps if not values else len(next(iter(values.values())))
+    steps = _steps(values, steps)
     translations = _translations(c, t.get("translations", {}), contact, gdim, steps,
                                  small=model == "elasticity")
     if translations is None:
         return None
-    if translations:
-        steps = len(next(iter(translations.values())))
+    steps = _steps(translations, steps)
     friction = _friction(c, t.get("friction", {}), contact, steps)
     if friction is None:
         return None
-    per_step = values or translations or friction
-    if factors is None and not per_step:
+    steps = _steps(friction, steps)
+    if steps is None:
         c.fault("loading", "expected at least one Dirichlet group (values), obstacle "
                 "(translations) or friction value (friction)")
         return None
     if factors is None:  # the loads as given at every step
-        factors = [1.0] * len(next(iter(per_step.values())))
+        factors = [1.0] * steps
     return Loading(tuple(float(v) for v in factors), values, translations, friction)
+
+
+def _steps(table: dict[str, tuple], steps: int | None) -> int | None:
+    """The number of steps a per-group table gives (its groups agree), else ``steps``."""
+    return len(next(iter(table.values()))) if table else steps
 
 
 def _per_step(c: Checker, key: str, rows: Any) -> list | None:
