@@ -1,0 +1,172 @@
+"""Friction on mortar pairs under Newton: a neo-Hookean slider pressed on a block and slid.
+
+The slider [0.5, 1.5] × [1, 1.5] on the block [0, 3] × [0, 1] (structured triangles, the two
+meshes apart: no slave node matches a master node but the ends), the block clamped at its
+bottom, the slider's top pressed down, then moved sideways. The mortar rows are searched
+again on the deformed surfaces at every iterate and the tangential rows act on the slave
+node's slip relative to the master material it is paired with, in the step
+(drivers/mortar_friction.py). Checked against what does not come from that code:
+
+- full stick on matching meshes (the mortar weights are then δ): the two bodies glued
+  (``df.Tie``, the same Newton driver) are the exact answer;
+- full stick on the non-matching meshes: no slip in any step, every slave node stays on the
+  master material it started on (the relative tangential displacement of the mortar nodes,
+  from the displacement alone, below 1e-6 × the slide);
+- gross sliding with the block's top held flat (its vertical motion only: the block is
+  dragged sideways by the friction): every slave node slips, the tangential over the normal
+  force is 𝓕 (Coulomb) or the tangential force is Tresca's bound times the width, to solver
+  tolerance, and the slider's top carries the contact force;
+- the Coulomb conditions from the returned contact data (tests/support/coulomb_kkt.py).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from coulomb_kkt import check_coulomb, check_stuck_as_tied, dirichlet_force
+from hand_meshes import blocks
+from mpi4py import MPI
+
+import dolfinx_feti as df
+from dolfinx_feti.constraints.mortar import mortar_coupling
+from dolfinx_feti.errors import InputError
+
+E, NU = 10.0, 0.3
+PRESS = 0.05  # the slider top's downward travel
+OPTS = {"rtol": 1e-11, "newton_rtol": 1e-9, "method": "fetidp"}
+PAIR = ("upper_bottom", "lower_top")
+
+
+def slider_mesh(n_slider: int = 7, n_block: int = 10, width: float = 1.0) -> df.MeshData:
+    """The block (n_block × 4 cells) and the slider (n_slider × 3), meshed apart."""
+    return blocks([{"name": "lower", "n": (n_block, 4), "size": (3.0, 1.0)},
+                   {"name": "upper", "n": (n_slider, 3), "origin": (0.5, 1.0),
+                    "size": (width, 0.5)}])
+
+
+@pytest.fixture(scope="module")
+def slider():
+    return slider_mesh()
+
+
+def slid(mesh, t: float, friction, flat: bool = False, tied: bool = False,
+         slide: float = 0.1) -> df.ContactProblem:
+    """Pressed for t <= 1, then its top moved sideways by (t − 1)·``slide``.
+
+    ``flat``: the block's top held vertically; ``tied``: the slider glued to the block.
+    """
+    shear = max(t - 1.0, 0.0) * slide
+    dirichlet = [df.Dirichlet("lower_bottom"),
+                 df.Dirichlet("upper_top", (shear, -min(t, 1.0) * PRESS))]
+    if flat:
+        dirichlet.append(df.Dirichlet("lower_top", 0.0, components=[1]))
+    return df.ContactProblem(
+        mesh, df.NeoHookean(E, NU), dirichlet=dirichlet,
+        contact=[] if tied else [df.Mortar(*PAIR, friction=friction)],
+        ties=[df.Tie(*PAIR)] if tied else [], decomposition=df.ByTags())
+
+
+def top_force(sol) -> np.ndarray:
+    """The force of the slider top's Dirichlet condition on the slider (y = 1.5)."""
+    return dirichlet_force(sol, lambda x: np.isclose(x[:, 1], 1.5), MPI.COMM_WORLD)
+
+
+def relative_tangential(mesh, sol) -> np.ndarray:
+    """t·(u_j − Σ_k w_jk u_k) at the coupled slave nodes, the weights of the deformed
+    surfaces (computed here from the displacement alone)."""
+    U = sol.nodal_values()
+    y = mesh.x[:, :2] + U
+    c = mortar_coupling(y, mesh.cells, mesh.facets(PAIR[0]), mesh.facets(PAIR[1]), None,
+                        mesh.cell_type)
+    W = c.weights()
+    slave = c.slave_nodes[c.coupled]
+    rel = U[slave] - W @ U
+    return rel[:, 0]  # the surfaces stay flat: t = ±e_x
+
+
+def test_full_stick_equals_the_tied_bodies_on_matching_meshes():
+    """𝓕 = 5 on matching meshes (mortar weights δ): every slave node sticks from the first
+    step, so the bodies are glued where they met: the solution of the tied bodies."""
+    mesh = slider_mesh(n_slider=4, n_block=12)  # the slider's nodes on the block's
+    times = [0.5, 1.0, 1.5, 2.0]
+    sols = df.solve_path(lambda t: slid(mesh, t, df.Coulomb(5.0)), times, **OPTS)
+    check_stuck_as_tied(sols, df.solve(slid(mesh, times[-1], None, tied=True), rtol=1e-12,
+                                       newton_rtol=1e-10, method="fetidp"), 5.0)
+
+
+def test_full_stick_keeps_the_material_master_points(slider):
+    """𝓕 = 5, non-matching meshes, a tangential load far below 𝓕N: no slip in any step, and
+    at the end every slave node is where the master material it started on went: the
+    relative tangential displacement of the mortar nodes is below 1e-6 × the top's travel
+    0.1."""
+    sols = df.solve_path(lambda t: slid(slider, t, df.Coulomb(5.0)), [0.5, 1.0, 1.5, 2.0],
+                         **OPTS)
+    assert all(s.report.converged for s in sols)
+    for s in sols:
+        assert np.all(s.contact.state == 1)
+        check_coulomb(s, 5.0)
+    fx, fy = sols[-1].total_contact_force
+    assert 0.05 < abs(fx / fy) < 1.0  # a real tangential load, below 𝓕
+    # measured 1.5e-8, the same at newton_rtol 1e-11 (not the solver's tolerance): the
+    # weights of the deformed surfaces change along the path, so the steps' stuck
+    # increments, each with its own weights, add up to the total with the last weights
+    # only to second order; a slide would give 1e-1 here
+    rel = relative_tangential(slider, sols[-1])
+    assert np.abs(rel).max() < 1e-6 * 0.1, rel
+
+
+@pytest.mark.parametrize("coefficient", (0.2, 0.3))
+def test_gross_sliding_force_ratio_is_the_coefficient(slider, coefficient):
+    """Coulomb, the block's top held flat, the slider slid 0.1 per step over several
+    master elements (0.3 wide): every slave node slips, the friction over the normal forces
+    is 𝓕 to solver tolerance (−F_x/F_y within 1 %: the normals lean at the lifting rear
+    rim), the top's force balances the contact force at every step, the slider has slid."""
+    times = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0]
+    sols = df.solve_path(lambda t: slid(slider, t, df.Coulomb(coefficient, rtol=1e-10),
+                                        flat=True), times, **OPTS)
+    assert all(s.report.converged for s in sols)
+    for s in sols:
+        f = s.total_contact_force  # on the slider
+        assert np.abs(top_force(s) + f).max() < 1e-8 * abs(f[1])
+        check_coulomb(s, coefficient)
+    for s in sols[3:]:  # from a travel of 0.2 on
+        assert np.all(s.contact.state == 2)
+        c = s.contact
+        q = np.linalg.norm(c.tangential_force, axis=1)
+        assert abs(q.sum() / c.force.sum() - coefficient) < 1e-8
+        # the slider's rear rim lifts: the averaged slave normals next to it lean
+        fx, fy = s.total_contact_force
+        assert abs(-fx / fy - coefficient) < 1e-2 * coefficient
+        assert max(h["iteration"] for h in s.report.extra["newton"]) < 10
+    U = sols[-1].nodal_values()
+    bottom = np.unique(slider.facets(PAIR[0]))
+    top = np.unique(slider.facets(PAIR[1]))
+    assert U[bottom, 0].min() > 0.3  # slid over more than one master element (0.3)
+    assert U[top, 0].max() < 0.1  # the block was dragged, not carried
+
+
+def test_gross_sliding_under_tresca(slider):
+    """Tresca's bound g: the slider's friction force is g times its width (1) in every
+    sliding step, every slave node slips."""
+    g = 0.1
+    sols = df.solve_path(lambda t: slid(slider, t, df.Tresca(g), flat=True),
+                         [0.5, 1.0, 2.0, 3.0, 4.0], **OPTS)
+    assert all(s.report.converged for s in sols)
+    for s in sols[2:]:
+        assert np.all(s.contact.state == 2)
+        assert abs(s.total_contact_force[0] + g) < 1e-8 * g
+
+
+def test_refusals_by_name(slider):
+    """3D mortar friction and the rows' derivatives with friction are refused by name."""
+    from dolfinx_feti.io.meshes_occ import stacked_blocks
+
+    with pytest.raises(InputError, match="newton_mortar_derivatives=True"):
+        df.solve(slid(slider, 1.0, df.Coulomb(0.3)), newton_mortar_derivatives=True, **OPTS)
+    boxes = df.build_mesh(stacked_blocks, dim=3, h_lower=0.6, h_upper=0.7)
+    problem = df.ContactProblem(
+        boxes, df.NeoHookean(E, NU), dirichlet=[df.Dirichlet("bottom"),
+                                                df.Dirichlet("top", (0.0, 0.0, -0.05))],
+        contact=[df.Mortar("upper_bottom", "lower_top", friction=df.Coulomb(0.3))])
+    with pytest.raises(InputError, match="mortar pairs under Newton is built in 2D only"):
+        df.solve(problem, **OPTS)
