@@ -16,6 +16,8 @@ node's slip relative to the master material it is paired with, in the step
   dragged sideways by the friction): every slave node slips, the tangential over the normal
   force is 𝓕 (Coulomb) or the tangential force is Tresca's bound times the width, to solver
   tolerance, and the slider's top carries the contact force;
+- small loads: the Newton solution tends to the small-deformation mortar friction solution
+  like the load squared, with the same stick/slip states;
 - the Coulomb conditions from the returned contact data (tests/support/coulomb_kkt.py).
 """
 
@@ -26,6 +28,7 @@ import pytest
 from coulomb_kkt import check_coulomb, check_stuck_as_tied, dirichlet_force
 from hand_meshes import blocks
 from mpi4py import MPI
+from newton_small_loads import small_load_ratios
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.mortar import mortar_coupling
@@ -155,6 +158,22 @@ def test_gross_sliding_under_tresca(slider):
     for s in sols[2:]:
         assert np.all(s.contact.state == 2)
         assert abs(s.total_contact_force[0] + g) < 1e-8 * g
+
+
+def test_small_loads_tend_to_the_linear_mortar_friction(slider):
+    """Coulomb 𝓕 = 0.3, the slider's top moved by (δ, −δ) in one step (partial slip): the
+    difference to the small-deformation mortar friction solution (``df.Elasticity``, checked
+    against a monolithic solve in test_mortar_friction.py) grows like δ² (× 4 per doubling),
+    the stick/slip states equal."""
+    def problem(d, material):
+        return df.ContactProblem(
+            slider, material,
+            dirichlet=[df.Dirichlet("lower_bottom"), df.Dirichlet("upper_top", (d, -d))],
+            contact=[df.Mortar(*PAIR, friction=df.Coulomb(0.3, rtol=1e-12, max_steps=200))],
+            decomposition=df.ByTags())
+
+    ratios = small_load_ratios(problem, 0.3, E, NU)
+    assert np.all(np.abs(ratios - 4.0) < 0.1), ratios
 
 
 def test_refusals_by_name(slider):
