@@ -100,14 +100,16 @@ def main() -> None:
     steady = [r for r in rows if r["travel"] >= 0.5 and r["slip"] == r["pressed"]]
     ratio = np.array([r["T_over_N"] for r in steady])
     summary = {"args": vars(args), "nodes": mesh.num_nodes, "ranks": comm.size, "wall": wall,
-               "steps": rows, "steady_T_over_N": [float(ratio.min(initial=np.nan)),
-                                                  float(ratio.max(initial=np.nan))]}
+               "steps": rows,
+               "steady_T_over_N": [float(ratio.min()), float(ratio.max())] if ratio.size
+               else None}
     (out / "ironing_deformable.json").write_text(json.dumps(summary, indent=1))
     _plot(rows, args.coefficient, out / "ironing_deformable.png")
     print(f"mesh: {mesh.num_nodes} nodes, h block {args.h_block}, h die {args.h_die}, "
           f"{comm.size} rank(s); {times.size} steps in {wall:.1f} s; all converged: "
           f"{all(r['converged'] for r in rows)}; steady sliding (travel >= 0.5, every pressed "
-          f"node slipping, {len(steady)} steps): T/N {ratio.min():.4f} … {ratio.max():.4f}")
+          f"node slipping, {len(steady)} steps): T/N "
+          f"{summary['steady_T_over_N'] or 'none'}")
     print("| step | travel | travel / h_block | N | T | T/N | Σ|q|/Σp | pressed | slipping "
           "| Newton its | s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
