@@ -329,7 +329,7 @@ class DeformedMortar:
                 np.concatenate([p[1] for p in parts]).astype(np.int64))
 
     def kkt_at(self, problem: ContactProblem, u: PETSc.Vec, lam: PETSc.Vec, c_now: np.ndarray,
-               r: np.ndarray, r_scale: float) -> dict[str, float] | None:
+               r: np.ndarray, r_scale: float, friction=None) -> dict[str, float] | None:
         """The KKT residuals of (u, λ) with the mortar rows of x + u itself (collective).
 
         The last QP's rows (D, M, n of the iterate before) give u's gaps and forces only to
@@ -345,6 +345,8 @@ class DeformedMortar:
             c_now: The last QP's rows' c at u (:meth:`.CurrentRows.c_at`).
             r: r(u) on this rank.
             r_scale: The equilibrium's reference.
+            friction: The last QP's friction solve (its bounds), or None: the friction
+                conditions with the slips of the rows of u (drivers/mortar_friction.py).
         """
         from .kkt_stop import kkt_residuals
 
@@ -377,7 +379,7 @@ class DeformedMortar:
         c.array[mortar] = Bu.array_r[mortar] + new.own.rhs[mortar] / new.own.scale[mortar] * \
             own.scale[mortar]
         kkt, _ = kkt_residuals(_AtIterate(B, c, w, r, r_scale, comm), own.scale, own.kind,
-                               own.inequality, u, lam, Bu=Bu)
+                               own.inequality, u, lam, Bu=Bu, friction=friction)
         for v in (w, Bu, c):
             v.destroy()
         return kkt

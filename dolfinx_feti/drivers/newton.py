@@ -455,7 +455,7 @@ class NewtonSolver:
             return False
         # mortar rows: checked again with the search and the integrals of u itself
         exact = kkt if self.mortar is None else self.mortar.kkt_at(
-            current, self.u, qp.lam, c_now, r, r_scale)
+            current, self.u, qp.lam, c_now, r, r_scale, friction=qp.friction)
         if exact is None or not _met(exact, rtol):
             return False
         history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}
