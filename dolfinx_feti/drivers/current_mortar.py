@@ -55,10 +55,6 @@ def check_mortar(c: Mortar, problem: ContactProblem) -> None:
         raise InputError("large-deformation contact: mortar contact on a distributed mesh "
                          "(distribute=True) is not supported by the Newton driver; read the "
                          "mesh whole")
-    if c.friction is not None and problem.mesh.gdim != 2:
-        raise InputError("large-deformation contact: friction on mortar pairs under Newton is "
-                         "built in 2D only (in 3D the two tangents of a slave node would need "
-                         "a basis carried along the step)")
 
 
 def _permuted_cols(rows: Rows, cols: np.ndarray, order: np.ndarray) -> np.ndarray:
@@ -426,14 +422,14 @@ class DeformedMortar:
         out = np.zeros(own_n.size)
         out[~mortar_n] = lam.array_r[~mortar_o]  # kept rows: same rank, same order
         # a slave node's normal and tangential rows apart: the key of a row is its
-        # (condition, slave node, whether tangential)
-        parts = comm.allgather((own_o.spec[mortar_o], 2 * own_o.node[mortar_o] + (
-            own_o.kind[mortar_o] == Kind.TANGENT), lam.array_r[mortar_o]))
+        # (condition, slave node, place among the node's rows: the normal one first)
+        parts = comm.allgather((own_o.spec[mortar_o], _row_key(own_o, mortar_o),
+                                lam.array_r[mortar_o]))
         spec = np.concatenate([p[0] for p in parts]).astype(np.int64)
         node = np.concatenate([p[1] for p in parts]).astype(np.int64)
         val = np.concatenate([p[2] for p in parts])
         sel = np.flatnonzero(mortar_n)
-        node_n = 2 * own_n.node[sel].astype(np.int64) + (own_n.kind[sel] == Kind.TANGENT)
+        node_n = _row_key(own_n, mortar_n)
         span = max(int(node.max(initial=0)), int(node_n.max(initial=0))) + 1
         key = spec * span + node
         want = own_n.spec[sel].astype(np.int64) * span + node_n
@@ -446,6 +442,18 @@ class DeformedMortar:
 
 
 __all__ = ["DeformedMortar", "check_mortar"]
+
+
+def _row_key(own: Rows, mask: np.ndarray) -> np.ndarray:
+    """Per row of ``mask``: 3 × its node + its place among the node's rows.
+
+    The place: 0 the normal row, 1 and 2 the tangents (a node's rows are consecutive, the
+    normal one first).
+    """
+    idx = np.arange(own.size)
+    last = np.maximum.accumulate(np.where(own.inequality, idx, -1))
+    place = np.where(own.kind == Kind.TANGENT, idx - np.maximum(last, 0), 0)
+    return 3 * own.node[mask].astype(np.int64) + place[mask]
 
 
 class _AtIterate:

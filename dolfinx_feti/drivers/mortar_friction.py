@@ -1,10 +1,11 @@
 """Friction on mortar pairs under Newton: the slip of the load step, relative to the master.
 
 A slave node j of a :class:`~dolfinx_feti.Mortar` pair with friction has, beside its normal
-row, a tangential row (2D) built from the normal row as for a small-deformation mortar pair
-(:func:`~dolfinx_feti.constraints.friction.with_tangential_rows`):
+row, gdim − 1 tangential rows built from the normal row as for a small-deformation mortar
+pair (:func:`~dolfinx_feti.constraints.friction.with_tangential_rows`):
 
-    T_j(u) v = s_j t_j·(v_j − Σ_k w_jk v_k),      t_j = (n_jy, −n_jx),
+    T_j(u) v = s_j t_j·(v_j − Σ_k w_jk v_k),      t_j ⊥ n_j (2D (n_jy, −n_jx); 3D the basis
+                                                  of ``tangent_basis``),
 
 with w_jk = M_jk / D_j, the averaged slave normal n_j and the scale s_j of the configuration
 x + u the rows are searched on (:mod:`.current_mortar`: every Newton iterate's). Σ_k w_jk y_k
@@ -33,8 +34,9 @@ the normal rows: the derivatives of D, M and t are not in the tangent), is
 
 so B_t Δu − c = s_j ς_j(u_k + Δu) with the rows of u_k, and the friction law (Tresca's bound,
 or Coulomb's fixed point over Tresca solves that every QP solve runs) acts on the slip of the
-step as on a small-deformation load path. 2D only: in 3D the two tangents of a node would need
-a basis carried along the step (refused by name).
+step as on a small-deformation load path. No history is kept per tangent: the slip vector of
+the step is measured anew in each iterate's tangents, so in 3D the basis (two tangents, disc
+bounds) may change from one iterate to the next.
 """
 
 from __future__ import annotations

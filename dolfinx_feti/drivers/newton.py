@@ -34,8 +34,8 @@ The choices:
   surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
   reference surfaces (they glue material points); friction on rigid obstacles and on
   node-to-node pairs acts on the slip increment of the load step in the current tangents
-  (:mod:`.newton_friction`); friction on mortar pairs (2D) on the change of each slave
-  node's offset from its weighted master point since the last converged step
+  (:mod:`.newton_friction`); friction on mortar pairs on the slip of each slave node relative to the
+  master material it is paired with, since the last converged step
   (:mod:`.mortar_friction`).
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
