@@ -109,7 +109,7 @@ def main() -> None:
           f"{comm.size} rank(s); {times.size} steps in {wall:.1f} s; all converged: "
           f"{all(r['converged'] for r in rows)}; steady sliding (travel >= 0.5, every pressed "
           f"node slipping, {len(steady)} steps): T/N "
-          f"{summary['steady_T_over_N'] or 'none'}")
+          + (f"{ratio.min():.4f} … {ratio.max():.4f}" if ratio.size else "none"))
     print("| step | travel | travel / h_block | N | T | T/N | Σ|q|/Σp | pressed | slipping "
           "| Newton its | s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
