@@ -16,6 +16,8 @@ node's slip relative to the master material it is paired with, in the step
   dragged sideways by the friction): every slave node slips, the tangential over the normal
   force is 𝓕 (Coulomb) or the tangential force is Tresca's bound times the width, to solver
   tolerance, and the slider's top carries the contact force;
+- a rigid rotation of the pressed pair: the pressed state turned, up to the square of each
+  step's angle (the slip measure's objectivity);
 - small loads: the Newton solution tends to the small-deformation mortar friction solution
   like the load squared, with the same stick/slip states;
 - the Coulomb conditions from the returned contact data (tests/support/coulomb_kkt.py).
@@ -173,6 +175,52 @@ def test_small_loads_tend_to_the_linear_mortar_friction(slider):
 
     ratios = small_load_ratios(problem, 0.3, E, NU)
     assert np.all(np.abs(ratios - 4.0) < 0.1), ratios
+
+
+def rotated(mesh, t: float, step: float, friction) -> df.ContactProblem:
+    """Pressed for t <= 1, then the whole pressed state turned rigidly about (1.5, 1) by
+    (t − 1)·``step`` (the block's bottom and the slider's top by their Dirichlet conditions)."""
+    angle = max(t - 1.0, 0.0) * step
+    R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    centre = np.array([1.5, 1.0])
+    press = np.array([0.0, -min(t, 1.0) * PRESS])
+
+    def turned(shift):
+        return lambda x: (x[:, :2] + shift - centre) @ R.T + centre - x[:, :2]
+
+    return df.ContactProblem(
+        mesh, df.NeoHookean(E, NU),
+        dirichlet=[df.Dirichlet("lower_bottom", turned(0.0)),
+                   df.Dirichlet("upper_top", turned(press))],
+        contact=[df.Mortar(*PAIR, friction=friction)], decomposition=df.ByTags())
+
+
+@pytest.mark.parametrize("coefficient", (5.0, 0.3))
+def test_a_rigid_rotation_gives_no_slip_to_second_order(slider, coefficient):
+    """The pressed pair (all stuck at 𝓕 = 5, partial slip at 0.3) turned rigidly in three
+    steps: the exact answer is the pressed state turned, and the slip measure is objective up
+    to the square of each step's rotation (drivers/mortar_friction.py): the positions and the
+    contact force differ from the turned pressed state by at most 1e-6 of the displacement,
+    ×4 (within 0.5) when the step's angle doubles; the stick/slip states stay those of the
+    pressing."""
+    errors = []
+    for step in (0.05, 0.1):
+        sols = df.solve_path(lambda t, step=step: rotated(slider, t, step, df.Coulomb(
+            coefficient, rtol=1e-10)), [0.5, 1.0, 2.0, 3.0, 4.0], **OPTS)
+        assert all(s.report.converged for s in sols)
+        pressed, last = sols[1], sols[-1]
+        angle = 3 * step
+        R = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+        X = slider.x[:, :2]
+        expected = (X + pressed.nodal_values() - [1.5, 1.0]) @ R.T + [1.5, 1.0]
+        U = last.nodal_values()
+        err = np.abs(X + U - expected).max()
+        force = np.abs(R @ pressed.total_contact_force - last.total_contact_force).max()
+        assert err < 1e-6 * np.abs(U).max() and force < 1e-6 * abs(last.total_contact_force[1])
+        assert np.array_equal(last.contact.state, pressed.contact.state)
+        check_coulomb(last, coefficient)
+        errors.append(err)
+    assert abs(errors[1] / errors[0] - 4.0) < 0.5, errors
 
 
 def test_derivatives_with_friction_refused_by_name(slider):
