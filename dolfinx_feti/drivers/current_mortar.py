@@ -108,7 +108,8 @@ class DeformedMortar:
         self._col[pos[mine], comp[mine]] = col[mine]
         lo, hi = data.primal_start, data.primal_start + data.K.shape[0]
         self._here = np.flatnonzero((self._col >= lo) & (self._col < hi))  # flat (point, comp)
-        # friction: the slip history of the slave nodes (rank 0, drivers/mortar_friction.py)
+        # friction: the surfaces' displacement at the step's start, the slip's origin (rank 0,
+        # drivers/mortar_friction.py)
         self.friction = comm.allreduce(any(
             getattr(problem.contact[int(i)], "friction", None) is not None
             for i in self.specs), op=MPI.LOR)

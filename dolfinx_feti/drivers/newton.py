@@ -34,8 +34,8 @@ The choices:
   surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
   reference surfaces (they glue material points); friction on rigid obstacles and on
   node-to-node pairs acts on the slip increment of the load step in the current tangents
-  (:mod:`.newton_friction`); friction on mortar pairs on the slip of each slave node relative to the
-  master material it is paired with, since the last converged step
+  (:mod:`.newton_friction`); friction on mortar pairs on the slip of each slave node
+  relative to the master material it is paired with, since the last converged step
   (:mod:`.mortar_friction`).
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
@@ -309,7 +309,7 @@ class NewtonSolver:
         current = self._at_state(problem)
         if self.slip is not None:
             self.slip.begin(self.u, problem)
-        if self.mortar is not None:  # the mortar pairs' slip history (friction)
+        if self.mortar is not None:  # the origin of the mortar pairs' slip (friction)
             self.mortar.begin(self.u)
         rows0 = solver.rows_of(current, tangents_follow=True)
         c0 = rows0.own.rhs.copy()

@@ -19,8 +19,9 @@ takes
   friction law (Tresca's bound, or Coulomb's fixed point over Tresca solves that every
   :meth:`FetiSolver.solve` runs) is that of the small-deformation load paths, per step.
 
-Mortar pairs are not handled here: their rows are re-searched at every iterate and carry
-their slip history by slave node (:mod:`.mortar_friction`).
+Mortar pairs are not handled here: their rows are re-searched at every iterate, with the
+slip of the step measured on the surfaces' displacement since its start
+(:mod:`.mortar_friction`).
 
 A node-to-node pair takes the tangents of its row's current normal (the deformed master
 surface's at the master node, drivers/current_rows.py) and the slip increment of the slave
