@@ -250,6 +250,16 @@ class FetiSolver:
         self._forget_before()  # of another stiffness: no predictor
         self._M = None
 
+    def use_friction_rows(self, fdata) -> None:
+        """The friction rows of a new layout of the rows, for the next :meth:`update_stiffness`.
+
+        A Newton step's mortar rows with friction, re-searched on the deformed surfaces
+        (drivers/current_mortar.py), come in another layout: ``fdata``
+        (:class:`.constraints.friction.FrictionData`) is that of the rows the next
+        ``update_stiffness(rows=...)`` takes.
+        """
+        self._shared = replace(self._shared, friction=fdata)
+
     def update_rhs(self, f: np.ndarray, rows) -> None:
         """A new load ``f`` and new right-hand sides of the same rows (collective).
 

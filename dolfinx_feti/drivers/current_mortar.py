@@ -39,6 +39,7 @@ from ..errors import InputError, collective
 from ..parallel.exchange import exclusive_scan
 from ..problem.contact_problem import ContactProblem, Mortar
 from ..setup.share import RankRows, row_subset
+from .mortar_friction import MortarSlip
 from .mortar_linearization import RowDerivatives, RowsAt
 
 
@@ -54,9 +55,6 @@ def check_mortar(c: Mortar, problem: ContactProblem) -> None:
         raise InputError("large-deformation contact: mortar contact on a distributed mesh "
                          "(distribute=True) is not supported by the Newton driver; read the "
                          "mesh whole")
-    if c.friction is not None:
-        raise InputError("large-deformation contact: friction under Newton is built for rigid "
-                         "obstacles and node-to-node pairs only (not mortar pairs)")
 
 
 def _permuted_cols(rows: Rows, cols: np.ndarray, order: np.ndarray) -> np.ndarray:
@@ -110,6 +108,13 @@ class DeformedMortar:
         self._col[pos[mine], comp[mine]] = col[mine]
         lo, hi = data.primal_start, data.primal_start + data.K.shape[0]
         self._here = np.flatnonzero((self._col >= lo) & (self._col < hi))  # flat (point, comp)
+        # friction: the surfaces' displacement at the step's start, the slip's origin (rank 0,
+        # drivers/mortar_friction.py)
+        self.friction = comm.allreduce(any(
+            getattr(problem.contact[int(i)], "friction", None) is not None
+            for i in self.specs), op=MPI.LOR)
+        self.slip = MortarSlip(problem, self.specs, getattr(surface, "fixed", None)) \
+            if comm.rank == 0 and self.friction else None
 
     def _displacement(self, u: PETSc.Vec) -> np.ndarray | None:
         """The displacement of the surfaces' points (rank 0; None elsewhere), from u."""
@@ -151,7 +156,7 @@ class DeformedMortar:
         for i in self.specs:
             rows, info = mortar_contact_rows(deformed, problem.contact[int(i)], int(i), ptr,
                                              self._first, self._bs)
-            blocks.append(rows)
+            blocks.append(rows if self.slip is None else self.slip.rows_of(rows, int(i)))
             infos.append(info)
         return (Rows.concatenate(blocks) if blocks else Rows.empty(self._gdim)), infos
 
@@ -161,12 +166,35 @@ class DeformedMortar:
         if not np.all(np.isfinite(rows.rhs)) or not np.all(np.isfinite(rows.e_coef)):
             raise InputError("large-deformation contact: non-finite mortar rows at the "
                              "iterate (a surface turned inside out)")
+        if self.slip is not None:  # the tangential rows act on the slip of the step
+            rows = replace(rows, rhs=self.slip.rhs(rows, U))
         Bu = np.zeros(rows.size)
         np.add.at(Bu, rows.e_row, rows.e_coef * U[rows.e_node, rows.e_comp])
         cols = self._col[rows.e_node, rows.e_comp]
         gmap = self._points
         rows = replace(rows, e_node=gmap[rows.e_node], node=gmap[rows.node])
         return rows, cols, rows.rhs + Bu, infos
+
+    def begin(self, u: PETSc.Vec) -> None:
+        """A load step starts from the converged ``u``: the slip is measured from it.
+
+        Collective; nothing without friction (drivers/mortar_friction.py).
+        """
+        if not self.friction:
+            return
+        U = self._displacement(u)
+        if self.comm.rank == 0:
+            self.slip.begin(U)
+
+    def friction_rows(self, rows: RankRows):
+        """The friction data of ``rows`` (a layout of the mortar rows; collective)."""
+        from ..setup.share_distributed import surface_friction
+
+        fdata = None
+        with collective(self.comm, "friction"):
+            if self.comm.rank == 0:
+                fdata = surface_friction(self.solver.qp.surface, rows)
+        return self.comm.bcast(fdata, root=0)
 
     def surface_dofs(self, problem: ContactProblem) -> np.ndarray:
         """Rank 0: the flat (point, component) dofs of the mortar surfaces' nodes."""
@@ -264,7 +292,7 @@ class DeformedMortar:
         comm = self.comm
         new, new_cols, new_c = self.rows_at(problem, u)
         own = rows.own
-        keep = np.flatnonzero(~((own.kind == Kind.CONTACT) & np.isin(own.spec, self.specs)))
+        keep = np.flatnonzero(~self._mortar(own))
         sub_rank = self.solver.qp.share.dec.sub_rank
         here = np.flatnonzero(np.asarray(sub_rank)[new.min_subdomain()] == comm.rank)
         e_here = np.isin(new.e_row, here)
@@ -285,6 +313,11 @@ class DeformedMortar:
         out0 = replace(out, own=replace(own_new, rhs=c_new))
         return out, out0, c_new
 
+    def _mortar(self, own: Rows) -> np.ndarray:
+        """Mask of the mortar contact rows of ``own`` and their tangential rows."""
+        return ((own.kind == Kind.CONTACT) | (own.kind == Kind.TANGENT)) & \
+            np.isin(own.spec, self.specs)
+
     def _contact(self, own: Rows, start: int) -> tuple[Rows, np.ndarray]:
         """The contact and friction rows of every rank in global order, and their indices."""
         mine = np.flatnonzero(own.inequality | own.tangential)
@@ -293,7 +326,7 @@ class DeformedMortar:
                 np.concatenate([p[1] for p in parts]).astype(np.int64))
 
     def kkt_at(self, problem: ContactProblem, u: PETSc.Vec, lam: PETSc.Vec, c_now: np.ndarray,
-               r: np.ndarray, r_scale: float) -> dict[str, float] | None:
+               r: np.ndarray, r_scale: float, friction=None) -> dict[str, float] | None:
         """The KKT residuals of (u, λ) with the mortar rows of x + u itself (collective).
 
         The last QP's rows (D, M, n of the iterate before) give u's gaps and forces only to
@@ -309,13 +342,15 @@ class DeformedMortar:
             c_now: The last QP's rows' c at u (:meth:`.CurrentRows.c_at`).
             r: r(u) on this rank.
             r_scale: The equilibrium's reference.
+            friction: The last QP's friction solve (its bounds), or None: the friction
+                conditions with the slips of the rows of u (drivers/mortar_friction.py).
         """
         from .kkt_stop import kkt_residuals
 
         comm, rows = self.comm, self.solver.qp.rows
         own = rows.own
         new, _, _ = self.relayout(problem, rows, own.rhs, u)
-        mortar = (own.kind == Kind.CONTACT) & np.isin(own.spec, self.specs)
+        mortar = self._mortar(own)  # with friction its tangential rows too: the same c and λ
         same = new.own.size == own.size and np.array_equal(new.own.node, own.node) and \
             np.array_equal(new.own.spec, own.spec) and np.array_equal(new.own.kind, own.kind)
         if not comm.allreduce(bool(same), op=MPI.LAND):
@@ -341,7 +376,7 @@ class DeformedMortar:
         c.array[mortar] = Bu.array_r[mortar] + new.own.rhs[mortar] / new.own.scale[mortar] * \
             own.scale[mortar]
         kkt, _ = kkt_residuals(_AtIterate(B, c, w, r, r_scale, comm), own.scale, own.kind,
-                               own.inequality, u, lam, Bu=Bu)
+                               own.inequality, u, lam, Bu=Bu, friction=friction)
         for v in (w, Bu, c):
             v.destroy()
         return kkt
@@ -384,19 +419,21 @@ class DeformedMortar:
         """
         comm = self.comm
         own_o, own_n = old.own, new.own
-        mortar_o = (own_o.kind == Kind.CONTACT) & np.isin(own_o.spec, self.specs)
-        mortar_n = (own_n.kind == Kind.CONTACT) & np.isin(own_n.spec, self.specs)
+        mortar_o, mortar_n = self._mortar(own_o), self._mortar(own_n)
         out = np.zeros(own_n.size)
         out[~mortar_n] = lam.array_r[~mortar_o]  # kept rows: same rank, same order
-        parts = comm.allgather((own_o.spec[mortar_o], own_o.node[mortar_o],
+        # a slave node's normal and tangential rows apart: the key of a row is its
+        # (condition, slave node, place among the node's rows: the normal one first)
+        parts = comm.allgather((own_o.spec[mortar_o], _row_key(own_o, mortar_o),
                                 lam.array_r[mortar_o]))
         spec = np.concatenate([p[0] for p in parts]).astype(np.int64)
         node = np.concatenate([p[1] for p in parts]).astype(np.int64)
         val = np.concatenate([p[2] for p in parts])
-        key = spec * (int(node.max(initial=0)) + 1) + node
         sel = np.flatnonzero(mortar_n)
-        want = own_n.spec[sel].astype(np.int64) * (int(node.max(initial=0)) + 1) + \
-            own_n.node[sel]
+        node_n = _row_key(own_n, mortar_n)
+        span = max(int(node.max(initial=0)), int(node_n.max(initial=0))) + 1
+        key = spec * span + node
+        want = own_n.spec[sel].astype(np.int64) * span + node_n
         order = np.argsort(key)
         pos = np.searchsorted(key[order], want)
         ok = (pos < key.size) & (key[order][np.minimum(pos, max(key.size - 1, 0))] == want) \
@@ -406,6 +443,18 @@ class DeformedMortar:
 
 
 __all__ = ["DeformedMortar", "check_mortar"]
+
+
+def _row_key(own: Rows, mask: np.ndarray) -> np.ndarray:
+    """Per row of ``mask``: 3 × its node + its place among the node's rows.
+
+    The place: 0 the normal row, 1 and 2 the tangents (a node's rows are consecutive, the
+    normal one first).
+    """
+    idx = np.arange(own.size)
+    last = np.maximum.accumulate(np.where(own.inequality, idx, -1))
+    place = np.where(own.kind == Kind.TANGENT, idx - np.maximum(last, 0), 0)
+    return 3 * own.node[mask].astype(np.int64) + place[mask]
 
 
 class _AtIterate:

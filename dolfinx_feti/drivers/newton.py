@@ -34,7 +34,9 @@ The choices:
   surfaces (:mod:`.current_mortar`, the rows' layout may change); ties keep their rows of the
   reference surfaces (they glue material points); friction on rigid obstacles and on
   node-to-node pairs acts on the slip increment of the load step in the current tangents
-  (:mod:`.newton_friction`). Friction on mortar pairs is refused by name.
+  (:mod:`.newton_friction`); friction on mortar pairs on the slip of each slave node
+  relative to the master material it is paired with, since the last converged step
+  (:mod:`.mortar_friction`).
 - **Line search** by backtracking on the merit φ(u) = (‖r(u) − Bᵀλ_{k+1}‖² + κ²‖v(u)‖²)^½, v
   the violation of the equality rows and the penetration of the inequality rows (physical
   lengths), κ the stiffness scale max_i Σ_j |K_ij|; a trial with a non-finite residual (a
@@ -157,6 +159,12 @@ def check_newton_problem(problem: ContactProblem) -> None:
                 f"large-deformation contact: {type(c).__name__} is not supported by the Newton "
                 "driver yet (rigid obstacles, node-to-node and mortar contact only)")
         check(c, problem)
+    rubbing = {bool(c.mortar) for c in problem.contact
+               if getattr(c, "friction", None) is not None}
+    if len(rubbing) > 1:  # re-searched mortar rows move the other rows' local indices
+        raise InputError("large-deformation contact: friction on mortar pairs together with "
+                         "friction on rigid obstacles or node-to-node pairs is not supported "
+                         "by the Newton driver (one kind of friction contact)")
     if not problem.dirichlet:
         raise InputError("large-deformation contact: every body needs a Dirichlet condition "
                          "(a body held by contact only leaves the tangent singular with a "
@@ -238,6 +246,11 @@ class NewtonSolver:
         if self.mortar is not None:
             self.mortar.quiet()
             self.mortar.consistent = self.newton.mortar_derivatives
+            if self.mortar.friction and self.newton.mortar_derivatives:
+                self.solver.destroy()
+                raise InputError("large-deformation contact: newton_mortar_derivatives=True "
+                                 "is not built with friction on mortar pairs (the tangential "
+                                 "rows' derivatives); use the frozen rows (the default)")
         self.slip = None if self.solver.qp.friction is None else \
             IncrementalSlip(self.solver, comm)
         self.rows.friction = self.slip
@@ -296,6 +309,8 @@ class NewtonSolver:
         current = self._at_state(problem)
         if self.slip is not None:
             self.slip.begin(self.u, problem)
+        if self.mortar is not None:  # the origin of the mortar pairs' slip (friction)
+            self.mortar.begin(self.u)
         rows0 = solver.rows_of(current, tangents_follow=True)
         c0 = rows0.own.rhs.copy()
         r = self._residual(current, self.u.array_r)
@@ -351,6 +366,8 @@ class NewtonSolver:
         if self.mortar is not None:  # new mortar rows: maybe another layout
             old, last = solver.qp.rows, lam if lam is not None else self._lam
             rows, rows0, c0 = self.mortar.relayout(current, rows, c0, self.u)
+            if self.mortar.friction:  # the friction rows of the new layout
+                solver.use_friction_rows(self.mortar.friction_rows(rows))
             self.mortar.linearization(current, self.u, old, last)
             if last is not None and not self._cold:
                 start = self.mortar.warm_start(old, last, rows)
@@ -438,7 +455,7 @@ class NewtonSolver:
             return False
         # mortar rows: checked again with the search and the integrals of u itself
         exact = kkt if self.mortar is None else self.mortar.kkt_at(
-            current, self.u, qp.lam, c_now, r, r_scale)
+            current, self.u, qp.lam, c_now, r, r_scale, friction=qp.friction)
         if exact is None or not _met(exact, rtol):
             return False
         history[-1]["kkt"] = {key: float(v) for key, v in exact.items()}

@@ -19,6 +19,10 @@ takes
   friction law (Tresca's bound, or Coulomb's fixed point over Tresca solves that every
   :meth:`FetiSolver.solve` runs) is that of the small-deformation load paths, per step.
 
+Mortar pairs are not handled here: their rows are re-searched at every iterate, with the
+slip of the step measured on the surfaces' displacement since its start
+(:mod:`.mortar_friction`).
+
 A node-to-node pair takes the tangents of its row's current normal (the deformed master
 surface's at the master node, drivers/current_rows.py) and the slip increment of the slave
 node relative to its master node, which the master body carries (the master point of a pair
@@ -40,7 +44,6 @@ from petsc4py import PETSc
 
 from ..constraints.friction import tangent_basis
 from ..constraints.rows import Kind
-from ..errors import InputError
 from ..problem.contact_problem import ContactProblem
 from .current_rows import pair_displacements
 from .obstacle_motion import obstacle_motion
@@ -69,11 +72,10 @@ class IncrementalSlip:
         normal_kind = own.kind[np.maximum(last_ineq, 0)]
         pair = tang & (normal_kind == Kind.CONTACT) & (own.partner >= 0)
         mortar = tang & (normal_kind == Kind.CONTACT) & (own.partner < 0)
-        if comm.allreduce(bool(np.any(mortar)), op=MPI.LOR):
-            raise InputError("large-deformation contact: friction under Newton is built for "
-                             "rigid obstacles and node-to-node pairs (not mortar contact)")
+        # mortar pairs measure their slip themselves (drivers/mortar_friction.py); with
+        # them no other friction (drivers/newton.check_newton_problem)
         self.pairs = _PairSlip(own, np.flatnonzero(pair), last_ineq)
-        self.t = np.flatnonzero(tang & ~pair)
+        self.t = np.flatnonzero(tang & ~pair & ~mortar)
         self.n_of = last_ineq[self.t]
         self.k_of = self.t - self.n_of - 1
         self.gdim = own.normal.shape[1]
@@ -105,7 +107,8 @@ class IncrementalSlip:
                                                 self.solver.qp.rows.contact, u, problem.mesh))
         self._u0 = u.array_r[self._cols]
         own = self.solver.qp.rows.own
-        if self._done is None:  # from the unloaded state: no slip history, no motion
+        # from the unloaded state: no slip history, no motion
+        if self._done is None or not self.t.size:
             self._d = np.zeros_like(self._u0)
             return
         self._d = obstacle_motion(self._done, problem, own.spec[self.t], self._x + self._u0,

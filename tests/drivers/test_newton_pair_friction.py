@@ -21,7 +21,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from coulomb_kkt import check_tresca_sliding, coulomb_violations, dirichlet_force
+from coulomb_kkt import (
+    check_coulomb,
+    check_stuck_as_tied,
+    check_tresca_sliding,
+    dirichlet_force,
+)
 from element_models import stacked_blocks
 from mpi4py import MPI
 from newton_small_loads import small_load_ratios
@@ -58,12 +63,6 @@ def sheared(mesh, t: float, friction, flat: bool = False, tied: bool = False,
         decomposition=decomposition or df.ByTags())
 
 
-def check_coulomb(sol, coefficient: float, tol: float = 1e-7) -> None:
-    v = coulomb_violations(sol, coefficient)
-    assert v["bound"] < tol and v["slipping"] < tol, v
-    assert v["stick_slip"] < tol and v["direction"] < tol, v
-
-
 def top_force(sol) -> np.ndarray:
     """The force of the top's Dirichlet condition on the upper block (y = 2)."""
     return dirichlet_force(sol, lambda x: np.isclose(x[:, 1], 2.0), MPI.COMM_WORLD)
@@ -74,15 +73,8 @@ def test_full_stick_equals_the_tied_blocks(stack):
     met: the solution of the tied blocks."""
     times = [0.5, 1.0, 1.5, 2.0]
     sols = df.solve_path(lambda t: sheared(stack, t, df.Coulomb(5.0)), times, **OPTS)
-    assert all(s.report.converged for s in sols)
-    ref = df.solve(sheared(stack, times[-1], None, tied=True), rtol=1e-12, newton_rtol=1e-10,
-                   method="fetidp")
-    sol = sols[-1]
-    assert np.all(sol.contact.state == 1)
-    U, Uref = sol.nodal_values(), ref.nodal_values()
-    assert np.abs(U - Uref).max() < 1e-8 * np.abs(Uref).max()
-    for s in sols:
-        check_coulomb(s, 5.0)
+    check_stuck_as_tied(sols, df.solve(sheared(stack, times[-1], None, tied=True), rtol=1e-12,
+                                       newton_rtol=1e-10, method="fetidp"), 5.0)
 
 
 @pytest.mark.parametrize("parts", (1, 2))
@@ -148,11 +140,13 @@ def test_sheared_on_a_deforming_master(stack):
     assert np.abs(c.normal[:, 0]).max() > 1e-3  # the master surface turned
 
 
-def test_mortar_friction_refused_by_name(stack):
-    """Friction on mortar pairs under Newton is not built: refused before any set-up."""
+def test_mortar_with_pair_friction_refused_by_name(stack):
+    """Friction on mortar pairs beside friction on node-to-node pairs under Newton is not
+    built: refused before any set-up."""
     problem = df.ContactProblem(
         stack, df.NeoHookean(E, NU),
         dirichlet=[df.Dirichlet("bottom"), df.Dirichlet("top", (0.0, -PRESS))],
-        contact=[df.Mortar("upper_bottom", "lower_top", friction=df.Tresca(1.0))])
-    with pytest.raises(df.InputError, match="not mortar pairs"):
+        contact=[df.Mortar("upper_bottom", "lower_top", friction=df.Tresca(1.0)),
+                 df.NodeToNode("left", "bottom", friction=df.Tresca(1.0))])
+    with pytest.raises(df.InputError, match="friction on mortar pairs together"):
         check_newton_problem(problem)

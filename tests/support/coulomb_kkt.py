@@ -41,6 +41,26 @@ def coulomb_violations(sol, coefficient: float) -> dict[str, float]:
     }
 
 
+def check_coulomb(sol, coefficient: float, tol: float = 1e-7) -> None:
+    """Every Coulomb condition of :func:`coulomb_violations` within ``tol``."""
+    v = coulomb_violations(sol, coefficient)
+    assert v["bound"] < tol and v["slipping"] < tol, v
+    assert v["stick_slip"] < tol and v["direction"] < tol, v
+
+
+def check_stuck_as_tied(sols, tied, coefficient: float) -> None:
+    """A converged load path whose contact nodes all stick at its end equals the bodies glued
+    (``tied``, the solution of the same last step with a tie) to 1e-8, and satisfies the
+    Coulomb conditions at every step."""
+    assert all(s.report.converged for s in sols)
+    sol = sols[-1]
+    assert np.all(sol.contact.state == 1)
+    U, Uref = sol.nodal_values(), tied.nodal_values()
+    assert np.abs(U - Uref).max() < 1e-8 * np.abs(Uref).max()
+    for s in sols:
+        check_coulomb(s, coefficient)
+
+
 def check_tresca_sliding(sol, bound_force: float) -> None:
     """A converged solution in gross sliding under Tresca along −x: every node slips, the
     friction force is −``bound_force`` (the traction bound times the width) along x, and the
