@@ -85,6 +85,15 @@ class CornerSystem(RowOperands):
         """Whether K̃⁺ is there (:meth:`factorize` done, or factors adopted)."""
         return self._step.Krr_plus is not None
 
+    @property
+    def Kplus(self) -> BlockwiseInverse | None:  # noqa: N802  (as BlockSystem.Kplus)
+        """The factor that identifies K̃⁺: K_rr⁺ (Ψ, S_cc⁺ are shared with it, never alone).
+
+        Two corner systems with the same object here apply the same K̃⁺, so a row update of an
+        unchanged load takes the last K̃⁺f (:class:`~.dualize.Dualization`'s ``same_load``).
+        """
+        return self._step.Krr_plus
+
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K̃⁺ x."""
         self._step.apply_kplus(x.array_r, y.array)
