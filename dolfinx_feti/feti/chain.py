@@ -330,7 +330,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
              factor: str | None = None, norm_rtol: float = 1e-4, timer: Timer | None = None,
              dec=None, rows=None, info: dict | None = None,
              dual_operator: str = "implicit", norm_guess: PETSc.Vec | None = None,
-             same_load: Dualization | None = None, guess_noise: float = 1.0) -> DualQP:
+             same_load: Dualization | None = None) -> DualQP:
     """Factor the last system of a chain of primal transforms, dualize, homogenize, project.
 
     Args:
@@ -348,8 +348,6 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         norm_guess: Where the estimate of ``||P F P||`` starts (:class:`.homogenize.Project`).
         same_load: The dualization of a chain of the same factors (other rows) whose K⁺f this
             one takes where f is the same (:class:`.dualize.Dualization`).
-        guess_noise: The random part of the estimate's start beside ``norm_guess``
-            (:class:`.homogenize.Project`).
     """
     timer = Timer() if timer is None else timer
     comm = total.comm
@@ -367,7 +365,7 @@ def chain_qp(total: BlockSystem, steps: list, *, method: str = "tfeti",
         ocon = orthonormalize(RowBlockConstraint(feti.Gt_local, comm))
         warnings = check_balance(ocon, feti)
         hom = Homogenize(feti, ocon, ineq)
-        proj = Project(hom, norm_rtol, norm_guess, guess_noise)
+        proj = Project(hom, norm_rtol, norm_guess)
     return DualQP(feti=feti, system=total, steps=steps, method=method, dec=dec, rows=rows,
                   row_index=row_index, hom=hom, proj=proj, ineq=ineq, warnings=warnings,
                   info=info or {})

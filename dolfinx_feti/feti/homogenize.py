@@ -27,15 +27,6 @@ from petsc4py import PETSc
 from ..qp import Projector, estimate_norm, homogenize, projected_operator
 from .dualize import Dualization
 
-#: The random part of the ‖P F P‖ estimate's start after a row update (the guess, the last
-#: Ritz vector, of unit length): the same rows with new coefficients move the top of the
-#: spectrum little (the moving sphere: ‖F‖ by 6e-4 per 10 % step), so a start nearer the guess
-#: ends the change test a step earlier — 3 F-multiplications instead of 4 on the sphere S2/S3,
-#: FETI-DP and TFETI, the value as close (shortfall ≤ 3e-5 against a converged estimate) —
-#: and an eigenvalue the guess misses is found as with 1 (tested: docs/benchmarks_history.md
-#: § 26).
-ROW_UPDATE_NOISE = 0.3
-
 
 class Homogenize:
     """λ = λ̂ + x with G λ̂ = e: the equality becomes homogeneous, the bound moves to −λ̂.
@@ -97,8 +88,6 @@ class Project:
             replaces: the same rows with new coefficients, or a new stiffness); the Lanczos
             estimate starts from it plus its random start (:func:`~dolfinx_feti.qp.
             estimate_norm`): 4 F-multiplications instead of 10 on a moving sphere's rows.
-        guess_noise: The length of the random part of that start (the guess has unit length;
-            :data:`ROW_UPDATE_NOISE` after a row update).
 
     Attributes:
         projector: P = I − G̃ᵀ G̃.
@@ -110,7 +99,7 @@ class Project:
     """
 
     def __init__(self, hom: Homogenize, norm_rtol: float = 1e-4,
-                 norm_guess: PETSc.Vec | None = None, guess_noise: float = 1.0) -> None:
+                 norm_guess: PETSc.Vec | None = None) -> None:
         self.hom = hom
         self.projector = Projector(hom.constraint)
         self.b = hom.rhs.duplicate()
@@ -119,8 +108,7 @@ class Project:
         if norm_guess is not None and self.b.getComm().tompi4py().allreduce(
                 norm_guess.getSizes() != self.b.getSizes(), op=MPI.LOR):
             norm_guess = None  # another layout of rows (on any rank): nothing to start from
-        est = estimate_norm(self.A, self.b, rtol=norm_rtol, guess=norm_guess,
-                            guess_noise=guess_noise, ritz=True)
+        est = estimate_norm(self.A, self.b, rtol=norm_rtol, guess=norm_guess, ritz=True)
         self.norm_A, self.norm_mults, self.top = float(est.value), est.iterations, est.vector
 
     def for_load(self, hom: Homogenize) -> Project:
@@ -143,4 +131,4 @@ class Project:
         return -con.transform_transpose(multiplier - con.mult(gradient))
 
 
-__all__ = ["ROW_UPDATE_NOISE", "Homogenize", "Project"]
+__all__ = ["Homogenize", "Project"]

@@ -39,7 +39,7 @@ def _largest_ritz(alphas: list[float], betas: list[float]) -> tuple[float, np.nd
 
 
 def estimate_norm(A: PETSc.Mat, template: PETSc.Vec, *, rtol: float = 1e-4, max_it: int = 100,
-                  seed: int = 0, guess: PETSc.Vec | None = None, guess_noise: float = 1.0,
+                  seed: int = 0, guess: PETSc.Vec | None = None,
                   ritz: bool = False) -> NormEstimate:
     """Estimate ``||A|| = lambda_max(A)`` for symmetric positive semidefinite ``A`` (collective).
 
@@ -66,13 +66,9 @@ def estimate_norm(A: PETSc.Mat, template: PETSc.Vec, *, rtol: float = 1e-4, max_
         max_it: Maximum number of multiplications.
         seed: Seed of the random start vector.
         guess: A guess of the top eigenvector (e.g. the Ritz vector of an estimate of a nearby
-            operator): the start is it (unit length) plus the random vector (length
-            ``guess_noise``), so the top of the spectrum is found in fewer steps and every
-            direction is still in the start (an eigenvalue the guess misses is found as from a
-            random start).
-        guess_noise: The length of the random part of a start with a ``guess`` (1: as much
-            random as guess; smaller trusts the guess more: its first Ritz value is nearer the
-            guess's Rayleigh quotient, so the change test can end a step earlier).
+            operator): the start is it plus the random vector, each of unit length, so the
+            top of the spectrum is found in fewer steps and every direction is still in the
+            start (an eigenvalue the guess misses is found as from a random start).
         ritz: Return the Ritz vector too (keeps the Lanczos vectors: one vector per step).
 
     Returns:
@@ -80,8 +76,6 @@ def estimate_norm(A: PETSc.Mat, template: PETSc.Vec, *, rtol: float = 1e-4, max_
     """
     if max_it < 1:
         raise ValueError("estimate_norm: max_it must be at least 1")
-    if not guess_noise > 0.0:  # the random part keeps every direction in the start
-        raise ValueError("estimate_norm: guess_noise must be positive")
     n = template.getSize()
     if n == 0:
         return NormEstimate(0.0, 0, 0.0)
@@ -91,7 +85,6 @@ def estimate_norm(A: PETSc.Mat, template: PETSc.Vec, *, rtol: float = 1e-4, max_
     v.array[:] = rand
     v.scale(1.0 / v.norm())
     if guess is not None and guess.norm() > 0.0:
-        v.scale(guess_noise)
         v.axpy(1.0 / guess.norm(), guess)
         v.scale(1.0 / v.norm())
     basis: list[PETSc.Vec] = []

@@ -35,7 +35,6 @@ from ..errors import InputError, collective
 from ..fem.assembly import assemble_subdomains
 from ..feti.chain import DualQP, chain_qp
 from ..feti.corners import EliminateCorners
-from ..feti.homogenize import ROW_UPDATE_NOISE
 from ..feti.system import BlockSystem
 from ..feti.transforms import EliminateDirichlet
 from ..problem.contact_problem import ContactProblem
@@ -136,11 +135,10 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
 
     ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
     are taken over instead of factoring again, with everything else of K alone
-    (:func:`method_steps`) and, for an unchanged load, K⁺f; the ‖P F P‖ estimate starts
-    nearer its Ritz vector (:data:`~.feti.homogenize.ROW_UPDATE_NOISE`). ``nearby`` (default
+    (:func:`method_steps`) and, for an unchanged load, K⁺f. ``nearby`` (default
     ``factors_of``): a dual QP on the same rows' layout whose ‖P F P‖ estimate's Ritz vector
-    starts this one's. Total
-    BETI (``data`` None) builds its own boundary element subdomains (:mod:`.bem.tbeti`).
+    starts this one's. Total BETI (``data`` None) builds its own boundary element subdomains
+    (:mod:`.bem.tbeti`).
     """
     nearby = factors_of if nearby is None else nearby
     timer = Timer() if timer is None else timer
@@ -162,8 +160,7 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                   info=shared.share.extra["info"] if shared.method == "fetidp" else None,
                   dual_operator=dual_operator,
                   norm_guess=None if nearby is None else nearby.proj.top,
-                  same_load=None if factors_of is None else factors_of.feti,
-                  guess_noise=1.0 if factors_of is None else ROW_UPDATE_NOISE)
+                  same_load=None if factors_of is None else factors_of.feti)
     qp.mortar, qp.friction = shared.mortar, shared.friction
     qp.share, qp.surface = shared.share, shared.surface
     qp.copy_weight = 1.0 / np.repeat(shared.share.dec.multiplicity, problem.value_size)
