@@ -3,9 +3,9 @@ set-up of the new problem.
 
 ``FetiSolver.update`` of a circle that moved sideways changes B only. The chain it builds
 shares everything of K with the set-up's — the held K of FETI-1, FETI-DP's K_rr, K_rc, K_rr⁺,
-Ψ and S_cc — and for an unchanged load also K⁺f, yet its operators (B of the dualized
-system, F, d), its ‖P F P‖ estimate and its solution equal those of a new ``FetiSolver`` of
-the moved problem.
+Ψ and S_cc, the kernel R — and for an unchanged load also K⁺f, yet its operators (B of the
+dualized system, G, F, d, b), its ‖P F P‖ estimate and its solution equal those of a new
+``FetiSolver`` of the moved problem.
 """
 
 from __future__ import annotations
@@ -86,6 +86,9 @@ def test_operators_equal_a_fresh_setup(updated):
     assert B.shape == Bf.shape
     assert rel(B.toarray(), Bf.toarray(), comm) <= 1e-13
     assert rel(qp.feti.d.array_r, new.feti.d.array_r, comm) <= 1e-12
+    G, Gf = qp.feti.Gt_local.toarray(), new.feti.Gt_local.toarray()
+    assert G.shape == Gf.shape
+    assert rel(G, Gf, comm) <= 1e-13
     x = qp.b.duplicate()
     x.array[:] = global_random(x)
     y, yf = x.duplicate(), x.duplicate()
@@ -109,6 +112,7 @@ def test_kept_what_depends_on_K_alone(updated):
             assert getattr(new, name) is getattr(old, name), name
     else:
         assert qp.primal.Kplus is before.primal.Kplus
+    assert qp.feti.R is before.feti.R  # the kernel of the same K
     # the load is the same: K⁺f is kept; K⁺ in ‖PFP‖'s estimate, and in b only where λ̂ ≠ 0
     lam_hat = qp.lam_hat.norm(PETSc.NormType.NORM_INFINITY)
     assert kplus == qp.proj.norm_mults + (lam_hat > 0)
