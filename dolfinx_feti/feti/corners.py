@@ -44,6 +44,7 @@ from .system import (
     RowOperands,
     local_csr,
     petsc_aij,
+    same_matrix,
 )
 from .transforms import drop_small, recover_multipliers, row_max, select_rows
 
@@ -83,6 +84,15 @@ class CornerSystem(RowOperands):
     def factored(self) -> bool:
         """Whether K̃⁺ is there (:meth:`factorize` done, or factors adopted)."""
         return self._step.Krr_plus is not None
+
+    @property
+    def Kplus(self) -> BlockwiseInverse | None:  # noqa: N802  (as BlockSystem.Kplus)
+        """The factor that identifies K̃⁺: K_rr⁺ (Ψ, S_cc⁺ are shared with it, never alone).
+
+        Two corner systems with the same object here apply the same K̃⁺, so a row update of an
+        unchanged load takes the last K̃⁺f (:class:`~.dualize.Dualization`'s ``same_load``).
+        """
+        return self._step.Krr_plus
 
     def apply_kplus(self, x: PETSc.Vec, y: PETSc.Vec) -> None:
         """y = K̃⁺ x."""
@@ -154,18 +164,7 @@ class CornerAlgebra:
         col = np.where(self.is_corner, n0 + coarse, start + np.arange(n))
         E = sp.csr_matrix((np.ones(n), (np.arange(n), col)), shape=(n, N_dp))
         self.E = petsc_aij(E, parent.primal_size, (n_dp, N_dp), comm)
-
-        # B̃ = B E without the rows that vanished (gluing between copies of one corner dof)
-        Bt = parent.B.matMult(self.E)
-        Bl = drop_small(local_csr(Bt), CANCEL_RTOL, row_max(local_csr(parent.B)))
-        Bt.destroy()
-        empty = np.diff(Bl.indptr) == 0
-        self.kept = ~(empty & (parent.types == EQUALITY))
-        nk = int(self.kept.sum())
-        B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)), (n_dp, N_dp),
-                      comm)
-        self.B_parent = select_rows(parent.B, self.kept)
-        self.B = B  # the child's (shared with it; the child destroys it)
+        self._set_rows(parent)
 
         # the blocks of K̃
         K = parent.K
@@ -198,6 +197,41 @@ class CornerAlgebra:
         self.S_plus: FixingNodesInverse | None = None
         self._psi: list = []  # ((first row, end), corner unknowns, dense Ψ block) per block
         self._psi_csr: sp.csr_matrix | None = None
+
+    def _set_rows(self, parent: BlockSystem) -> None:
+        """B̃ = B E of ``parent``'s rows, without those that vanished (collective).
+
+        The gluing rows between copies of one corner dof vanish in B̃ and are left out.
+        """
+        comm = parent.comm
+        Bt = parent.B.matMult(self.E)
+        Bl = drop_small(local_csr(Bt), CANCEL_RTOL, row_max(local_csr(parent.B)))
+        Bt.destroy()
+        empty = np.diff(Bl.indptr) == 0
+        self.kept = ~(empty & (parent.types == EQUALITY))
+        nk = int(self.kept.sum())
+        self.B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)),
+                           self.E.getSizes()[1], comm)  # the child's (it destroys it)
+        self.B_parent = select_rows(parent.B, self.kept)
+
+    def with_rows(self, parent: BlockSystem) -> CornerAlgebra:
+        """These operators for ``parent``: the same K, decomposition and corners, other rows.
+
+        Everything of K — E, K_rr and its kernels, K_rc, K_cc, the kernel of K̃, K_rr⁺, Ψ,
+        S_cc and S_cc⁺ — is shared (none of it depends on B); only B̃ = B E and the rows kept
+        are new. A row update (a moved curved obstacle: new contact coefficients) costs one
+        sparse product with E instead of the whole step.
+
+        Raises:
+            SolveError: When ``parent``'s layout or K differs (then its corner blocks are of
+                another K̃).
+        """
+        if not parent.comm.allreduce(same_matrix(parent.K, self.parent.K), op=MPI.LAND):
+            raise SolveError("CornerAlgebra.with_rows: the new system has another K")
+        new = copy.copy(self)
+        new.parent = parent
+        new._set_rows(parent)
+        return new
 
     def rhs(self, parent: BlockSystem) -> tuple[PETSc.Vec, np.ndarray]:
         """The child's load Eᵀ f and kept right-hand sides (local) of ``parent``'s, checked."""
@@ -426,6 +460,17 @@ class EliminateCorners:
     def map_back(self, u: PETSc.Vec, lam: PETSc.Vec) -> tuple[PETSc.Vec, PETSc.Vec]:
         """The parent's (u, λ) of the child's."""
         return self.algebra.map_back(u, lam)
+
+    def with_rows(self, parent: BlockSystem) -> EliminateCorners:
+        """This step applied to ``parent``: the same K and corners, other rows (collective).
+
+        K_rr⁺, Ψ and S_cc are shared (:meth:`CornerAlgebra.with_rows`); B̃, f̃ and c are new.
+        """
+        new = EliminateCorners.__new__(EliminateCorners)
+        new.algebra = core = self.algebra.with_rows(parent)
+        f, c = core.rhs(parent)
+        new.child = CornerSystem(core, core.B, c, f, parent.types[core.kept])
+        return new
 
     def for_load(self, parent: BlockSystem) -> EliminateCorners:
         """This step applied to ``parent``, a new load case of its parent (same K and B).

@@ -88,6 +88,8 @@ class Dualization:
         primal: The factored primal problem.
         dual_operator: ``"implicit"``, ``"explicit"`` or ``"auto"``.
         expected_mults: N of the cost model of ``"auto"``.
+        same_load: The dualization of a chain of the same factors (other rows: a row update),
+            whose kernel R this one takes, and its K⁺f where f is the same.
     """
 
     def __init__(self, primal, dual_operator: str = "implicit",
@@ -112,7 +114,10 @@ class Dualization:
         self.operator = operator.name
         self._shell = _DualShell(operator)
         self.F = python_shell(self._shell, self.c)
-        self.R, self.kernel_bodies = primal.kernel_matrix()
+        if self._same_inverse(same_load):  # the same K: its kernel too
+            self.R, self.kernel_bodies = same_load.R, same_load.kernel_bodies
+        else:
+            self.R, self.kernel_bodies = primal.kernel_matrix()
         m = self.coarse_size = self.R.shape[1]
         Rmat = petsc_aij(self.R, self.primal_size, (PETSc.DECIDE, m), self.comm)
         Gt = self.B.matMult(Rmat)
@@ -145,11 +150,16 @@ class Dualization:
         v.destroy()
         return e, d
 
+    def _same_inverse(self, other: Dualization | None) -> bool:
+        """Whether ``other``'s primal applies this one's K⁺ (the same factor; collective)."""
+        kplus = getattr(self.primal, "Kplus", None)
+        same = other is not None and kplus is not None and \
+            getattr(other.primal, "Kplus", None) is kplus
+        return bool(self.comm.allreduce(bool(same), op=MPI.LAND))
+
     def _same_kplus_f(self, other: Dualization | None) -> bool:
         """Whether ``other`` holds K⁺f of this f and this K⁺ (collective)."""
-        kplus = getattr(self.primal, "Kplus", None)
-        same = other is not None and other._kplus_f is not None and kplus is not None and \
-            getattr(other.primal, "Kplus", None) is kplus and \
+        same = self._same_inverse(other) and other._kplus_f is not None and \
             other._kplus_f.shape == self.f.array_r.shape and \
             np.array_equal(other.f.array_r, self.f.array_r)
         return bool(self.comm.allreduce(bool(same), op=MPI.LAND))

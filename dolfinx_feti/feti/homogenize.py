@@ -51,7 +51,10 @@ class Homogenize:
         self.lam_hat = dual.d.duplicate()
         homogenize(self.constraint, self.lam_hat)
         self.rhs = dual.d.duplicate()
-        dual.F.mult(self.lam_hat, self.rhs)
+        if self.lam_hat.norm(PETSc.NormType.NORM_INFINITY) > 0.0:
+            dual.F.mult(self.lam_hat, self.rhs)
+        else:  # no coarse space or e = 0: F λ̂ = 0 without an F-multiplication
+            self.rhs.set(0.0)
         self.b_noise = float(1e3 * np.finfo(float).eps * (dual.d.norm() + self.rhs.norm()))
         self.rhs.aypx(-1.0, dual.d)  # d − F λ̂
         self.lb = self.lam_hat.duplicate()

@@ -68,6 +68,21 @@ def row_blocks(rows: Rows) -> np.ndarray:
     return rows.node.astype(np.int64) * 3 + cls
 
 
+def same_matrix(a: sp.csr_matrix, b: sp.csr_matrix) -> bool:
+    """Whether two CSR matrices are equal: the same arrays (shared memory), or equal ones."""
+    if a is b:
+        return True
+    if a.shape != b.shape or a.nnz != b.nnz:
+        return False
+
+    def same(x: np.ndarray, y: np.ndarray) -> bool:
+        shared = x.dtype == y.dtype and x.shape == y.shape and x.strides == y.strides and \
+            x.__array_interface__["data"][0] == y.__array_interface__["data"][0]
+        return shared or np.array_equal(x, y)
+
+    return same(a.indptr, b.indptr) and same(a.indices, b.indices) and same(a.data, b.data)
+
+
 class PreconditionerOperands(NamedTuple):
     """What the lumped and Dirichlet preconditioners act with (:mod:`.precond`).
 

@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..errors import InputError, SolveError
-from .system import EQUALITY, BlockSystem, local_csr, petsc_aij
+from .system import EQUALITY, BlockSystem, local_csr, petsc_aij, same_matrix
 
 
 def select_rows(B: PETSc.Mat, keep: np.ndarray, drop_below: float = 0.0) -> PETSc.Mat:
@@ -106,13 +106,16 @@ class EliminateDirichlet:
         parent: The system with Dirichlet rows (Total FETI).
         eliminate: Local mask of the rows to eliminate: equality rows with one entry each, on
             a dof of this rank.
+        like: This step of a system with the same K and other rows (a row update): where it
+            fixed the same dofs, its held K and kernels are taken instead of built again.
 
     Attributes:
         child: The system without them.
         kept: Local mask of the parent's rows that the child keeps.
     """
 
-    def __init__(self, parent: BlockSystem, eliminate: np.ndarray) -> None:
+    def __init__(self, parent: BlockSystem, eliminate: np.ndarray, *,
+                 like: EliminateDirichlet | None = None) -> None:
         self.parent = parent
         comm = parent.comm
         Bl = local_csr(parent.B)
@@ -150,7 +153,11 @@ class EliminateDirichlet:
         nk = int(self.kept.sum())
         B = petsc_aij(Bl[np.flatnonzero(self.kept)], (nk, comm.allreduce(nk)),
                       parent.B.getSizes()[1], comm)
-        Kc, kernels = parent.held(self.fixed)
+        if like is not None and np.array_equal(like.fixed, self.fixed) and \
+                same_matrix(parent.K, like.parent.K):  # K held alike: a rank-local choice
+            Kc, kernels = like.child.K, like.child.kernels
+        else:
+            Kc, kernels = parent.held(self.fixed)
         self.child = BlockSystem(comm, Kc, f, B, c, parent.types[self.kept], parent.offsets,
                                  kernels, parent.labels, parent.bodies,
                                  None if parent.blocks is None else parent.blocks[self.kept])

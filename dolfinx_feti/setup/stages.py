@@ -134,9 +134,11 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     """Chain the method's transforms on this rank's assembled subdomains (collective).
 
     ``factors_of``: a dual QP of the same subdomain matrices (other rows) whose factorizations
-    are taken over instead of factoring again. ``nearby`` (default ``factors_of``): a dual QP
-    on the same rows' layout whose ‖P F P‖ estimate's Ritz vector starts this one's. Total
-    BETI (``data`` None) builds its own boundary element subdomains (:mod:`.bem.tbeti`).
+    are taken over instead of factoring again, with everything else of K alone
+    (:func:`method_steps`) and, for an unchanged load, K⁺f. ``nearby`` (default
+    ``factors_of``): a dual QP on the same rows' layout whose ‖P F P‖ estimate's Ritz vector
+    starts this one's. Total BETI (``data`` None) builds its own boundary element subdomains
+    (:mod:`.bem.tbeti`).
     """
     nearby = factors_of if nearby is None else nearby
     timer = Timer() if timer is None else timer
@@ -146,10 +148,12 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
                         shared.mortar, shared.friction, shared.surface)
     with timer.phase("constraints"):
         total = BlockSystem.from_rows(data, shared.share.rows)
-        steps = method_steps(total, shared)
-        if factors_of is not None:  # the last factored object of each chain
-            last = steps[-1] if steps else total
+        if factors_of is not None:  # the same K: what depends on it alone is taken over
+            steps = method_steps(total, shared, like=factors_of.steps)
+            last = steps[-1] if steps else total  # the last factored object of the chain
             last.adopt_factors(factors_of.steps[-1] if factors_of.steps else factors_of.system)
+        else:
+            steps = method_steps(total, shared)
     qp = chain_qp(total, steps, method=shared.method, factor=factor,
                   norm_rtol=norm_rtol, timer=timer, dec=shared.share.dec,
                   rows=shared.share.rows,
@@ -163,15 +167,24 @@ def qp_of_share(problem: ContactProblem, shared: SharedProblem, data, *,
     return qp
 
 
-def method_steps(total: BlockSystem, shared: SharedProblem) -> list:
-    """The primal transforms of the method, applied to ``total`` (the first of the chain)."""
+def method_steps(total: BlockSystem, shared: SharedProblem, like: list | None = None) -> list:
+    """The primal transforms of the method, applied to ``total`` (the first of the chain).
+
+    ``like``: the steps of a chain of the same K with other rows (a row update): what they
+    hold of K alone (the held K, FETI-DP's corner blocks and factors) is shared, only what
+    depends on the rows is built.
+    """
     steps: list = []
     if shared.method in ("feti1", "fetidp"):
-        steps.append(EliminateDirichlet(total, shared.share.rows.own.kind == Kind.DIRICHLET))
+        steps.append(EliminateDirichlet(total, shared.share.rows.own.kind == Kind.DIRICHLET,
+                                        like=like[0] if like else None))
     if shared.method == "fetidp":
-        part = shared.share.extra
-        steps.append(EliminateCorners(steps[-1].child, part["corners"], part["count"],
-                                      part["modes"], part["bodies"]))
+        if like:
+            steps.append(like[1].with_rows(steps[-1].child))
+        else:
+            part = shared.share.extra
+            steps.append(EliminateCorners(steps[-1].child, part["corners"], part["count"],
+                                          part["modes"], part["bodies"]))
     return steps
 
 
