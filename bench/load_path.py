@@ -82,6 +82,10 @@ def main() -> None:
     ap.add_argument("--method", default="tfeti")
     ap.add_argument("--level", default="S3", help="sphere3d: mesh level of docs/peers.md")
     ap.add_argument("--parts", type=int, default=8, help="sphere3d: subdomains")
+    ap.add_argument("--reuse", type=int, default=80,
+                    help="Krylov recycling of the warm solver: directions kept (0: off)")
+    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
+                    help="with --reuse: the Galerkin steps only, no deflated CG")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -101,7 +105,8 @@ def main() -> None:
         def make(s):
             return case(mesh, s, args.parts)
     loads = 1.1 ** np.arange(args.steps + 1)
-    solver = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method)
+    solver = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method,
+                           mprgp_reuse=args.reuse, mprgp_deflate=args.deflate)
     # the cold solves on a set-up of their own, so that the warm chain is the one a load path
     # runs (a cold solve in between would hand the next warm start its state)
     reference = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method)

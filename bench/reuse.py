@@ -90,6 +90,10 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=128, help="b1: squares per membrane side")
     ap.add_argument("--H", type=float, default=1 / 8, help="b1: subdomain size")
     ap.add_argument("--cases", type=int, default=5, help="load cases for the amortized cost")
+    ap.add_argument("--reuse", type=int, default=80,
+                    help="Krylov recycling of the warm solver: directions kept (0: off)")
+    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
+                    help="with --reuse: the Galerkin steps only, no deflated CG")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -110,7 +114,8 @@ def main() -> None:
     opts = {"rtol": args.rtol, "method": args.method, "comm": comm}
 
     t0 = time.perf_counter()
-    solver = df.FetiSolver(make(1.0), **opts)
+    solver = df.FetiSolver(make(1.0), **opts, mprgp_reuse=args.reuse,
+                           mprgp_deflate=args.deflate)
     first = solver.solve()
     t_first = time.perf_counter() - t0
     t0 = time.perf_counter()

@@ -40,6 +40,7 @@ from .options import SolverOptions, check_same_on_ranks
 from .problem.changes import check_same_labels, check_same_structure
 from .problem.contact_problem import ContactProblem
 from .qp import ConvergedReason
+from .qp.recycle import Recycle
 from .results.mortar_report import mortar_warnings
 from .results.report import Report
 from .results.solution import Solution
@@ -115,6 +116,9 @@ class FetiSolver:
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
         self.solves = 0
+        # the CG directions of the last solves on this operator (qp.recycle; None: off)
+        self.recycle = Recycle(opts.mprgp_reuse, deflate=opts.mprgp_deflate) \
+            if opts.mprgp_reuse else None
 
     # --- what changes between solves ---------------------------------------------------------
     def update(self, problem: ContactProblem, *, check_stiffness: bool = False,
@@ -203,6 +207,7 @@ class FetiSolver:
                          factors_of=old, dual_operator=self.options.dual_operator)
         self._adopt(qp, rows)
         self._new_preconditioner()
+        self._forget_directions()  # of another F
         self._mu = None  # the multiplier of another G̃
         self._new_case = True
 
@@ -247,6 +252,7 @@ class FetiSolver:
         self._loads = LoadRows(shared.share, problem.value_size)
         self._adopt(qp, rows)
         self._new_preconditioner()
+        self._forget_directions()  # of another F
         self._forget_before()  # of another stiffness: no predictor
         self._M = None
 
@@ -335,6 +341,11 @@ class FetiSolver:
                 self._d_last.destroy()
                 self._d_last = None
 
+    def _forget_directions(self) -> None:
+        # the operator changed: recycled directions of the old one would change the answer
+        if self.recycle is not None:
+            self.recycle.clear()
+
     def _new_preconditioner(self) -> None:
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
             self.preconditioner.destroy()
@@ -406,7 +417,7 @@ class FetiSolver:
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu, u_floor=self.u_floor)
+                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
