@@ -91,7 +91,7 @@ def main() -> None:
     ap.add_argument("--H", type=float, default=1 / 8, help="b1: subdomain size")
     ap.add_argument("--cases", type=int, default=5, help="load cases for the amortized cost")
     ap.add_argument("--reuse", type=int, default=80,
-                    help="Krylov recycling of the warm solver: directions kept (0: off)")
+                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
     ap.add_argument("--no-deflate", dest="deflate", action="store_false",
                     help="with --reuse: the Galerkin steps only, no deflated CG")
     args = ap.parse_args()
@@ -111,11 +111,11 @@ def main() -> None:
 
         def make(s):
             return b1(mesh, s, args.H)
-    opts = {"rtol": args.rtol, "method": args.method, "comm": comm}
+    opts = {"rtol": args.rtol, "method": args.method, "comm": comm, "mprgp_reuse": args.reuse,
+            "mprgp_deflate": args.deflate}
 
     t0 = time.perf_counter()
-    solver = df.FetiSolver(make(1.0), **opts, mprgp_reuse=args.reuse,
-                           mprgp_deflate=args.deflate)
+    solver = df.FetiSolver(make(1.0), **opts)
     first = solver.solve()
     t_first = time.perf_counter() - t0
     t0 = time.perf_counter()

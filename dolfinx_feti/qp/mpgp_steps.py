@@ -209,6 +209,11 @@ class MPGPSolve:
         self.pHp = pHp
         t_f = self.S.max_step(x.array_r, pf)
         positive = pHp > CURVATURE_RTOL * self.scale_A * p.dot(p)
+        if not positive and self.basis is not None:
+            # a deflated direction is a difference of nearly equal vectors when the free
+            # gradient lies almost in the recycled space: its curvature is rounding, not A's
+            self.basis, self.cg_pending = None, False
+            return self.face_step(active, phi2)
         t_cg = gp / pHp if positive else math.inf
         if t_cg <= t_f and math.isfinite(t_cg):
             return self.cg_step(t_cg, moves)

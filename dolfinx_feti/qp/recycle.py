@@ -25,6 +25,7 @@ pairs of vectors.
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from mpi4py import MPI
 
@@ -76,7 +77,8 @@ class Recycle:
         """
         old = self._key
         same = old is not None and len(old) == len(key) and all(
-            a == b if isinstance(a, (int, float)) else a is b for a, b in zip(old, key))
+            a == b if isinstance(a, int | float) else a is b
+            for a, b in zip(old, key, strict=True))
         if not same:
             self.clear()
         self._key = key
@@ -96,14 +98,22 @@ class Recycle:
         if self._W is None or self._W.shape[0] != n:
             self._W, self._AW = np.zeros((n, self.k)), np.zeros((n, self.k))
             self._filled = self._next = 0
+        # unit columns: the Gram matrix's eigenvalues then lie in A's spectrum for conjugate
+        # directions, and GRAM_RTOL drops dependence, not the late CG directions' small norms
+        norms = np.sqrt(comm.allreduce(np.array([float(w @ w) for w, _ in self._pending]),
+                                       op=MPI.SUM))
         cols = []
-        for w, a in self._pending:
+        for (w, a), nw in zip(self._pending, norms, strict=True):
+            if not nw > 0.0:
+                continue
             j = self._next
-            self._W[:, j], self._AW[:, j] = w, a
+            self._W[:, j], self._AW[:, j] = w / nw, a / nw
             self._next = (j + 1) % self.k
             self._filled = min(self._filled + 1, self.k)
             cols.append(j)
         self._pending.clear()
+        if not cols:
+            return
         cols = np.array(sorted(set(cols)))
         f = self._filled
         block = comm.allreduce(self._W[:, :f].T @ self._AW[:, cols], op=MPI.SUM)  # f × new
