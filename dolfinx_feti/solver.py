@@ -74,6 +74,9 @@ class FetiSolver:
         options: The solver options.
         qp: The dual QP and its chain of transforms (:class:`~dolfinx_feti.setup.stages.DualQP`).
         preconditioner: The dual preconditioner (None for ``preconditioner="none"``).
+        recycle: The CG directions of the last solves on the current operator
+            (:class:`~dolfinx_feti.qp.recycle.Recycle`, ``mprgp_reuse`` of them; None when 0),
+            forgotten when the rows or the stiffness change and by ``solve(x0="cold")``.
         solves: Number of solves so far.
     """
 

@@ -196,8 +196,6 @@ class MPGPSolve:
             return "recycle"
         self.direction(active & ~rot, phi2)  # entries fixed in this face: active, not turning
         self.mult(p, Ap)
-        if self.recycle is not None:
-            self.recycle.record(p.array_r, Ap.array_r)
         if self.tangent:
             self.Hp.array[:] = Ap.array_r + self.curv * p.array_r
             moves = self.comm.allreduce(bool(np.any(p.array_r[rot] != 0.0)), op=MPI.LOR)
@@ -214,6 +212,8 @@ class MPGPSolve:
             # gradient lies almost in the recycled space: its curvature is rounding, not A's
             self.basis, self.cg_pending = None, False
             return self.face_step(active, phi2)
+        if self.recycle is not None:
+            self.recycle.record(p.array_r, Ap.array_r)
         t_cg = gp / pHp if positive else math.inf
         if t_cg <= t_f and math.isfinite(t_cg):
             return self.cg_step(t_cg, moves)
