@@ -19,6 +19,9 @@ block's bottom pushed up: B stays).
 Run (one process): ``python bench/load_path.py --case hertz2d`` (seconds), ``--case coulomb2d``
 (seconds), ``--case sphere3d --steps 4`` or ``pushed3d`` (minutes). Writes
 ``output/bench/load_path_<case>.json``; prints a Markdown table.
+``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
+counts without it; ``--no-deflate``: its Galerkin steps only), in the warm and the cold
+solves alike.
 """
 
 from __future__ import annotations

@@ -18,6 +18,9 @@ the 2.13 M-dof run).
 Run (one process): ``python bench/reuse.py --case hertz2d`` (seconds), ``--case sphere3d``
 (about a minute); on 2 ranks: ``mpirun -n 2 python bench/reuse.py --case b1 --n 1024 --H 0.125
 --cases 0`` (several minutes). Writes ``output/bench/reuse_<case>.json``; prints a Markdown row.
+``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
+counts without it; ``--no-deflate``: its Galerkin steps only), in the warm and the cold
+solves alike.
 """
 
 from __future__ import annotations
