@@ -19,6 +19,9 @@ block's bottom pushed up: B stays).
 Run (one process): ``python bench/load_path.py --case hertz2d`` (seconds), ``--case coulomb2d``
 (seconds), ``--case sphere3d --steps 4`` or ``pushed3d`` (minutes). Writes
 ``output/bench/load_path_<case>.json``; prints a Markdown table.
+``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
+counts without it; ``--no-deflate``: its Galerkin steps only), in the warm and the cold
+solves alike.
 """
 
 from __future__ import annotations
@@ -82,6 +85,10 @@ def main() -> None:
     ap.add_argument("--method", default="tfeti")
     ap.add_argument("--level", default="S3", help="sphere3d: mesh level of docs/peers.md")
     ap.add_argument("--parts", type=int, default=8, help="sphere3d: subdomains")
+    ap.add_argument("--reuse", type=int, default=80,
+                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
+    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
+                    help="with --reuse: the Galerkin steps only, no deflated CG")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -101,10 +108,13 @@ def main() -> None:
         def make(s):
             return case(mesh, s, args.parts)
     loads = 1.1 ** np.arange(args.steps + 1)
-    solver = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method)
+    opts = {"rtol": args.rtol, "method": args.method, "mprgp_reuse": args.reuse,
+            "mprgp_deflate": args.deflate}
+    solver = df.FetiSolver(make(loads[0]), comm=comm, **opts)
     # the cold solves on a set-up of their own, so that the warm chain is the one a load path
-    # runs (a cold solve in between would hand the next warm start its state)
-    reference = df.FetiSolver(make(loads[0]), comm=comm, rtol=args.rtol, method=args.method)
+    # runs (a cold solve in between would hand the next warm start its state; x0="cold" also
+    # forgets the recycled directions)
+    reference = df.FetiSolver(make(loads[0]), comm=comm, **opts)
     rows, prev = [], None
     for k, s in enumerate(loads):
         if k:

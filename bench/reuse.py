@@ -18,6 +18,9 @@ the 2.13 M-dof run).
 Run (one process): ``python bench/reuse.py --case hertz2d`` (seconds), ``--case sphere3d``
 (about a minute); on 2 ranks: ``mpirun -n 2 python bench/reuse.py --case b1 --n 1024 --H 0.125
 --cases 0`` (several minutes). Writes ``output/bench/reuse_<case>.json``; prints a Markdown row.
+``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
+counts without it; ``--no-deflate``: its Galerkin steps only), in the warm and the cold
+solves alike.
 """
 
 from __future__ import annotations
@@ -90,6 +93,10 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=128, help="b1: squares per membrane side")
     ap.add_argument("--H", type=float, default=1 / 8, help="b1: subdomain size")
     ap.add_argument("--cases", type=int, default=5, help="load cases for the amortized cost")
+    ap.add_argument("--reuse", type=int, default=80,
+                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
+    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
+                    help="with --reuse: the Galerkin steps only, no deflated CG")
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -107,7 +114,8 @@ def main() -> None:
 
         def make(s):
             return b1(mesh, s, args.H)
-    opts = {"rtol": args.rtol, "method": args.method, "comm": comm}
+    opts = {"rtol": args.rtol, "method": args.method, "comm": comm, "mprgp_reuse": args.reuse,
+            "mprgp_deflate": args.deflate}
 
     t0 = time.perf_counter()
     solver = df.FetiSolver(make(1.0), **opts)

@@ -40,6 +40,7 @@ from .options import SolverOptions, check_same_on_ranks
 from .problem.changes import check_same_labels, check_same_structure
 from .problem.contact_problem import ContactProblem
 from .qp import ConvergedReason
+from .qp.recycle import Recycle
 from .results.mortar_report import mortar_warnings
 from .results.report import Report
 from .results.solution import Solution
@@ -73,6 +74,9 @@ class FetiSolver:
         options: The solver options.
         qp: The dual QP and its chain of transforms (:class:`~dolfinx_feti.setup.stages.DualQP`).
         preconditioner: The dual preconditioner (None for ``preconditioner="none"``).
+        recycle: The CG directions of the last solves on the current operator
+            (:class:`~dolfinx_feti.qp.recycle.Recycle`, ``mprgp_reuse`` of them; None when 0),
+            forgotten when the rows or the stiffness change and by ``solve(x0="cold")``.
         solves: Number of solves so far.
     """
 
@@ -115,6 +119,9 @@ class FetiSolver:
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
         self.solves = 0
+        # the CG directions of the last solves on this operator (qp.recycle; None: off)
+        self.recycle = Recycle(opts.mprgp_reuse, deflate=opts.mprgp_deflate) \
+            if opts.mprgp_reuse else None
 
     # --- what changes between solves ---------------------------------------------------------
     def update(self, problem: ContactProblem, *, check_stiffness: bool = False,
@@ -203,6 +210,7 @@ class FetiSolver:
                          factors_of=old, dual_operator=self.options.dual_operator)
         self._adopt(qp, rows)
         self._new_preconditioner()
+        self._forget_directions()  # of another F
         self._mu = None  # the multiplier of another G̃
         self._new_case = True
 
@@ -247,6 +255,7 @@ class FetiSolver:
         self._loads = LoadRows(shared.share, problem.value_size)
         self._adopt(qp, rows)
         self._new_preconditioner()
+        self._forget_directions()  # of another F
         self._forget_before()  # of another stiffness: no predictor
         self._M = None
 
@@ -345,6 +354,11 @@ class FetiSolver:
                 self._d_last.destroy()
                 self._d_last = None
 
+    def _forget_directions(self) -> None:
+        # the operator changed: recycled directions of the old one would change the answer
+        if self.recycle is not None:
+            self.recycle.clear()
+
     def _new_preconditioner(self) -> None:
         if self.preconditioner is not None and hasattr(self.preconditioner, "destroy"):
             self.preconditioner.destroy()
@@ -383,7 +397,8 @@ class FetiSolver:
         Args:
             x0: Where the QP solver starts: None for the last solve's multipliers (a warm
                 start; the default start on the first solve), ``"cold"`` for the default
-                start (λ = λ̂ where feasible), a :class:`~dolfinx_feti.Solution` of this
+                start (λ = λ̂ where feasible, and no recycled CG directions of earlier solves:
+                :mod:`~dolfinx_feti.qp.recycle`), a :class:`~dolfinx_feti.Solution` of this
                 problem's set-up for its multipliers, or a Vec of multipliers of the QP's rows.
                 With Coulomb friction a warm start's fixed point starts from the slip bounds
                 of the last solve's normal forces (scaled by the same load factor).
@@ -414,9 +429,15 @@ class FetiSolver:
             else (None, None)
         start_mults = qp.feti.hessian_mults - mults0
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
+        recycle = self.recycle
+        if self.u_floor > 0.0 and opts.mprgp_reuse:
+            # a Newton increment: Newton's stop ‖Δu‖∞ ≤ rtol ‖u‖∞ asks more of the increment
+            # than its QP's KKT test does, and recycled runs stop elsewhere within that test:
+            # problems/ironing_path.toml then cycled at ‖Δu‖/‖u‖ = 6.9e-8 (docs/solvers.md)
+            warm_opts, recycle = warm_opts.replace(mprgp_reuse=0), None
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu, u_floor=self.u_floor)
+                       multiplier0=mu, u_floor=self.u_floor, recycle=recycle)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
@@ -450,6 +471,7 @@ class FetiSolver:
         if isinstance(x0, str):
             if x0 != COLD:
                 raise InputError(f"x0 must be None, {COLD!r}, a Solution or a Vec, got {x0!r}")
+            self._forget_directions()  # a cold solve repeats a first solve: nothing recycled
             return None, 1.0, None
         lam = self._lam if x0 is None else x0
         if isinstance(lam, Solution):

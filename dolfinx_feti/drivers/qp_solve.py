@@ -39,6 +39,7 @@ from ..qp import (
     projected_operator,
 )
 from ..qp.mprgp import OPTIONS as MPRGP_OPTIONS
+from ..qp.recycle import Recycle
 from ..qp.smalbe import OPTIONS as SMALBE_OPTIONS
 from ..results.report import Report
 from ..timing import Timer
@@ -87,7 +88,7 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              progress: Progress | None = None, timer: Timer | None = None,
              friction: FrictionSolve | None = None, preconditioner=None,
              x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None,
-             u_floor: float = 0.0) -> QPSolve:
+             u_floor: float = 0.0, recycle: Recycle | None = None) -> QPSolve:
     """Run the QP solver the dual QP needs and map its solution back (collective).
 
     Under the KKT stopping test a converged run is recovered and checked in physical units; a
@@ -107,6 +108,9 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
         multiplier0: SMALBE's start for the multiplier of G̃ x = 0 (e.g. an earlier solve's
             ``result.multiplier`` on the same G̃); None for zeros.
         u_floor: A lower bound of the KKT test's displacement scale (:class:`.KKTStop`).
+        recycle: The store of recycled CG directions the MPRGP solves use and keep
+            (:mod:`dolfinx_feti.qp.recycle`; the owner clears it when the operator changes);
+            None: a new one per run when ``opts.mprgp_reuse`` (reuse within the run only).
     """
     report = Report() if report is None else report
     timer = Timer() if timer is None else timer
@@ -118,7 +122,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
                                                  explicit=qp.feti.operator == "explicit")
     report.warnings.extend(getattr(preconditioner, "notes", []))
     runs = _KKTRuns(qp, opts, report, Progress(qp.feti.comm, 0) if progress is None else
-                    progress, timer, friction, preconditioner, x0, multiplier0, u_floor)
+                    progress, timer, friction, preconditioner, x0, multiplier0, u_floor,
+                    recycle)
     out = runs.solve()
     if own_precond and preconditioner is not None and hasattr(preconditioner, "destroy"):
         preconditioner.destroy()
@@ -173,10 +178,12 @@ class _KKTRuns:
 
     def __init__(self, qp: DualQP, opts: SolverOptions, report: Report, progress: Progress,
                  timer: Timer, friction: FrictionSolve | None, precond,
-                 x0: PETSc.Vec | None, multiplier0: np.ndarray | None, u_floor: float = 0.0):
+                 x0: PETSc.Vec | None, multiplier0: np.ndarray | None, u_floor: float = 0.0,
+                 recycle: Recycle | None = None):
         self.qp, self.opts, self.report, self.progress, self.timer = \
             qp, opts, report, progress, timer
         self.friction, self.precond, self.multiplier0 = friction, precond, multiplier0
+        self.recycle = recycle
         self.n_ineq = qp.feti.comm.allreduce(int(qp.ineq.sum()))
         # the QP's rows are a subset of the problem's (FETI-1 and FETI-DP remove some)
         self.qp_row = _qp_rows(qp)
@@ -258,7 +265,7 @@ class _KKTRuns:
         if max_outer != opts.max_outer:
             o = o.replace(max_outer=max_outer)
         return _run_qp(o, self.report, self.progress, self.qp, self.x, self.n_ineq,
-                       self.precond, self.friction, mu, max_it=max_it,
+                       self.precond, self.friction, mu, max_it=max_it, recycle=self.recycle,
                        test=None if stop is None else stop.make_test(loosen),
                        rho_factor=rho_factor)
 
@@ -362,7 +369,7 @@ def _merge(runs: list[QPResult]) -> QPResult:
 
 
 def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = False,
-              progress: Progress | None = None) -> QPSolver:
+              progress: Progress | None = None, recycle: Recycle | None = None) -> QPSolver:
     """The QP solver the dual QP needs, the least machinery first (the module docstring).
 
     Args:
@@ -371,6 +378,7 @@ def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = Fals
         n_ineq: Number of inequality rows of the whole problem (none: projected CG).
         discs: Whether friction puts the tangential multipliers in discs (MPGP, 3D).
         progress: Monitors of the inner and outer iterations.
+        recycle: The recycled CG directions MPRGP uses and keeps (None: its own, if any).
     """
     inner_mon = None if progress is None else progress.inner
     if n_ineq == 0:
@@ -380,7 +388,8 @@ def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = Fals
     mprgp_opts = opts.of(MPRGP_OPTIONS)
     inner = MPGP(gamma=mprgp_opts["gamma"], rtol=opts.rtol, max_it=opts.max_it,
                  monitor=inner_mon) if discs else \
-        MPRGP(rtol=opts.rtol, max_it=opts.max_it, monitor=inner_mon, **mprgp_opts)
+        MPRGP(rtol=opts.rtol, max_it=opts.max_it, monitor=inner_mon, recycle=recycle,
+              **mprgp_opts)
     if dual.constraint.m == 0 or opts.qp == "penalty":
         return inner
     # rho and M relative to ||PFP||, eta to ||b||; ||G̃x|| is in units of λ, ||b|| in units
@@ -392,7 +401,7 @@ def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = Fals
 
 
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None,
-            multiplier0=None, max_it=None, test=None, rho_factor=1.0):
+            multiplier0=None, max_it=None, test=None, rho_factor=1.0, recycle=None):
     """Build the QP of this solve (bounds, friction) and run the solver it needs.
 
     With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
@@ -407,7 +416,7 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
     if friction is not None and n_ineq:
         lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
-    solver = qp_solver(opts, dual, n_ineq, discs is not None, progress)
+    solver = qp_solver(opts, dual, n_ineq, discs is not None, progress, recycle)
     report.solver = solver.name if not isinstance(solver, SMALBE) else \
         f"smalbe{' (mpgp)' if discs is not None else ''}"
     if isinstance(solver, CG):

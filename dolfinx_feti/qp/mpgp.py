@@ -50,11 +50,12 @@ from typing import ClassVar
 
 from petsc4py import PETSc
 
-from ..validation import Choice, Option, OptionSet, Real
+from ..validation import Choice, Flag, Integer, Option, OptionSet, Real
 from .discs import Discs
 from .expansion import expansion_of
 from .mpgp_steps import MPGPSolve
 from .problem import QP
+from .recycle import Recycle
 from .result import QPResult
 from .solver import QPSolver
 
@@ -72,7 +73,12 @@ OPTIONS = OptionSet(
                      "'projcg' (see mprgp())"),
     alpha=Option("fixed", Choice(*ALPHAS), "the expansion step length: 'fixed' (1.95/||A||) or "
                  "'bb' (Barzilai–Borwein, kept only if the energy decreases; needs expansion "
-                 "'fixed')"))
+                 "'fixed')"),
+    reuse=Option(80, Integer(ge=0, le=10**4), "Krylov recycling: keep the last k CG directions "
+                 "and their products, and start each solve and face on the same operator by the "
+                 "Galerkin step on them (0: off; see qp.recycle)"),
+    deflate=Option(True, Flag(), "with reuse: keep the CG directions A-conjugate to the "
+                   "recycled ones (deflated CG)"))
 
 
 class MPGP(QPSolver):
@@ -168,6 +174,13 @@ class MPGP(QPSolver):
             of the face) or ``'none'`` (ignore it).
         monitor: Called as ``monitor(it, gP_norm, kind)`` at every iterate, ``kind`` being the
             step that produced it (``'init'``, ``'cg'``, ``'expansion'``, ``'proportioning'``).
+        reuse: Krylov recycling (:mod:`.recycle`): keep the last ``reuse`` CG directions and
+            their products across solves on one operator (option ``-<prefix>mprgp_reuse``;
+            0: off).
+        deflate: With ``reuse``: deflated CG in each face (``-<prefix>mprgp_deflate``).
+        recycle: A :class:`.recycle.Recycle` store to use (and keep) instead of a new one
+            (e.g. one owned by a FETI solver across its solvers); its ``k`` and ``deflate``
+            win over ``reuse`` and ``deflate``.
         options_prefix: Read the declared options (:data:`OPTIONS`) from PETSc's options
             database as ``-<options_prefix>mprgp_<name>`` (e.g. ``'feti_'``); keywords given
             here override them. None: the database is not read.
@@ -188,7 +201,8 @@ class MPGP(QPSolver):
                  face: str = "tangent", proportioning: str | None = None,
                  preconditioning: str = "face",
                  monitor: Callable[[int, float, str], None] | None = None,
-                 options_prefix: str | None = None) -> None:
+                 options_prefix: str | None = None, reuse: int | None = None,
+                 deflate: bool | None = None, recycle: Recycle | None = None) -> None:
         name = self.name
         if expansion is not None and expansion not in EXPANSIONS:
             raise ValueError(f"{name}: expansion must be one of {EXPANSIONS}, got {expansion!r}")
@@ -196,7 +210,11 @@ class MPGP(QPSolver):
             raise ValueError(f"{name}: need gamma > 0 and non-negative rtol, atol, max_it")
         if alpha is not None and alpha not in ALPHAS:
             raise ValueError(f"{name}: alpha must be one of {ALPHAS}, got {alpha!r}")
-        self._set_options(options_prefix, gamma=gamma, expansion=expansion, alpha=alpha)
+        self._set_options(options_prefix, gamma=gamma, expansion=expansion, alpha=alpha,
+                          reuse=reuse, deflate=deflate)
+        #: The recycled directions (kept across solves on one operator), or None.
+        self.recycle = recycle if recycle is not None else \
+            Recycle(self.reuse, deflate=self.deflate) if self.reuse else None
         self.expansion_step = expansion_of(name, self.expansion, self.alpha)
         if face not in FACES:
             raise ValueError(f"{name}: face must be 'tangent' or 'interior', got {face!r}")
@@ -265,7 +283,8 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
          = None, monitor: Callable[[int, float, str], None] | None = None,
          b_norm: float | None = None, g: PETSc.Vec | None = None, g_valid: bool = False,
          preconditioner=None, alpha: str = "fixed", face: str = "tangent",
-         proportioning: str = "projection", name: str = "mpgp") -> QPResult:
+         proportioning: str = "projection", name: str = "mpgp", reuse: int = 80,
+         deflate: bool = True) -> QPResult:
     """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` and the discs (collective).
 
     The function form of :class:`MPGP`: ``MPGP(...).solve(QP.create(A, b, lb=lb, ub=ub,
@@ -275,7 +294,7 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
     """
     solver = MPGP(rtol=rtol, atol=atol, max_it=max_it, gamma=gamma, expansion=expansion,
                   alpha=alpha, alpha_bar=alpha_bar, face=face, proportioning=proportioning,
-                  monitor=monitor)
+                  monitor=monitor, reuse=reuse, deflate=deflate)
     solver.name = name
     qp = QP.create(A, b, lb=lb, ub=ub, discs=discs, norm_A=norm_A, preconditioner=preconditioner)
     return solver.solve(qp, x, stop=stop, b_norm=b_norm, g=g, g_valid=g_valid)

@@ -21,6 +21,7 @@ from .box import Box, check_finite
 from .discs import SeparableSet
 from .precond import Preconditioner
 from .problem import QP
+from .recycle import galerkin_step
 from .result import QPResult
 from .start import Counter, feasible_start, step_length
 
@@ -101,6 +102,12 @@ class MPGPSolve:
         self.drift = np.zeros(n) if self.tangent else None
         self.drift_norm = 0.0
         self.gP = math.inf
+        # Krylov recycling (flat sets only: on circles the face is not a subspace)
+        self.recycle = solver.recycle if not S.curved else None
+        self.basis = None  # the recycled directions of this face; deflation on when set
+        self.recycled = False  # this face started with the Galerkin step
+        if self.recycle is not None:
+            self.recycle.bind(qp.operator_key or (qp.A,))
 
     # --- the loop --------------------------------------------------------------------------
     def run(self) -> QPResult:
@@ -125,7 +132,12 @@ class MPGPSolve:
                 reason = kind
                 break
             self.kind, self.cg_pending = kind, kind == "cg"
-            self.counts[kind] += 1
+            self.recycled = kind == "recycle" or (self.recycled and kind == "cg")
+            if not self.recycled:
+                self.basis = None
+            self.counts[kind] = self.counts.get(kind, 0) + 1  # 'recycle' only once taken
+        if self.recycle is not None:
+            self.recycle.commit(self.comm)
         return self.result(reason, gP, active)
 
     def split(self) -> tuple[np.ndarray, float, float, float, np.ndarray]:
@@ -179,6 +191,9 @@ class MPGPSolve:
         proportioning step follows).
         """
         x, p, Ap, rot = self.x, self.p, self.Ap, self.rot
+        if self.recycle is not None and not self.cg_pending and not self.recycled and \
+                self.galerkin(active):
+            return "recycle"
         self.direction(active & ~rot, phi2)  # entries fixed in this face: active, not turning
         self.mult(p, Ap)
         if self.tangent:
@@ -192,6 +207,13 @@ class MPGPSolve:
         self.pHp = pHp
         t_f = self.S.max_step(x.array_r, pf)
         positive = pHp > CURVATURE_RTOL * self.scale_A * p.dot(p)
+        if not positive and self.basis is not None:
+            # a deflated direction is a difference of nearly equal vectors when the free
+            # gradient lies almost in the recycled space: its curvature is rounding, not A's
+            self.basis, self.cg_pending = None, False
+            return self.face_step(active, phi2)
+        if self.recycle is not None:
+            self.recycle.record(p.array_r, Ap.array_r)
         t_cg = gp / pHp if positive else math.inf
         if t_cg <= t_f and math.isfinite(t_cg):
             return self.cg_step(t_cg, moves)
@@ -237,14 +259,48 @@ class MPGPSolve:
                 r = z
         if not self.cg_pending:
             r.copy(p)
+            self._deflate(p)
             return
         p.aypx(-r.dot(self.Hp) / self.pHp, r)
+        self._deflate(p)
         if self.tangent:  # the face: interior blocks and the tangents of rotating pairs
             pa = S.tangential(x.array_r, p.array_r, self.rot)
             pa[fixed] = 0.0
             p.array[:] = pa
         if not self.g.dot(p) > 0.0:
             r.copy(p)
+
+    def galerkin(self, active: np.ndarray) -> bool:
+        """The Galerkin step on the recycled directions of this face (:mod:`.recycle`).
+
+        ``x <- x + t d``, ``g <- g + t A d`` (no product), ``d`` the Galerkin correction on
+        the stored directions that vanish on the active entries, ``t`` its minimizing length
+        cut at the boundary. With ``deflate`` (and an uncut step) the face's CG directions are
+        then kept A-conjugate to them. Returns whether ``x`` moved.
+        """
+        basis = self.recycle.basis(active, self.comm)
+        if basis is None:
+            return False
+        xa, ga = self.x.array_r, self.g.array_r
+        dAd = basis.galerkin(ga)
+        if dAd is None:
+            return False
+        d, Ad = dAd
+        ts = galerkin_step(self.S, xa, ga, d, Ad, self.comm)
+        if ts is None:
+            return False
+        t, t_min = ts
+        self.x.array[:] = self.S.step(xa, -d, t)
+        self.g.array[:] = ga + t * Ad
+        self.recycle.stats["steps"] += 1
+        self.recycle.stats["directions"] += basis.m
+        self.basis = basis if self.recycle.deflate and t >= t_min else None
+        return True
+
+    def _deflate(self, p: PETSc.Vec) -> None:
+        """Make ``p`` A-conjugate to the face's recycled directions (deflated CG)."""
+        if self.basis is not None:
+            p.array[:] = self.basis.conjugate(p.array_r)
 
     def cg_step(self, t_cg: float, moves: bool) -> str | None:
         """The feasible CG step ``x <- x - t_cg p``: ``'cg'``, or None if rejected.

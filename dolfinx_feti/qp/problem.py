@@ -33,6 +33,9 @@ class QP:
         norm_A: ``||A||`` if known (else the solvers estimate it and count the products).
         preconditioner: An approximate inverse of ``A`` (a PETSc Mat or PC, an object with
             ``mult(x, y)`` or a callable ``f(x, y)``; see :mod:`.precond`), or None.
+        operator_key: What names the operator for Krylov recycling (:mod:`.recycle`): None
+            for ``(A,)``; SMALBE's inner QP ``(A, rho)`` (its shell ``A + rho DᵀD`` is made
+            anew for each solve).
     """
 
     A: PETSc.Mat
@@ -41,6 +44,7 @@ class QP:
     eq: EqualityConstraint | None = None
     norm_A: float | None = None
     preconditioner: Any = None
+    operator_key: tuple | None = None
 
     @classmethod
     def create(cls, A: PETSc.Mat, b: PETSc.Vec, *, lb=None, ub=None, discs: Discs | None = None,

@@ -320,7 +320,8 @@ class _SMALBESolve:
         bk = qp.b.duplicate()
         self.D.mult_transpose(self.mu, bk)
         bk.aypx(-1.0, qp.b)  # b - D^T mu
-        return qp.child(A=H, b=bk, eq=None, norm_A=inner_norm, preconditioner=inner_prec)
+        return qp.child(A=H, b=bk, eq=None, norm_A=inner_norm, preconditioner=inner_prec,
+                        operator_key=(qp.A, float(rho)))
 
     def run(self) -> QPResult:
         """The outer loop; the result. The inner QP's operator and vectors are freed after it.
@@ -410,6 +411,7 @@ class _SMALBESolve:
             old.preconditioner.rho = rho
         self.rho = rho
         self.inner_qp = old.child(A=penalized_operator(self.qp.A, self.D, rho),
+                                  operator_key=(self.qp.A, float(rho)),
                                   norm_A=inner_norm)
         old.A.destroy()
         if self.anderson is not None:

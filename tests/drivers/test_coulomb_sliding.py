@@ -165,7 +165,8 @@ def test_punch_at_07_within_ten_frictionless(punch_mesh_medium):
     converged within 20 000 iterations on 0.11's; now 1 481 and 1 710.
     """
     mesh = punch_mesh_medium
-    base = df.solve(punch_problem(mesh, 0.0, friction=None), method="tfeti")
+    # the frictionless count without Krylov recycling, which the disc solve cannot use
+    base = df.solve(punch_problem(mesh, 0.0, friction=None), method="tfeti", mprgp_reuse=0)
     assert base.report.converged
     sol = df.solve(punch_problem(mesh, 0.7), method="tfeti", max_it=20000)
     rep = sol.report

@@ -1,0 +1,190 @@
+"""Krylov recycling: the CG directions of earlier solves on one operator, reused.
+
+Repeated solves with one Hessian (load cases, load steps, SMALBE's inner solves at fixed ρ) each
+build a Krylov subspace of their own. The directions ``W`` of the last CG steps and their
+products ``A W`` (which the CG steps computed anyway) span a subspace on which the next solve's
+error can be removed by linear algebra alone: the Galerkin step ``x <- x + W c``,
+``(WᵀAW) c = -Wᵀg``, ``g <- g + A W c`` — no product by ``A`` (Farhat, Crivelli & Roux 1994;
+Risler & Rey 2000, "total reuse"; Gosselet & Rey 2002, selective reuse; Saad, Yeung, Erhel &
+Guyomarc'h 2000, deflated CG, whose start this is).
+
+In a bound-constrained QP only the directions that vanish on the entries held at a bound may
+be used (they keep the face), and the step is cut where it meets a bound (feasible, and the
+energy still decreases: the step length is at most the minimizing one). :class:`.mpgp_steps.
+MPGPSolve` applies it at its start and whenever its CG restarts in a new face
+(:meth:`Recycle.galerkin`); optionally the CG directions of such a face are then kept
+A-conjugate to ``W`` (``deflate``: ``m`` dot products a step), so that CG runs on the deflated
+operator.
+
+The operator must be the same: the store is bound to a key (the Hessian object and a shift,
+e.g. SMALBE's ρ) and forgets everything when the key changes; a caller whose operator changes
+in place (new constraint rows, a new stiffness) calls :meth:`Recycle.clear`. Memory: ``k``
+pairs of vectors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+
+# Eigenvalues of WᵀAW below this fraction of the largest are dropped: the kept directions of
+# different CG segments (restarted at expansions) are not A-conjugate and may be nearly
+# dependent.
+GRAM_RTOL = 1e-10
+
+
+class Recycle:
+    """The last ``k`` directions ``w`` and products ``A w`` of solves on one operator.
+
+    Held as two ``n × k`` arrays (this rank's rows) and the Gram matrix ``WᵀAW``, whose new
+    columns are computed once, when a solve adds its directions (:meth:`commit`).
+
+    Args:
+        k: How many pairs to keep (the oldest are overwritten); 0 keeps none.
+        deflate: Keep the CG directions of a face A-conjugate to the usable ``W`` too.
+    """
+
+    def __init__(self, k: int, *, deflate: bool = True) -> None:
+        if k < 0:
+            raise ValueError(f"recycle: k must be >= 0, got {k}")
+        self.k, self.deflate = int(k), bool(deflate)
+        self._W = self._AW = None
+        self._C = np.zeros((self.k, self.k))
+        self._filled = 0  # columns in use
+        self._next = 0  # the column the next pair overwrites
+        self._pending: list[tuple[np.ndarray, np.ndarray]] = []
+        self._key: tuple | None = None
+        #: Galerkin steps taken, and the directions they used (over the store's life).
+        self.stats = {"steps": 0, "directions": 0}
+
+    def __len__(self) -> int:
+        return self._filled
+
+    def clear(self) -> None:
+        """Forget every direction (the operator changed)."""
+        self._filled = self._next = 0
+        self._pending.clear()
+        self._key = None
+
+    def bind(self, key: tuple) -> None:
+        """Use the store for the operator named by ``key``; a new key clears it.
+
+        ``key``: the Hessian object (compared by identity: a new Mat is a new operator; the
+        store holds it, so its identity cannot pass to another) and numbers (compared by
+        value, e.g. a penalty).
+        """
+        old = self._key
+        same = old is not None and len(old) == len(key) and all(
+            a == b if isinstance(a, int | float) else a is b
+            for a, b in zip(old, key, strict=True))
+        if not same:
+            self.clear()
+        self._key = key
+
+    def record(self, p: np.ndarray, Ap: np.ndarray) -> None:
+        """Keep the pair ``(p, A p)`` (copied) when the solve ends (:meth:`commit`)."""
+        if self.k:
+            self._pending.append((np.array(p, dtype=np.float64),
+                                  np.array(Ap, dtype=np.float64)))
+            del self._pending[:-self.k]
+
+    def commit(self, comm: MPI.Comm) -> None:
+        """Add the pairs of the solve that ended (collective); the Gram matrix's new columns."""
+        if not self._pending:
+            return
+        n = self._pending[0][0].size
+        if self._W is None or self._W.shape[0] != n:
+            self._W, self._AW = np.zeros((n, self.k)), np.zeros((n, self.k))
+            self._filled = self._next = 0
+        # unit columns: the Gram matrix's eigenvalues then lie in A's spectrum for conjugate
+        # directions, and GRAM_RTOL drops dependence, not the late CG directions' small norms
+        norms = np.sqrt(comm.allreduce(np.array([float(w @ w) for w, _ in self._pending]),
+                                       op=MPI.SUM))
+        cols = []
+        for (w, a), nw in zip(self._pending, norms, strict=True):
+            if not nw > 0.0:
+                continue
+            j = self._next
+            self._W[:, j], self._AW[:, j] = w / nw, a / nw
+            self._next = (j + 1) % self.k
+            self._filled = min(self._filled + 1, self.k)
+            cols.append(j)
+        self._pending.clear()
+        if not cols:
+            return
+        cols = np.array(sorted(set(cols)))
+        f = self._filled
+        block = comm.allreduce(self._W[:, :f].T @ self._AW[:, cols], op=MPI.SUM)  # f × new
+        self._C[:f, cols] = block
+        self._C[cols, :f] = block.T
+
+    def basis(self, fixed: np.ndarray, comm: MPI.Comm) -> Basis | None:
+        """The stored directions that vanish on ``fixed`` (local mask), as a :class:`Basis`."""
+        f = self._filled
+        if f == 0:
+            return None
+        bad = np.any(self._W[fixed, :f] != 0.0, axis=0).astype(np.int64)
+        use = np.flatnonzero(comm.allreduce(bad, op=MPI.SUM) == 0)
+        if use.size == 0:
+            return None
+        return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm)
+
+
+class Basis:
+    """Usable recycled directions: columns ``use`` of ``W``, ``A W`` and ``(WᵀAW)^+``.
+
+    The products go over all stored columns, the unused ones with zero weight (no copy of
+    the ``n × k`` arrays).
+    """
+
+    def __init__(self, W: np.ndarray, AW: np.ndarray, C: np.ndarray, use: np.ndarray,
+                 comm: MPI.Comm) -> None:
+        self.W, self.AW, self.use, self.comm = W, AW, use, comm
+        Cu = C[np.ix_(use, use)]
+        lam, Q = np.linalg.eigh(0.5 * (Cu + Cu.T))
+        keep = lam > GRAM_RTOL * max(float(lam[-1]), 0.0)
+        # C^+ restricted to its well-conditioned part: Q_k diag(1/λ_k) Q_kᵀ
+        self.Q, self.inv = Q[:, keep], 1.0 / lam[keep]
+        self.m = int(keep.sum())
+
+    def _solve(self, r: np.ndarray) -> np.ndarray:
+        """``(WᵀAW)^+ r`` on the used columns, as a weight of every stored column."""
+        c = np.zeros(self.W.shape[1])
+        ru = r[self.use]
+        c[self.use] = self.Q @ (self.inv * (self.Q.T @ ru))
+        return c
+
+    def galerkin(self, g: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(d, A d)`` with ``d = W c``, ``(WᵀAW) c = -Wᵀg``; None when nothing to gain."""
+        if self.m == 0:
+            return None
+        c = self._solve(-self.comm.allreduce(self.W.T @ g, op=MPI.SUM))
+        if not np.all(np.isfinite(c)) or not np.any(c):
+            return None
+        return self.W @ c, self.AW @ c
+
+    def conjugate(self, p: np.ndarray) -> np.ndarray:
+        """``p - W (WᵀAW)^+ (AW)ᵀ p``: A-conjugate to the usable directions."""
+        if self.m == 0:
+            return p
+        return p - self.W @ self._solve(self.comm.allreduce(self.AW.T @ p, op=MPI.SUM))
+
+
+def galerkin_step(S, xa: np.ndarray, ga: np.ndarray, d: np.ndarray, Ad: np.ndarray,
+                  comm: MPI.Comm) -> tuple[float, float] | None:
+    """Step length along ``d`` (``x + t d``): the minimizing one cut at the set's boundary.
+
+    Returns ``(t, t_min)`` with ``t_min`` the minimizing length, or None when ``d`` is no
+    descent direction (rounding) or the step is empty.
+    """
+    gd, dAd = comm.allreduce(np.array([float(ga @ d), float(d @ Ad)]), op=MPI.SUM)
+    if not (dAd > 0.0 and gd < 0.0 and math.isfinite(gd)):
+        return None
+    t_min = -gd / dAd
+    t = min(t_min, S.max_step(xa, -d))
+    return (t, t_min) if t > 0.0 else None
+
+
+__all__ = ["GRAM_RTOL", "Basis", "Recycle", "galerkin_step"]
