@@ -212,6 +212,7 @@ class NewtonSolver:
         self.state = NewtonState()
         self.solver = FetiSolver(self._at_state(problem), comm=comm, options=options,
                                  keep_meshes=True, **kwargs)
+        self.solver.recycle_solves = False  # Newton's stop is stricter than an increment's KKT
         if self.solver.qp.method == "fetidp" and int(self.solver.qp.feti.coarse_size) > 0:
             self.solver.destroy()
             raise InputError("large-deformation contact: a body floats in FETI-DP's K̃ (no "
