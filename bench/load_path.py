@@ -42,7 +42,14 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE / "peers"))
 import common as C  # noqa: E402  (bench/peers/common.py)
-from reuse import SOLVE_PHASES, hertz2d, setup_time, sphere3d  # noqa: E402  (bench/reuse.py's cases)
+from reuse import (  # noqa: E402  (bench/reuse.py's cases and options)
+    SOLVE_PHASES,
+    add_recycle_arguments,
+    hertz2d,
+    recycle_options,
+    setup_time,
+    sphere3d,
+)
 
 ROOT = HERE.parent
 R, P, F = 8.0, 10.0, 0.4
@@ -85,10 +92,7 @@ def main() -> None:
     ap.add_argument("--method", default="tfeti")
     ap.add_argument("--level", default="S3", help="sphere3d: mesh level of docs/peers.md")
     ap.add_argument("--parts", type=int, default=8, help="sphere3d: subdomains")
-    ap.add_argument("--reuse", type=int, default=80,
-                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
-    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
-                    help="with --reuse: the Galerkin steps only, no deflated CG")
+    add_recycle_arguments(ap)
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -108,8 +112,7 @@ def main() -> None:
         def make(s):
             return case(mesh, s, args.parts)
     loads = 1.1 ** np.arange(args.steps + 1)
-    opts = {"rtol": args.rtol, "method": args.method, "mprgp_reuse": args.reuse,
-            "mprgp_deflate": args.deflate}
+    opts = {"rtol": args.rtol, "method": args.method, **recycle_options(args)}
     solver = df.FetiSolver(make(loads[0]), comm=comm, **opts)
     # the cold solves on a set-up of their own, so that the warm chain is the one a load path
     # runs (a cold solve in between would hand the next warm start its state; x0="cold" also

@@ -74,6 +74,19 @@ def b1(mesh, scale: float, H: float) -> df.ContactProblem:
         contact=[df.NodeToNode("contact_left", "contact_right")], decomposition=P.grid(H))
 
 
+def add_recycle_arguments(ap: argparse.ArgumentParser) -> None:
+    """``--reuse k`` and ``--no-deflate``: the Krylov recycling of the warm and the cold solves."""
+    ap.add_argument("--reuse", type=int, default=df.SolverOptions().mprgp_reuse,
+                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
+    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
+                    help="with --reuse: the Galerkin steps only, no deflated CG")
+
+
+def recycle_options(args: argparse.Namespace) -> dict:
+    """The solver options of :func:`add_recycle_arguments`' arguments."""
+    return {"mprgp_reuse": args.reuse, "mprgp_deflate": args.deflate}
+
+
 def setup_time(report) -> float:
     return float(sum(v for k, v in report.timings.items() if k not in SOLVE_PHASES))
 
@@ -93,10 +106,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=128, help="b1: squares per membrane side")
     ap.add_argument("--H", type=float, default=1 / 8, help="b1: subdomain size")
     ap.add_argument("--cases", type=int, default=5, help="load cases for the amortized cost")
-    ap.add_argument("--reuse", type=int, default=80,
-                    help="Krylov recycling: CG directions kept (0: off, as before recycling)")
-    ap.add_argument("--no-deflate", dest="deflate", action="store_false",
-                    help="with --reuse: the Galerkin steps only, no deflated CG")
+    add_recycle_arguments(ap)
     args = ap.parse_args()
     comm = MPI.COMM_WORLD
     if args.case == "hertz2d":
@@ -114,8 +124,7 @@ def main() -> None:
 
         def make(s):
             return b1(mesh, s, args.H)
-    opts = {"rtol": args.rtol, "method": args.method, "comm": comm, "mprgp_reuse": args.reuse,
-            "mprgp_deflate": args.deflate}
+    opts = {"rtol": args.rtol, "method": args.method, "comm": comm, **recycle_options(args)}
 
     t0 = time.perf_counter()
     solver = df.FetiSolver(make(1.0), **opts)

@@ -108,13 +108,11 @@ class DeformedMortar:
         self._col[pos[mine], comp[mine]] = col[mine]
         lo, hi = data.primal_start, data.primal_start + data.K.shape[0]
         self._here = np.flatnonzero((self._col >= lo) & (self._col < hi))  # flat (point, comp)
-        # friction: the surfaces' displacement at the step's start, the slip's origin (rank 0,
-        # drivers/mortar_friction.py)
-        self.friction = comm.allreduce(any(
-            getattr(problem.contact[int(i)], "friction", None) is not None
-            for i in self.specs), op=MPI.LOR)
-        self.slip = MortarSlip(problem, self.specs, getattr(surface, "fixed", None)) \
-            if comm.rank == 0 and self.friction else None
+        # friction: the slip of each step, from the surfaces' displacement at its start (rank 0
+        # holds the surfaces; drivers/mortar_friction.py)
+        slip = MortarSlip(problem, self.specs, getattr(surface, "fixed", None))
+        self.friction = bool(slip.with_friction)  # the problem is the same on every rank
+        self.slip = slip if comm.rank == 0 and self.friction else None
 
     def _displacement(self, u: PETSc.Vec) -> np.ndarray | None:
         """The displacement of the surfaces' points (rank 0; None elsewhere), from u."""
