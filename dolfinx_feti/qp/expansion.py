@@ -105,18 +105,28 @@ class ProjectedCGExpansion(Expansion):
     def expand(self, s: MPGPSolve, t_cg: float, t_f: float, gp: float, pAp: float,
                positive: bool) -> bool:
         """The projected CG step, or the fixed expansion."""
-        if math.isfinite(t_cg):
-            x, g = s.x, s.g
-            f_half = s.energy() - t_f * gp + 0.5 * t_f * t_f * pAp  # from scalars
-            x_old, g_old = x.array_r.copy(), g.copy()
-            x.array[:] = s.S.project(x_old - t_cg * s.p.array_r)
-            s.fresh_gradient()
-            if s.energy() <= f_half:
-                return True
+        if math.isfinite(t_cg) and self.projected(s, t_cg, t_f, gp, pAp):
+            return True
+        return super().expand(s, t_cg, t_f, gp, pAp, positive)
+
+    @staticmethod
+    def projected(s: MPGPSolve, t_cg: float, t_f: float, gp: float, pAp: float) -> bool:
+        """``x <- P(x - t_cg p)`` (one product), kept if not above the half-step's energy.
+
+        Otherwise ``x`` and ``g`` are restored and ``counts['rejected']`` counts it.
+        """
+        x, g = s.x, s.g
+        f_half = s.energy() - t_f * gp + 0.5 * t_f * t_f * pAp  # from scalars
+        x_old, g_old = x.array_r.copy(), g.copy()
+        x.array[:] = s.S.project(x_old - t_cg * s.p.array_r)
+        s.fresh_gradient()
+        kept = s.energy() <= f_half
+        if not kept:
             x.array[:] = x_old
             g_old.copy(g)
-            s.counts["rejected"] += 1
-        return super().expand(s, t_cg, t_f, gp, pAp, positive)
+            s.counts["rejected"] = s.counts.get("rejected", 0) + 1
+        g_old.destroy()
+        return kept
 
 
 class BarzilaiBorweinExpansion(Expansion):
@@ -151,6 +161,37 @@ class BarzilaiBorweinExpansion(Expansion):
         return True
 
 
+class GalerkinExpansion(Expansion):
+    """In a face started from the recycled directions: the projected full CG step first.
+
+    A face that the Galerkin step on the recycled directions ``W`` started (:mod:`.recycle`)
+    continues by CG; after an uncut Galerkin step the gradient is orthogonal to ``W`` and the
+    face's CG directions are A-conjugate to it (deflated CG), so the full CG step
+    ``x - t_cg p`` minimizes the energy over ``x_0 + span(W, p_1, …, p_j)`` in the face: the
+    Galerkin solution on the recycled space and this face's directions (after a step cut at a
+    bound, the CG step from the cut point). Where it leaves the set, its projection
+    ``P(x - t_cg p)`` (one product: a fresh gradient) moves at once every entry that solution
+    puts beyond its bound, where the fixed step adds the entries one short gradient step
+    reaches (a warm start's contact edge grew by a ring of nodes: as many expansions). Kept if
+    its energy is not above the half-step's (from scalars; the test of ``'projcg'``), else
+    (``counts['rejected']``, one product spent) the solver's own expansion follows.
+    """
+
+    rejects = True
+    curved = False
+
+    def __init__(self, own: Expansion) -> None:
+        super().__init__(own.expansion, own.alpha)
+        self.own = own
+
+    def expand(self, s: MPGPSolve, t_cg: float, t_f: float, gp: float, pAp: float,
+               positive: bool) -> bool:
+        """The projected Galerkin step, or the variant's own expansion."""
+        if math.isfinite(t_cg) and ProjectedCGExpansion.projected(s, t_cg, t_f, gp, pAp):
+            return True
+        return self.own.expand(s, t_cg, t_f, gp, pAp, positive)
+
+
 #: Expansion variants by ``(expansion, alpha)``.
 EXPANSIONS = {("fixed", "fixed"): Expansion, ("optimal", "fixed"): OptimalExpansion,
               ("projcg", "fixed"): ProjectedCGExpansion,
@@ -170,5 +211,6 @@ def expansion_of(name: str, expansion: str, alpha: str) -> Expansion:
     return EXPANSIONS[expansion, alpha](expansion, alpha)
 
 
-__all__ = ["EXPANSIONS", "BarzilaiBorweinExpansion", "Expansion", "OptimalExpansion",
+__all__ = ["EXPANSIONS", "BarzilaiBorweinExpansion", "Expansion", "GalerkinExpansion",
+           "OptimalExpansion",
            "ProjectedCGExpansion", "expansion_of"]

@@ -52,7 +52,7 @@ from petsc4py import PETSc
 
 from ..validation import Choice, Flag, Integer, Option, OptionSet, Real
 from .discs import Discs
-from .expansion import expansion_of
+from .expansion import GalerkinExpansion, ProjectedCGExpansion, expansion_of
 from .mpgp_steps import MPGPSolve
 from .problem import QP
 from .recycle import Recycle
@@ -78,7 +78,10 @@ OPTIONS = OptionSet(
                  "and their products, and start each solve and face on the same operator by the "
                  "Galerkin step on them (0: off; see qp.recycle)"),
     deflate=Option(True, Flag(), "with reuse: keep the CG directions A-conjugate to the "
-                   "recycled ones (deflated CG)"))
+                   "recycled ones (deflated CG)"),
+    project=Option(True, Flag(), "with reuse: an expansion in a face started by the Galerkin "
+                   "step on the recycled directions first tries the projected Galerkin step "
+                   "(qp.expansion.GalerkinExpansion)"))
 
 
 class MPGP(QPSolver):
@@ -178,6 +181,10 @@ class MPGP(QPSolver):
             their products across solves on one operator (option ``-<prefix>mprgp_reuse``;
             0: off).
         deflate: With ``reuse``: deflated CG in each face (``-<prefix>mprgp_deflate``).
+        project: With ``reuse``: an expansion in a face that the Galerkin step on the
+            recycled directions started first tries the projected Galerkin step over them and
+            the face's CG directions (:class:`.expansion.GalerkinExpansion`;
+            ``-<prefix>mprgp_project``).
         recycle: A :class:`.recycle.Recycle` store to use (and keep) instead of a new one
             (e.g. one owned by a FETI solver across its solvers); its ``k`` and ``deflate``
             win over ``reuse`` and ``deflate``.
@@ -202,7 +209,8 @@ class MPGP(QPSolver):
                  preconditioning: str = "face",
                  monitor: Callable[[int, float, str], None] | None = None,
                  options_prefix: str | None = None, reuse: int | None = None,
-                 deflate: bool | None = None, recycle: Recycle | None = None) -> None:
+                 deflate: bool | None = None, project: bool | None = None,
+                 recycle: Recycle | None = None) -> None:
         name = self.name
         if expansion is not None and expansion not in EXPANSIONS:
             raise ValueError(f"{name}: expansion must be one of {EXPANSIONS}, got {expansion!r}")
@@ -211,11 +219,16 @@ class MPGP(QPSolver):
         if alpha is not None and alpha not in ALPHAS:
             raise ValueError(f"{name}: alpha must be one of {ALPHAS}, got {alpha!r}")
         self._set_options(options_prefix, gamma=gamma, expansion=expansion, alpha=alpha,
-                          reuse=reuse, deflate=deflate)
+                          reuse=reuse, deflate=deflate, project=project)
         #: The recycled directions (kept across solves on one operator), or None.
         self.recycle = recycle if recycle is not None else \
             Recycle(self.reuse, deflate=self.deflate) if self.reuse else None
         self.expansion_step = expansion_of(name, self.expansion, self.alpha)
+        #: The expansion of a face started from the recycled directions: the projected
+        #: Galerkin step first (:class:`.expansion.GalerkinExpansion`; 'projcg' tries it anyway).
+        self.galerkin_expansion = GalerkinExpansion(self.expansion_step) \
+            if self.recycle is not None and self.project and \
+            not isinstance(self.expansion_step, ProjectedCGExpansion) else None
         if face not in FACES:
             raise ValueError(f"{name}: face must be 'tangent' or 'interior', got {face!r}")
         proportioning = proportioning or self.default_proportioning

@@ -225,7 +225,10 @@ class MPGPSolve:
             self.fresh_gradient()
             self.projected_step(self.alpha_bar)
             return "expansion"
-        ok = self.solver.expansion_step.expand(self, t_cg, t_f, gp, pHp, positive)
+        step = self.solver.expansion_step
+        if self.recycled and self.solver.galerkin_expansion is not None:
+            step = self.solver.galerkin_expansion  # the face started from the recycled space
+        ok = step.expand(self, t_cg, t_f, gp, pHp, positive)
         return "expansion" if ok else "unbounded"
 
     def direction(self, fixed: np.ndarray, phi2: float) -> None:
