@@ -175,6 +175,11 @@ class GalerkinExpansion(Expansion):
     reaches (a warm start's contact edge grew by a ring of nodes: as many expansions). Kept if
     its energy is not above the half-step's (from scalars; the test of ``'projcg'``), else
     (``counts['rejected']``, one product spent) the solver's own expansion follows.
+
+    Not in the inner solves of an outer iteration (a ``stop`` callback: SMALBE's), which the
+    outer test cuts short at each multiplier update: there it moved the counts by ±10 % either
+    way (the 2D Hertz path with SMALBE) and once stopped SMALBE with a 20× larger equality
+    residual (a random QP of tests/qp), so those keep the solver's own expansion.
     """
 
     rejects = True
@@ -186,8 +191,9 @@ class GalerkinExpansion(Expansion):
 
     def expand(self, s: MPGPSolve, t_cg: float, t_f: float, gp: float, pAp: float,
                positive: bool) -> bool:
-        """The projected Galerkin step, or the variant's own expansion."""
+        """The projected Galerkin step (``counts['galerkin']``), or the variant's own."""
         if math.isfinite(t_cg) and ProjectedCGExpansion.projected(s, t_cg, t_f, gp, pAp):
+            s.counts["galerkin"] = s.counts.get("galerkin", 0) + 1
             return True
         return self.own.expand(s, t_cg, t_f, gp, pAp, positive)
 

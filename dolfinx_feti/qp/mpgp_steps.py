@@ -226,8 +226,10 @@ class MPGPSolve:
             self.projected_step(self.alpha_bar)
             return "expansion"
         step = self.solver.expansion_step
-        if self.recycled and self.solver.galerkin_expansion is not None:
-            step = self.solver.galerkin_expansion  # the face started from the recycled space
+        if self.recycled and self.stop is None and self.solver.galerkin_expansion is not None:
+            # a face started from the recycled space, in a solve that no outer iteration cuts
+            # short (SMALBE's inner solves keep their own step: GalerkinExpansion)
+            step = self.solver.galerkin_expansion
         ok = step.expand(self, t_cg, t_f, gp, pHp, positive)
         return "expansion" if ok else "unbounded"
 

@@ -3,16 +3,19 @@
 A second right-hand side on the same operator is solved from the directions of the first:
 the same solution (against an independent active-set reference) in fewer multiplications;
 an operator that changed never reuses the old directions; SMALBE's inner solves share their
-directions when ρ is the same.
+directions when ρ is the same; a load path whose contact zone grows takes its expansions by the
+projected Galerkin step (qp/expansion.py, ``GalerkinExpansion``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from qp_helpers import (
     MPI_COMM,
     gather,
+    kkt,
     make_mat,
     make_vec,
     random_spd,
@@ -158,3 +161,82 @@ def test_smalbe_inner_solves_share_directions():
     assert np.linalg.norm(D @ x_w) <= 1e-7 * np.linalg.norm(x_c)
     assert res_w.hessian_mults < res_c.hessian_mults, (res_w.hessian_mults,
                                                        res_c.hessian_mults)
+
+
+def membrane(m: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The 5-point Laplacian of an ``m × m`` grid (held on its boundary) and a paraboloid
+    obstacle below it: pushed down by a growing uniform load, the contact zone grows by rings
+    of nodes, as a contact zone on a load path."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    A = (sp.kron(sp.identity(m), T) + sp.kron(T, sp.identity(m))).tocsr() * (m + 1) ** 2
+    t = np.arange(1, m + 1) / (m + 1)
+    X, Y = np.meshgrid(t, t)
+    return A, (-0.05 - 2.0 * ((X - 0.5) ** 2 + (Y - 0.5) ** 2)).ravel()
+
+
+def obstacle_path(project: bool, steps: int = 5, m: int = 32):
+    """The membrane pushed onto the obstacle by the loads 4 · 1.1^k, each step warm from the
+    last on one recycling solver: the solutions, the multiplications and the projected
+    Galerkin steps of each step."""
+    A, lo = membrane(m)
+    A_mat, norm_A = make_mat(A), float(sp.linalg.norm(A, 1))
+    solver = MPRGP(reuse=80, project=project)
+    x = make_vec(np.zeros(A.shape[0]))
+    xs, mults, counts = [], [], []
+    for k in range(steps):
+        b = np.full(A.shape[0], -4.0 * 1.1**k)
+        res = solver.solve(QP.create(A_mat, make_vec(b), lb=make_vec(lo), norm_A=norm_A), x,
+                           rtol=1e-8)
+        assert res.converged, res.reason
+        xs.append((gather(x), b))
+        mults.append(res.hessian_mults)
+        counts.append({"galerkin": res.counts.get("galerkin", 0)})
+    return A, lo, xs, mults, counts
+
+
+def test_galerkin_expansion_fewer_mults_on_a_growing_contact_zone():
+    """With the projected Galerkin step the warm steps reach the same solutions (their KKT
+    conditions, and the solutions without it) in fewer multiplications, every one counted
+    (a rejected projection's too)."""
+    A, lo, with_, m_with, counts = obstacle_path(True)
+    _, _, without, m_without, _ = obstacle_path(False)
+    Ad = A.toarray()
+    for (x1, b), (x0, _) in zip(with_, without, strict=True):
+        res = kkt(Ad, b, x1, lo, np.full(b.size, np.inf))
+        assert res["gP"] <= 1e-7 * np.linalg.norm(b), res
+        assert np.linalg.norm(x1 - x0) <= 1e-7 * np.linalg.norm(x0)
+    assert m_with[0] == m_without[0]  # the first solve has nothing recycled
+    assert sum(r["galerkin"] for r in counts) >= 1  # the projected Galerkin steps were taken
+    assert sum(m_with[1:]) < 0.95 * sum(m_without[1:]), (m_with, m_without)
+
+
+def test_galerkin_expansion_needs_recycled_directions():
+    """Without recycling ``project`` changes nothing: the same iterates and counts."""
+    A, b, lb = contact_like(seed=4)
+    A_mat = make_mat(A)
+    x1, r1 = solve(MPRGP(reuse=0, project=True), A_mat, b, lb)
+    x0, r0 = solve(MPRGP(reuse=0, project=False), A_mat, b, lb)
+    assert r1.hessian_mults == r0.hessian_mults and np.array_equal(x1, x0)
+    assert "rejected" not in r1.counts
+
+
+def test_galerkin_expansion_not_in_smalbe_inner_solves():
+    """SMALBE's inner solves (cut short by its outer test) keep the solver's own expansion."""
+    n, m = 90, 3
+    rng = np.random.default_rng(4)
+    A, b, lb = contact_like(seed=4, n=n, cond=200.0)
+    D = np.linalg.qr(rng.standard_normal((n, m)))[0].T
+    A_mat, eq = make_mat(A), row_block_constraint(D)
+
+    def run(project):
+        solver = SMALBE(MPRGP(reuse=80, project=project), rtol=1e-9)
+        x = make_vec(np.zeros(n))
+        res = solver.solve(QP.create(A_mat, make_vec(b), lb=make_vec(lb), eq=eq,
+                                     norm_A=np.linalg.norm(A, 2)), x)
+        assert res.converged, res.reason
+        return gather(x), res
+
+    (x1, r1), (x0, r0) = run(True), run(False)
+    assert r1.counts.get("recycle", 0) >= 1  # faces did start from recycled directions
+    assert "galerkin" not in r1.counts and r1.hessian_mults == r0.hessian_mults
+    assert np.array_equal(x1, x0)
