@@ -20,8 +20,10 @@ Run (one process): ``python bench/load_path.py --case hertz2d`` (seconds), ``--c
 (seconds), ``--case sphere3d --steps 4`` or ``pushed3d`` (minutes). Writes
 ``output/bench/load_path_<case>.json``; prints a Markdown table.
 ``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
-counts without it; ``--no-deflate``: its Galerkin steps only), in the warm and the cold
-solves alike.
+counts without it; ``--no-deflate``: its Galerkin steps only; ``--no-project``: no projected
+Galerkin expansion), ``--expansion``/``--alpha`` MPRGP's expansion step, in the warm and the
+cold solves alike. The JSON holds each step's step counts (CG, expansion, proportioning,
+Galerkin steps and projected Galerkin expansions) and KKT checks, warm and cold.
 """
 
 from __future__ import annotations
@@ -129,6 +131,11 @@ def main() -> None:
                "setup_phases": {p: t for p, t in warm.report.timings.items()
                                 if p not in SOLVE_PHASES},
                "mults_warm": warm.report.hessian_mults, "mults_cold": cold.report.hessian_mults,
+               # where they went: CG / expansion / proportioning / Galerkin steps ('recycle'),
+               # projected Galerkin expansions ('galerkin'), KKT checks and their F-mults
+               "counts_warm": warm.report.counts, "counts_cold": cold.report.counts,
+               "checks_warm": {k: v for k, v in warm.report.stopping.items() if k != "history"},
+               "checks_cold": {k: v for k, v in cold.report.stopping.items() if k != "history"},
                "converged": bool(warm.report.converged and cold.report.converged)}
         fr = warm.report.extra.get("friction")
         if fr and "fixed_point_steps" in fr:

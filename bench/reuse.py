@@ -75,16 +75,29 @@ def b1(mesh, scale: float, H: float) -> df.ContactProblem:
 
 
 def add_recycle_arguments(ap: argparse.ArgumentParser) -> None:
-    """``--reuse k`` and ``--no-deflate``: the Krylov recycling of the warm and the cold solves."""
-    ap.add_argument("--reuse", type=int, default=df.SolverOptions().mprgp_reuse,
+    """The Krylov recycling's and MPRGP's expansion arguments, for warm and cold solves alike.
+
+    ``--reuse k``, ``--no-deflate``, ``--no-project``, ``--expansion``, ``--alpha``.
+    """
+    defaults = df.SolverOptions()
+    ap.add_argument("--reuse", type=int, default=defaults.mprgp_reuse,
                     help="Krylov recycling: CG directions kept (0: off, as before recycling)")
     ap.add_argument("--no-deflate", dest="deflate", action="store_false",
                     help="with --reuse: the Galerkin steps only, no deflated CG")
+    ap.add_argument("--no-project", dest="project", action="store_false",
+                    help="with --reuse: expansions in recycled faces by MPRGP's own step only "
+                         "(no projected Galerkin step)")
+    ap.add_argument("--expansion", default=defaults.mprgp_expansion,
+                    help="MPRGP's expansion step: fixed, optimal or projcg")
+    ap.add_argument("--alpha", default=defaults.mprgp_alpha,
+                    help="MPRGP's expansion length: fixed or bb")
 
 
 def recycle_options(args: argparse.Namespace) -> dict:
     """The solver options of :func:`add_recycle_arguments`' arguments."""
-    return {"mprgp_reuse": args.reuse, "mprgp_deflate": args.deflate}
+    return {"mprgp_reuse": args.reuse, "mprgp_deflate": args.deflate,
+            "mprgp_project": args.project, "mprgp_expansion": args.expansion,
+            "mprgp_alpha": args.alpha}
 
 
 def setup_time(report) -> float:
