@@ -19,7 +19,7 @@ operator.
 The operator must be the same: the store is bound to a key (the Hessian object and a shift,
 e.g. SMALBE's ρ) and forgets everything when the key changes; a caller whose operator changes
 in place (new constraint rows, a new stiffness) calls :meth:`Recycle.clear`. Memory: ``k``
-pairs of vectors.
+pairs of vectors (a caller may make room for more: :meth:`Recycle.grow`).
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ class Recycle:
         if k < 0:
             raise ValueError(f"recycle: k must be >= 0, got {k}")
         self.k, self.deflate = int(k), bool(deflate)
+        self.base_k = self.k  # the capacity a new operator starts with (:meth:`clear`)
         self._W = self._AW = None
         self._C = np.zeros((self.k, self.k))
         self._filled = 0  # columns in use
@@ -63,10 +64,35 @@ class Recycle:
         return self._filled
 
     def clear(self) -> None:
-        """Forget every direction (the operator changed)."""
+        """Forget every direction (the operator changed); back to the first capacity."""
         self._filled = self._next = 0
         self._pending.clear()
         self._key = None
+        if self.k != self.base_k:
+            self.k = self.base_k
+            self._W = self._AW = None
+            self._C = np.zeros((self.k, self.k))
+
+    def grow(self, k: int) -> None:
+        """Keep up to ``k`` pairs from now on (no fewer than now); the kept ones stay.
+
+        A caller whose next solves are on the same operator and whose errors lie in the span of
+        several earlier solves (the steps of a load path) makes room for more than one
+        solve's directions (:class:`~dolfinx_feti.FetiSolver` per load case). The columns are
+        put in their order of arrival, the Gram matrix with them (no product, no reduction).
+        """
+        k = int(k)
+        if k <= self.k:
+            return
+        f = self._filled
+        order = np.arange(f) if f < self.k else (self._next + np.arange(self.k)) % self.k
+        if self._W is not None:
+            W, AW = np.zeros((self._W.shape[0], k)), np.zeros((self._W.shape[0], k))
+            W[:, :f], AW[:, :f] = self._W[:, order], self._AW[:, order]
+            self._W, self._AW = W, AW
+        C = np.zeros((k, k))
+        C[:f, :f] = self._C[np.ix_(order, order)]
+        self._C, self.k, self._next = C, k, f
 
     def bind(self, key: tuple) -> None:
         """Use the store for the operator named by ``key``; a new key clears it.

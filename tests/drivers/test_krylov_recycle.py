@@ -95,6 +95,25 @@ def test_cold_start_forgets_the_directions(hertz_mesh):
     solver.destroy()
 
 
+def test_load_updates_make_room_for_more_cases(hertz_mesh):
+    """Each load update makes room for one more solve's directions, up to CARRIED_CASES; a
+    cold solve and a row update go back to the room of one."""
+    from dolfinx_feti.solver import CARRIED_CASES
+
+    solver = df.FetiSolver(hertz(hertz_mesh), rtol=RTOL, method="fetidp", mprgp_reuse=20)
+    solver.solve()
+    rooms = []
+    for k in range(CARRIED_CASES + 1):
+        solver.update(hertz(hertz_mesh, load=10.0 * 1.1 ** (k + 1)))
+        rooms.append(solver.recycle.k)
+        assert solver.solve().report.converged
+    assert rooms == [20 * min(k + 2, CARRIED_CASES) for k in range(CARRIED_CASES + 1)]
+    assert len(solver.recycle) > 20  # more than one solve's directions kept
+    solver.solve(x0="cold")
+    assert solver.recycle.k == 20
+    solver.destroy()
+
+
 def test_reuse_option_from_the_database(hertz_mesh):
     opts = df.SolverOptions.create(argv=["-feti_mprgp_reuse", "12", "-feti_mprgp_deflate",
                                          "false"])

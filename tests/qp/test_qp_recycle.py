@@ -240,3 +240,36 @@ def test_galerkin_expansion_not_in_smalbe_inner_solves():
     assert r1.counts.get("recycle", 0) >= 1  # faces did start from recycled directions
     assert "galerkin" not in r1.counts and r1.hessian_mults == r0.hessian_mults
     assert np.array_equal(x1, x0)
+
+
+def test_grow_keeps_the_pairs_in_order_and_clear_shrinks():
+    """A full ring grown keeps its pairs (oldest first) and their Gram matrix; new pairs go
+    after them; a new operator starts again with the first capacity."""
+    rng = np.random.default_rng(2)
+    n = 8
+    A = random_spd(n, rng, cond=10.0)
+    rec = Recycle(3)
+    rec.bind(("op",))
+    ws = [rng.standard_normal(n) for _ in range(7)]
+    for w in ws[:5]:  # the ring wraps: the last three are kept
+        rec.record(w, A @ w)
+    rec.commit(MPI_COMM)
+    g = rng.standard_normal(n)
+    before = rec.basis(np.zeros(n, dtype=bool), MPI_COMM).galerkin(g)
+    rec.grow(5)
+    assert rec.k == 5 and len(rec) == 3
+    after = rec.basis(np.zeros(n, dtype=bool), MPI_COMM).galerkin(g)
+    assert np.allclose(before[0], after[0]) and np.allclose(before[1], after[1])
+    for w in ws[5:]:
+        rec.record(w, A @ w)
+    rec.commit(MPI_COMM)
+    assert len(rec) == 5
+    # the Gram matrix kept incrementally equals the one of the five kept directions
+    W = np.array([w / np.linalg.norm(w) for w in ws[2:]]).T
+    d, Ad = rec.basis(np.zeros(n, dtype=bool), MPI_COMM).galerkin(g)
+    c = np.linalg.solve(W.T @ A @ W, -W.T @ g)
+    assert np.allclose(d, W @ c) and np.allclose(Ad, A @ d)
+    rec.grow(4)  # never fewer
+    assert rec.k == 5
+    rec.clear()
+    assert rec.k == 3 and len(rec) == 0
