@@ -53,6 +53,11 @@ from reuse import (  # noqa: E402  (bench/reuse.py's cases and options)
     sphere3d,
 )
 
+
+def solve_time(report) -> float:
+    """The seconds of the solve: the iterations, the KKT checks and the recovery."""
+    return float(sum(v for k, v in report.timings.items() if k in SOLVE_PHASES and k != "total"))
+
 ROOT = HERE.parent
 R, P, F = 8.0, 10.0, 0.4
 
@@ -131,6 +136,7 @@ def main() -> None:
                "setup_phases": {p: t for p, t in warm.report.timings.items()
                                 if p not in SOLVE_PHASES},
                "mults_warm": warm.report.hessian_mults, "mults_cold": cold.report.hessian_mults,
+               "solve_warm": solve_time(warm.report), "solve_cold": solve_time(cold.report),
                # where they went: CG / expansion / proportioning / Galerkin steps ('recycle'),
                # projected Galerkin expansions ('galerkin'), KKT checks and their F-mults
                "counts_warm": warm.report.counts, "counts_cold": cold.report.counts,
