@@ -151,9 +151,9 @@ class MPGP(QPSolver):
     circles cannot be deferred, ``mpgp_steps.DRIFT_RTOL``; 1 more before a stopping test is
     passed with products deferred), 2 per expansion (3 when its first half turns pairs;
     ``'optimal'`` skips the second when ``phi(x_h) = 0``, a rejected ``'projcg'`` or ``'bb'``
-    step costs a third), 1 per proportioning step, 2–3 per rejected turning step
-    (``counts['rejected']``) and its proportioning step, plus the norm estimate when neither
-    ``alpha_bar`` nor ``norm_A`` is given.
+    step or projected Galerkin step costs a third), 1 per proportioning step, 2–3 per
+    rejected turning step (``counts['rejected']``) and its proportioning step, plus the norm
+    estimate when neither ``alpha_bar`` nor ``norm_A`` is given.
 
     The variants (expansion, its length, proportioning, faces, preconditioning) are chosen
     when the solver is made; :meth:`solve` takes any QP without equality constraints
@@ -268,7 +268,9 @@ class MPGP(QPSolver):
 
         Returns:
             The result; ``counts`` has ``'rejected'`` for ``'projcg'`` and ``'bb'`` (and after
-            a rejected turning step) and ``'precond'`` with a preconditioner.
+            a rejected turning step or projected Galerkin step), ``'precond'`` with a
+            preconditioner, and with recycling ``'recycle'`` (Galerkin steps) and
+            ``'galerkin'`` (expansions by the projected Galerkin step).
             ``result.active`` marks the entries of the blocks on their boundary (both entries
             of a disc pair on its circle). Never raises for non-convergence: ``reason``
             ``'max_it'`` (with the last iterate), ``'unbounded'`` (non-positive curvature

@@ -71,8 +71,10 @@ class QPResult:
         hessian_mults: Multiplications by the Hessian ``A`` performed inside the call, including
             the norm estimate when the solver had to make one (see ``counts['norm']``).
         counts: Step counts: ``'cg'``, ``'expansion'``, ``'proportioning'``, ``'norm'`` (the
-            multiplications of the norm estimate) and, for MPRGP's ``'projcg'`` expansion,
-            ``'rejected'``.
+            multiplications of the norm estimate) and, for MPRGP's ``'projcg'`` expansion
+            and its projected Galerkin steps, ``'rejected'``; with Krylov recycling
+            ``'recycle'`` (Galerkin steps) and ``'galerkin'`` (expansions by the projected
+            Galerkin step).
         gP_norm: Final projected gradient norm (for SMALBE the projected gradient of the
             Lagrangian with the returned multiplier).
         Dx_norm: ``||D x||`` at the end, or None without equality constraints.
