@@ -14,7 +14,8 @@ the seconds (a shared machine: indicative only).
 With ``--tresca G`` the friction is Tresca with the traction bound G instead (no fixed point:
 the same QP in the full and the half model, which isolates what the symmetry plane costs).
 
-Run: ``python bench/coulomb_sliding.py`` (``--help``); writes ``output/bench/coulomb_sliding.md``.
+Run: ``python bench/coulomb_sliding.py`` (``--help``; solver options pass through:
+``-feti_mprgp_reuse 160``); writes ``output/bench/coulomb_sliding.md``.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 import dolfinx_feti as df
+import problems as P  # bench/problems.py (the script's folder is on sys.path)
 from dolfinx_feti.io.meshes_occ import punch_on_block
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -64,7 +66,7 @@ def main() -> None:
     parser.add_argument("--tresca", type=float, default=None,
                         help="Tresca bound (a traction) instead of Coulomb")
     parser.add_argument("--out", type=Path, default=ROOT / "output/bench/coulomb_sliding.md")
-    args = parser.parse_args()
+    args, feti = P.parse_with_feti_options(parser)  # e.g. -feti_mprgp_reuse 160
     comm = MPI.COMM_WORLD
     lines = [f"Punch on block, mortar, Coulomb {MU}, Parts({args.parts}), rtol {args.rtol}, "
              f"h = {args.h_punch}/{args.h_block}, {comm.size} rank(s)", "",
@@ -75,7 +77,8 @@ def main() -> None:
         half = model == "half"
         mesh = df.build_mesh(punch_on_block, h_punch=args.h_punch, h_block=args.h_block,
                              half=half, comm=comm)
-        ref = df.solve(problem(mesh, 0.0, half, args.parts, None), rtol=args.rtol, comm=comm)
+        ref = df.solve(problem(mesh, 0.0, half, args.parts, None), rtol=args.rtol, comm=comm,
+                       options=feti)
         base = ref.report.hessian_mults
         lines.append(f"| {model} | frictionless | {base} | 1 | – | – | "
                      f"{ref.report.converged} | – | – | – |")
@@ -85,7 +88,7 @@ def main() -> None:
             sol = df.solve(problem(mesh, ratio, half, args.parts, friction),
                            rtol=args.rtol, max_it=args.max_it, smalbe_rho=args.rho,
                            smalbe_rho_growth=args.rho_growth,
-                           smalbe_acceleration=args.acceleration, comm=comm)
+                           smalbe_acceleration=args.acceleration, comm=comm, options=feti)
             dt = time.perf_counter() - t0
             rep = sol.report
             fr = rep.extra["friction"]

@@ -20,6 +20,7 @@ Problems:
 
 from __future__ import annotations
 
+import argparse
 import functools
 from collections.abc import Callable
 
@@ -30,6 +31,7 @@ from mpi4py import MPI
 
 import dolfinx_feti as df
 from dolfinx_feti.io import meshes
+from dolfinx_feti.options import command_line_options
 
 # ------------------------------------------------------------------------------------------------
 # Meshes
@@ -250,6 +252,21 @@ def squares2d(n: int, H: float | None) -> df.ContactProblem:
 # ------------------------------------------------------------------------------------------------
 # Helpers for the scripts
 # ------------------------------------------------------------------------------------------------
+
+
+def parse_with_feti_options(parser: argparse.ArgumentParser) -> tuple[argparse.Namespace, list]:
+    """The script's arguments and the ``-feti_<name> value`` tokens for ``df.solve(options=)``.
+
+    The solver options pass through (``-feti_mprgp_expansion projcg``), checked by name and
+    type before any mesh is built; any other unknown token is the parser's error.
+    """
+    args, rest = parser.parse_known_args()
+    command_line_options(rest)  # InputError: an unknown -feti_ name or a bad value
+    stray = [t for i, t in enumerate(rest) if not t.startswith("-feti_")
+             and not (i > 0 and rest[i - 1].startswith("-feti_"))]
+    if stray:
+        parser.error(f"unrecognized arguments: {' '.join(stray)}")
+    return args, rest
 
 
 def is_root(comm: MPI.Comm = MPI.COMM_WORLD) -> bool:

@@ -12,7 +12,8 @@ included), the exact checks, the largest KKT residual, and the solve time (set-u
 
 Run: ``python bench/rtol_accuracy.py`` (~3 minutes); ``--problems b1 --rtols 1e-6`` for less;
 ``mpirun -n 2 python bench/rtol_accuracy.py`` for 2 ranks. ``--sphere S2`` for the finer
-sphere, ``--b1 32`` for a finer B1 (n×n squares per membrane, 4×4 subdomains each).
+sphere, ``--b1 32`` for a finer B1 (n×n squares per membrane, 4×4 subdomains each); solver
+options pass through (``-feti_mprgp_expansion projcg``, the tight references too).
 """
 
 from __future__ import annotations
@@ -77,7 +78,7 @@ def main() -> None:
     ap.add_argument("--b1", type=int, default=16, help="B1: squares per membrane side")
     ap.add_argument("--sphere", default="S1", help="sphere level of docs/peers.md")
     ap.add_argument("--parts", type=int, default=4, help="Hertz and sphere: Parts(n)")
-    args = ap.parse_args()
+    args, feti = P.parse_with_feti_options(ap)  # e.g. -feti_mprgp_expansion projcg
     comm = MPI.COMM_WORLD
     make = {"b1": lambda: b1(args.b1), "hertz": lambda: hertz(args.parts),
             "sphere": lambda: sphere(args.sphere, args.parts)}
@@ -86,7 +87,8 @@ def main() -> None:
     rows = []
     for name in args.problems.split(","):
         problem = make[name]()
-        tight = {m: fields(df.solve(problem, comm=comm, method=m, rtol=1e-12, stop_test="dual"))
+        tight = {m: fields(df.solve(problem, comm=comm, method=m, rtol=1e-12, stop_test="dual",
+                                      options=feti))
                  for m in METHODS}
         u_ref, f_ref = tight["tfeti"]
         spread = max(max(rel(u, u_ref), rel(f, f_ref)) for u, f in tight.values())
@@ -97,7 +99,8 @@ def main() -> None:
             for rtol in rtols:
                 for test in args.tests.split(","):
                     t0 = time.perf_counter()
-                    sol = df.solve(problem, comm=comm, method=method, rtol=rtol, stop_test=test)
+                    sol = df.solve(problem, comm=comm, method=method, rtol=rtol, stop_test=test,
+                                   options=feti)
                     wall = time.perf_counter() - t0
                     rep = sol.report
                     u, f = fields(sol)
