@@ -400,6 +400,22 @@ def qp_solver(opts: SolverOptions, dual: DualQP, n_ineq: int, discs: bool = Fals
                   **opts.of(SMALBE_OPTIONS))
 
 
+def unused_on_discs(opts: SolverOptions) -> str | None:
+    """The warning for MPRGP options set away from their defaults that MPGP on discs ignores.
+
+    MPGP on friction discs (3D) implements the fixed expansion step only and does not recycle;
+    as PETSc reports options that were set and not used, a choice that is not honoured is
+    said rather than dropped (the problem is solved all the same).
+    """
+    declared = MPRGP_OPTIONS.options
+    unused = [f"mprgp_{k}={getattr(opts, MPRGP_OPTIONS.key(k))!r}" for k in ("expansion", "alpha")
+              if getattr(opts, MPRGP_OPTIONS.key(k)) != declared[k].default]
+    if not unused:
+        return None
+    return (f"{', '.join(unused)} not used: MPGP on the friction discs (3D) takes the fixed "
+            "expansion step")
+
+
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None,
             multiplier0=None, max_it=None, test=None, rho_factor=1.0, recycle=None):
     """Build the QP of this solve (bounds, friction) and run the solver it needs.
@@ -417,6 +433,10 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
         lb = dual.lb.copy()  # the friction rows get bounds of their own
         ub, discs, multiplier = friction.bounds(lb, dual.lam_hat)
     solver = qp_solver(opts, dual, n_ineq, discs is not None, progress, recycle)
+    if discs is not None:
+        note = unused_on_discs(opts)
+        if note and note not in report.warnings:
+            report.warnings.append(note)
     report.solver = solver.name if not isinstance(solver, SMALBE) else \
         f"smalbe{' (mpgp)' if discs is not None else ''}"
     if isinstance(solver, CG):

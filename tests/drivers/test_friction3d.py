@@ -117,3 +117,14 @@ def test_obstacle3d(mesh):
                                      ("top", SHIFT)],
                           slave="contact_upper", normal=(0.0, 0.0, 1.0), point=(0, 0, 0.5))
     compare(sol, r.solve_tresca(G))
+
+
+def test_unused_expansion_on_discs_is_said(mesh, tresca, reference):
+    """MPGP on the discs takes the fixed expansion: another one asked for is reported unused,
+    and the solution is the same."""
+    sol = df.solve(blocks(mesh, df.Tresca(G)), rtol=RTOL, mprgp_expansion="projcg")
+    assert sol.report.converged, sol.report.summary()
+    said = [w for w in sol.report.warnings if "mprgp_expansion='projcg' not used" in w]
+    assert len(said) == 1, sol.report.warnings
+    assert not any("not used" in w for w in tresca.report.warnings)
+    compare(sol, reference.solve_tresca(G))
