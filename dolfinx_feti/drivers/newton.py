@@ -47,6 +47,9 @@ The choices:
   ``newton_rtol`` (the increment against its square root: converging quadratically, the next
   one would be of the order of its square). The Newton history (residuals, steps, QP
   iterations, F-multiplications, seconds) is the report's ``extra["newton"]``.
+- **Increments** are solved to an accuracy tied to Newton's residual (a forcing term,
+  :meth:`NewtonSolver._forcing`: the QP's rtol and Coulomb's fixed point tightened near the
+  solution, never loosened), so the stop can be met with the QPs' Krylov recycling on.
 """
 
 from __future__ import annotations
