@@ -116,7 +116,9 @@ class NewtonOptions:
     """Options of the Newton loop (keyword arguments ``newton_rtol``, ``newton_max_it``, ...).
 
     Attributes:
-        rtol: Bound on every KKT residual of the nonlinear problem and on ‖Δu‖∞/‖u‖∞.
+        rtol: Bound on every KKT residual of the nonlinear problem (its square root on
+            ‖Δu‖∞/‖u‖∞); near the solution the increments are asked for down to 0.1 of it
+            (:meth:`NewtonSolver._forcing`).
         max_it: Newton iterations per load step.
         max_backtracks: Halvings of the step in the line search.
         mortar_derivatives: Mortar rows: the Newton step with their derivatives (inner QPs
