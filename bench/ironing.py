@@ -96,6 +96,7 @@ for t, s in zip(times, sols, strict=False):
         "newton_iterations": len(h), "seconds_per_iteration": float(np.mean(
             [x["seconds"] for x in h])),
         "fmults_per_iteration": float(np.mean([x["hessian_mults"] for x in h])),
+        "fmults": int(sum(x["hessian_mults"] for x in h)),
         "residuals": [x["residual"] for x in h],
         "coulomb_bound": float(s.report.kkt.get("coulomb_bound", np.nan)),
         "friction_complementarity": float(s.report.kkt["friction_complementarity"])})
@@ -118,7 +119,9 @@ if comm.rank == 0:
     (out / "ironing.json").write_text(json.dumps(summary, indent=1))
     print(f"mesh: {mesh.num_nodes} nodes, {lin.report.sizes['primal']} primal dofs, "
           f"Parts({args.parts}), {args.method}, {comm.size} rank(s); {times.size} steps in "
-          f"{wall:.1f} s; all converged: {all(r['converged'] for r in rows)}")
+          f"{wall:.1f} s, {sum(r['fmults'] for r in rows)} F-multiplications, "
+          f"{sum(r['newton_iterations'] for r in rows)} Newton iterations; all converged: "
+          f"{all(r['converged'] for r in rows)}")
     print("| step | die x | depth | F_x | F_y | F_x/F_y | Σ|q|/Σp | pressed | slipping "
           "| Newton its | s/it | F-mults/it |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")

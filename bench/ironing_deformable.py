@@ -92,6 +92,7 @@ def main() -> None:
             "pressed": int(pressed.sum()), "slip": int(np.count_nonzero(c.state[pressed] == 2)),
             "newton_iterations": len(hist),
             "seconds": float(sum(x["seconds"] for x in hist)),
+            "fmults": int(sum(x["hessian_mults"] for x in hist)),
             "residuals": [x["residual"] for x in hist]})
     if comm.rank != 0:
         return
@@ -106,7 +107,8 @@ def main() -> None:
     (out / "ironing_deformable.json").write_text(json.dumps(summary, indent=1))
     _plot(rows, args.coefficient, out / "ironing_deformable.png")
     print(f"mesh: {mesh.num_nodes} nodes, h block {args.h_block}, h die {args.h_die}, "
-          f"{comm.size} rank(s); {times.size} steps in {wall:.1f} s; all converged: "
+          f"{comm.size} rank(s); {times.size} steps in {wall:.1f} s, "
+          f"{sum(r['fmults'] for r in rows)} F-multiplications; all converged: "
           f"{all(r['converged'] for r in rows)}; steady sliding (travel >= 0.5, every pressed "
           f"node slipping, {len(steady)} steps): T/N "
           + (f"{ratio.min():.4f} … {ratio.max():.4f}" if ratio.size else "none"))

@@ -61,7 +61,8 @@ solve = comm.allreduce(t2 - t1, op=MPI.MAX)
 if comm.rank == 0:
     print(f"mesh: {mesh.num_nodes} nodes, {lin.report.sizes['primal']} primal dofs, "
           f"{args.parts} subdomains, {comm.size} rank(s); Newton path of {args.steps} steps "
-          f"to δ = {args.delta} R: {wall:.2f} s")
+          f"to δ = {args.delta} R: {wall:.2f} s, "
+          f"{sum(s.report.hessian_mults for s in sols)} F-multiplications")
     print("| step | Newton iterations | s per iteration | F-mults per iteration |")
     print("|---|---|---|---|")
     for k, s in enumerate(sols):

@@ -86,8 +86,6 @@ class FetiSolver:
         recycle: The CG directions of the last solves on the current operator
             (:class:`~dolfinx_feti.qp.recycle.Recycle`, ``mprgp_reuse`` of them; None when 0),
             forgotten when the rows or the stiffness change and by ``solve(x0="cold")``.
-        recycle_solves: Whether the solves use the recycling at all (True; Newton's increments
-            do not).
         solves: Number of solves so far.
     """
 
@@ -129,12 +127,6 @@ class FetiSolver:
         # a lower bound of the KKT test's displacement scale: a Newton increment is solved
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
-        # whether the solves may use Krylov recycling (qp.recycle), across and within them. A
-        # driver that judges a solve by a stricter test than its KKT test turns it off: Newton,
-        # whose stop ‖Δu‖∞ ≤ rtol ‖u‖∞ asks more of an increment than the increment's KKT test
-        # guarantees, and recycled runs stop elsewhere within that test (problems/ironing_path.toml
-        # cycled at ‖Δu‖/‖u‖ = 6.9e-8; docs/solvers.md)
-        self.recycle_solves = True
         self.solves = 0
         # the CG directions of the last solves on this operator (qp.recycle; None: off)
         self.recycle = Recycle(opts.mprgp_reuse, deflate=opts.mprgp_deflate) \
@@ -449,12 +441,9 @@ class FetiSolver:
             else (None, None)
         start_mults = qp.feti.hessian_mults - mults0
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
-        recycle = self.recycle
-        if not self.recycle_solves and opts.mprgp_reuse:
-            warm_opts, recycle = warm_opts.replace(mprgp_reuse=0), None
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu, u_floor=self.u_floor, recycle=recycle)
+                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega

@@ -531,21 +531,14 @@ def test_problem_file_translations_path(root, capsys):
     Python API (the die at each position, its RigidMotion the translation); while it slides
     the die drags the block's surface: the tangential force on the block points along the
     motion and stays below 𝓕 times the normal one (every node at |λ_T| ≤ 𝓕λ_N)."""
+    from ironing_path import die_at
+
     from dolfinx_feti.io.meshes_rubber import ironing_block
 
     def api(pf):
         moves = pf.loading_translations["top"]
         mesh = df.build_mesh(ironing_block, h_top=0.25, h_far=0.75)
-
-        def at(t):
-            d = moves[int(t)]
-            return df.ContactProblem(
-                mesh, df.NeoHookean(1.0, 0.3), dirichlet=[df.Dirichlet("bottom")],
-                contact=[df.RigidObstacle("top", df.Sphere((3.0 + d[0], 4.0 + d[1]), 1.0),
-                                          friction=df.Coulomb(0.3), motion=df.RigidMotion(d))],
-                decomposition=df.Parts(2))
-
-        return at, len(moves)
+        return (lambda t: die_at(mesh, moves[int(t)])), len(moves)
 
     with command_path(root, "ironing_path", capsys, api) as (out, pf, sols):
         moves = pf.loading_translations["top"]
