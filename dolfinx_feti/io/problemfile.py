@@ -203,20 +203,36 @@ class ProblemFile:
     loading_friction: dict[str, tuple] = field(default_factory=dict)
 
     def problem_at(self, t: float) -> ContactProblem:
-        """The problem of step ``int(t)`` of the load path.
+        """The problem at pseudo-time ``t`` of the load path: step ``t`` for an integer ``t``.
 
         Its loads times the step's factor; the Dirichlet groups of ``loading_values`` get
         their value of the step, the obstacles of ``loading_translations`` their position, the
-        conditions of ``loading_friction`` their friction value.
+        conditions of ``loading_friction`` their friction value. Between two steps (a Newton
+        cut-back halves a step) every one of these is interpolated linearly, so that a halved
+        step is half the way to the next load rather than the last one again.
+
+        Raises:
+            InputError: For ``t`` outside ``[0, number of steps - 1]``.
         """
         from ..drivers.scaled import moved, scaled, with_friction
-        k = int(t)
+        last = len(self.loading) - 1
+        if not 0.0 <= t <= last:
+            raise InputError(f"{self.path}: the load path has steps 0 to {last}; "
+                             f"t = {t:g} is outside")
+        k = min(int(np.floor(t)), max(last - 1, 0))
+        w = float(t) - k  # 0 at step k, 1 at step k + 1
+
+        def between(a, b):
+            return a if w == 0.0 else (1.0 - w) * np.asarray(a, dtype=float) \
+                + w * np.asarray(b, dtype=float)
 
         def at(table: dict) -> dict:
-            return {g: v[k] for g, v in table.items()}
+            return {g: between(v[k], v[min(k + 1, last)]) for g, v in table.items()}
 
-        return with_friction(moved(scaled(self.problem, self.loading[k], at(self.loading_values)),
-                                   at(self.loading_translations)), at(self.loading_friction))
+        factor = float(between(self.loading[k], self.loading[min(k + 1, last)]))
+        friction = {g: float(v) for g, v in at(self.loading_friction).items()}
+        return with_friction(moved(scaled(self.problem, factor, at(self.loading_values)),
+                                   at(self.loading_translations)), friction)
 
     def solver_options(self, defaults: Mapping[str, Any] | None = None,
                        **overrides) -> SolverOptions:

@@ -125,6 +125,13 @@ nodal_values = "block_nodal.npz"
     assert all(type(p.forms) is df.NeoHookean for p in steps)
     assert [p.forms.load_factor for p in steps] == list(factors)
     assert [p.dirichlet[0].value for p in steps] == [(-0.15,), (-0.3,), (-0.15,)]
+    # between two steps (a Newton cut-back) the loads are interpolated, not the last step's
+    half = [pf.problem_at(t) for t in (0.5, 1.25)]
+    assert [p.forms.load_factor for p in half] == [0.75, 0.875]
+    assert np.allclose([p.dirichlet[0].value[0] for p in half], [-0.225, -0.2625], rtol=1e-14)
+    for t in (-0.5, 2.5):
+        with pytest.raises(df.InputError, match="outside"):
+            pf.problem_at(t)
     sols = df.solve_path(pf.problem_at, range(len(factors)), rtol=1e-12, newton_rtol=1e-10)
     for sol, f in zip(sols, factors, strict=True):
         a, _ = neo_hookean_exact(0.3 * f)
