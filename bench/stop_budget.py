@@ -10,7 +10,8 @@ met its bound (only ‖G̃x‖ was left: what the bound of ‖G̃x‖ costs), an
 residual against rtol (the last one: the accepted solution; far below 1: over-solved).
 
 ``--variant`` swaps the bound of ‖G̃x‖ (a measuring aid that replaces methods of
-``drivers/kkt_stop.KKTStop``; the library is unchanged):
+``drivers/kkt_stop.KKTStop`` and, for ``keep_m``, of SMALBE's private solve state; the library
+is unchanged):
 
 - ``current``: the library's, ``min(rtol Λ, tol_g / unit)`` with the unit ``‖PFP‖ max_i
   1/scale_i`` until a check, then measured from the check;
@@ -20,10 +21,13 @@ residual against rtol (the last one: the accepted solution; far below 1: over-so
   ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` (one more F-multiplication per failed check,
   counted), instead of the measured one;
 - ``safety1``: the current bound, but a failed check aims the next bound at what would just
-  pass (``kkt_stop.SAFETY`` 1 instead of 0.5).
+  pass (``kkt_stop.SAFETY`` 1 instead of 0.5);
+- ``keep_m``: the current bound, and a run after a failed check starts SMALBE from the inner
+  precision factor M the run before ended with (not from the option's M).
 
 Run: ``python bench/stop_budget.py`` (seconds; ``--problems hertz --methods fetidp --rtols
-1e-6 --trace`` prints every outer iteration); ``python bench/stop_budget.py --variant force
+1e-6 --trace`` prints every outer iteration, ``--units`` with it the unit of each iterate's
+G̃x against the stop's); ``python bench/stop_budget.py --variant force
 --run bench/reuse.py --case hertz2d --method auto --cases 0`` runs another bench script with
 the variant installed.
 """
@@ -49,7 +53,9 @@ sys.path.insert(0, str(HERE))
 import rtol_accuracy as RA  # noqa: E402  (its problems)
 
 KS = importlib.import_module("dolfinx_feti.drivers.kkt_stop")
-VARIANTS = ("current", "force", "none", "exact", "safety1")
+VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m")
+SM = importlib.import_module("dolfinx_feti.qp.smalbe")
+QS = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 
 
 def install(variant: str) -> None:
@@ -65,6 +71,25 @@ def install(variant: str) -> None:
             test.eq_tol = math.inf if variant == "none" else self.rtol * self.Lam * loosen
             return test
         stop.make_test = loose
+    if variant == "keep_m":
+        last = {"M": None}
+        solve_init, result, runs_init = (SM._SMALBESolve.__init__, SM._SMALBESolve._result,
+                                         QS._KKTRuns.__init__)
+
+        def start_m(self, *args, **kwargs):
+            solve_init(self, *args, **kwargs)
+            if last["M"] is not None and self.test is not None:
+                self.M = last["M"]
+
+        def end_m(self, reason, res):
+            last["M"] = self.M
+            return result(self, reason, res)
+
+        def new_solve(self, *args, **kwargs):
+            last["M"] = None
+            runs_init(self, *args, **kwargs)
+        SM._SMALBESolve.__init__, SM._SMALBESolve._result = start_m, end_m
+        QS._KKTRuns.__init__ = new_solve
     if variant == "exact":
         init, accept = stop.__init__, stop.accept
 
@@ -93,6 +118,38 @@ def install(variant: str) -> None:
         stop.__init__, stop.accept = keep_qp, exact_unit
 
 
+def probe_units() -> None:
+    """Record in each SMALBE outer record the unit of its own G̃x in the lengths.
+
+    ``unit`` = ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖``, beside the one the stop uses
+    (``eq_unit``): one more F-multiplication per outer iteration, counted (the counts of the
+    solve are then not the library's).
+    """
+    current = {}
+    stop_init, outer_update = KS.KKTStop.__init__, SM._SMALBESolve._outer_update
+
+    def keep(self, qp, *args, **kwargs):
+        stop_init(self, qp, *args, **kwargs)
+        current["stop"], current["qp"] = self, qp
+
+    def measure(self, k, M_k, res):
+        reason = outer_update(self, k, M_k, res)
+        rec, stop, qp = self.history[-1], current.get("stop"), current.get("qp")
+        if stop is None or self.test is None or rec["Dx"] <= 0:
+            return reason
+        t, s, ps = qp.b.duplicate(), qp.b.duplicate(), qp.b.duplicate()
+        self.D.mult_transpose(self.D.mult(self.x), t)
+        qp.feti.F.mult(t, s)
+        qp.projector.apply(s, ps)
+        term = stop.comm.allreduce(float(np.max(np.abs(ps.array_r) * stop.weight,
+                                                initial=0.0)), op=MPI.MAX)
+        for w in (t, s, ps):
+            w.destroy()
+        rec.update(unit=term / rec["Dx"], eq_unit=stop.eq_unit, rows=self.D.m)
+        return reason
+    KS.KKTStop.__init__, SM._SMALBESolve._outer_update = keep, measure
+
+
 def runs_of(history: list[dict]) -> list[list[dict]]:
     """The SMALBE outer records split into runs (``k`` restarts at 0 after a check)."""
     runs: list[list[dict]] = []
@@ -116,10 +173,14 @@ def main() -> None:
     ap.add_argument("--rtols", default="1e-4,1e-6,1e-8")
     ap.add_argument("--variant", default="current", choices=VARIANTS)
     ap.add_argument("--trace", action="store_true", help="every outer iteration")
+    ap.add_argument("--units", action="store_true",
+                    help="with --trace: the unit of each iterate's G̃x (one more F each)")
     ap.add_argument("--run", nargs=argparse.REMAINDER,
                     help="another bench script and its arguments, run with the variant")
     args = ap.parse_args()
     install(args.variant)
+    if args.units:
+        probe_units()
     if args.run:
         sys.argv = args.run
         runpy.run_path(args.run[0], run_name="__main__")
@@ -157,7 +218,9 @@ def main() -> None:
                         say(f"    outer {rec['k']:2d}: F {rec['hessian_mults']:3d}  gradient "
                             f"{rec.get('test_gP', math.nan) / rec.get('test_tol', 1.0):9.3g} "
                             f"x bound  ‖G̃x‖ {rec['Dx'] / rec.get('eq_tol', 1.0):9.3g} x bound"
-                            f"  ({rec['inner_reason']})")
+                            f"  ({rec['inner_reason']})" + (
+                                f"  unit {rec['unit']:.3g} (the stop's {rec['eq_unit']:.3g},"
+                                f" {rec['rows']} rows)" if "unit" in rec else ""))
     say(f"total: {total['F']} F-multiplications, {total['eq']} of them "
         f"({100 * total['eq'] / max(total['F'], 1):.1f} %) for ‖G̃x‖ alone")
     PETSc.garbage_cleanup()

@@ -32,8 +32,8 @@ off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0), an
 ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))`` (``Λ`` a force scale) bounds
 that term and ``equilibrium``. That unit of ‖G̃x‖ is a worst case (the term's own unit
 ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` measured 0.07–3.6 on 2D Hertz against 4–26), but
-a tighter one does not pay: SMALBE's multiplier update cuts ‖G̃x‖ 10–30× per outer iteration
-at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone takes 3.6 % of them
+a truer one does not pay: SMALBE's multiplier update cuts ‖G̃x‖ 2–40× per outer iteration
+at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone takes 3.6 % of § 19's F-multiplications
 (docs/benchmarks_history.md § 29, ``bench/stop_budget.py``). When the bound holds, the primal
 solution is recovered (one F and one K⁺ application, counted) and the residuals above are
 evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
