@@ -22,9 +22,11 @@ import dolfinx_feti as df
 ROOT = Path(__file__).resolve().parents[2]
 RTOL = 1e-6
 METHODS = ("tfeti", "feti1", "fetidp")
-#: The accepted check's largest residual is at least rtol / OVER_SOLVE (today ≥ rtol / 20).
+#: The accepted check's largest residual is at least rtol / OVER_SOLVE (today ≥ rtol / 22: FETI-DP
+#: 0.051 rtol, 0.047 on two ranks and on DOLFINx 0.11).
 OVER_SOLVE = 50.0
-#: ‖G̃x‖ alone takes at most this share of the F-multiplications (today 5.2 %).
+#: ‖G̃x‖ alone takes at most this share of the F-multiplications (today 5.2 %; 3.7 % on two
+#: ranks, 4.1 % on DOLFINx 0.11).
 EQUALITY_SHARE = 0.08
 
 
