@@ -27,14 +27,19 @@ rows out of reach. :class:`KKTStop` makes them the stopping test: during the ite
 bound — the projected gradient of the dual QP is, row by row, the violation ``B u − c`` of the
 primal solution its iterate implies (scaled by the row's ``scale``), so
 ``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
-``primal_feasibility`` and ``complementarity`` up to the term ``P F G̃ᵀG̃x`` of an iterate
-off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0), and
+``primal_feasibility`` and ``complementarity``, and on the contact rows
+``U max_i k_i |g^P_i| / scale_i / max(max|λ|, ‖f‖∞) <= θ rtol U`` bounds ``violation_force``
+(:class:`KKTGradientTest`; without it the first check passed the lengths and failed on the
+forces, and the bound aimed from that failure over-solved the next run: FETI-DP on 2D Hertz
+stopped at 0.051 rtol), both up to the term ``P F G̃ᵀG̃x`` of an iterate off ker G̃
+(SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0); and
 ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))`` (``Λ`` a force scale) bounds
 that term and ``equilibrium``. That unit of ‖G̃x‖ is a worst case (the term's own unit
 ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` measured 0.07–3.6 on 2D Hertz against 4–26), but
 a truer one does not pay: SMALBE's multiplier update cuts ‖G̃x‖ 2–40× per outer iteration
-at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone takes 3.6 % of § 19's F-multiplications
-(docs/benchmarks_history.md § 29, ``bench/stop_budget.py``). When the bound holds, the primal
+at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone took 3.6 % of § 19's F-multiplications
+(1.0 % with the force part; docs/benchmarks_history.md § 29, ``bench/stop_budget.py``). When
+the bound holds, the primal
 solution is recovered (one F and one K⁺ application, counted) and the residuals above are
 evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
 measured and the QP solver continues from where it stopped (warm: the iterate and SMALBE's
