@@ -15,9 +15,6 @@ is unchanged):
 
 - ``current``: the library's, ``min(rtol Λ, tol_g / unit)`` with the unit ``‖PFP‖ max_i
   1/scale_i`` until a check, then measured from the check;
-- ``lengths``: the library's before the gradient bound had its force part (``KKTGradientTest``):
-  the gradient bounded in lengths only (history § 29's "before"; the other variants were
-  measured on that code, so ``--variant`` X there is X with the force part here);
 - ``force``: ``rtol Λ`` only (no length unit: the loosest bound the equilibrium allows);
 - ``none``: ‖G̃x‖ not tested (the exact check alone guards it);
 - ``exact``: after a failed check the unit of the stop's own G̃x in the lengths,
@@ -56,7 +53,7 @@ sys.path.insert(0, str(HERE))
 import rtol_accuracy as RA  # noqa: E402  (its problems)
 
 KS = importlib.import_module("dolfinx_feti.drivers.kkt_stop")
-VARIANTS = ("current", "lengths", "force", "none", "exact", "safety1", "keep_m")
+VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m")
 SM = importlib.import_module("dolfinx_feti.qp.smalbe")
 QS = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 
@@ -64,13 +61,6 @@ QS = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 def install(variant: str) -> None:
     """Replace the bound of ‖G̃x‖ of :class:`KKTStop` by ``variant`` (module docstring)."""
     stop = KS.KKTStop
-    if variant == "lengths":
-        init = stop.__init__
-
-        def lengths_only(self, *args, **kwargs):
-            init(self, *args, **kwargs)
-            self.forces = None
-        stop.__init__ = lengths_only
     if variant == "safety1":
         KS.SAFETY = 1.0
     if variant in ("force", "none"):

@@ -27,19 +27,14 @@ rows out of reach. :class:`KKTStop` makes them the stopping test: during the ite
 bound — the projected gradient of the dual QP is, row by row, the violation ``B u − c`` of the
 primal solution its iterate implies (scaled by the row's ``scale``), so
 ``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
-``primal_feasibility`` and ``complementarity``, and on the contact rows
-``U max_i k_i |g^P_i| / scale_i / max(max|λ|, ‖f‖∞) <= θ rtol U`` bounds ``violation_force``
-(:class:`KKTGradientTest`; without it the first check passed the lengths and failed on the
-forces, and the bound aimed from that failure over-solved the next run: FETI-DP on 2D Hertz
-stopped at 0.051 rtol), both up to the term ``P F G̃ᵀG̃x`` of an iterate off ker G̃
-(SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0); and
+``primal_feasibility`` and ``complementarity`` up to the term ``P F G̃ᵀG̃x`` of an iterate
+off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0), and
 ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))`` (``Λ`` a force scale) bounds
 that term and ``equilibrium``. That unit of ‖G̃x‖ is a worst case (the term's own unit
 ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` measured 0.07–3.6 on 2D Hertz against 4–26), but
 a truer one does not pay: SMALBE's multiplier update cuts ‖G̃x‖ 2–40× per outer iteration
-at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone took 3.6 % of § 19's F-multiplications
-(1.0 % with the force part; docs/benchmarks_history.md § 29, ``bench/stop_budget.py``). When
-the bound holds, the primal
+at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone takes 3.6 % of § 19's F-multiplications
+(docs/benchmarks_history.md § 29, ``bench/stop_budget.py``). When the bound holds, the primal
 solution is recovered (one F and one K⁺ application, counted) and the residuals above are
 evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
 measured and the QP solver continues from where it stopped (warm: the iterate and SMALBE's
@@ -133,33 +128,17 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
                      viol: np.ndarray, lam_phys: np.ndarray, lam_max: float) -> float:
     """``max_i k_i |v_i| / max(max|λ|, ‖f‖∞)`` (module docstring; collective).
 
-    ``k_i`` is the stiffness of row i, its sides in series (:func:`row_stiffness`). In
-    series, not summed: at a coefficient jump the soft side decides how much force a
-    violation hides (``b K bᵀ`` of the stiff side over-estimates it by the jump).
+    ``k_i`` is the stiffness of row i, its sides in series: ``1 / k_i = Σ_j b_ij² / K_jj``
+    over the row's entries (b the physical row). In series, not summed: at a coefficient jump
+    the soft side decides how much force a violation hides (``b K bᵀ`` of the stiff side
+    over-estimates it by the jump). One multiplication by B squared entrywise: no solve.
     """
+    comm, B = system.comm, system.B
     # contact rows only: a gluing violation of a smooth mode hides little force, which
     # k_i |v_i| over-estimates by the number of rows (50× on 2D Hertz in 4 parts, 40 % more
     # F-multiplications for no gain in the contact forces); ``equality`` bounds it in lengths
     v = np.where(lam_phys > 0.0, viol, np.maximum(viol, 0.0))
-    v[~_contact_rows(kind, ineq)] = 0.0  # friction has residuals of its own
-    k = row_stiffness(system, scale)
-    force = system.comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
-    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
-    return force / ref
-
-
-def _contact_rows(kind: np.ndarray, ineq: np.ndarray) -> np.ndarray:
-    """The rows ``violation_force`` measures: the inequalities, friction's tangents not."""
-    return ineq & (kind != Kind.TANGENT)
-
-
-def row_stiffness(system, scale: np.ndarray) -> np.ndarray:
-    """Per local row, its stiffness with its sides in series, ``1 / Σ_j b_ij² / K_jj``.
-
-    ``b`` the physical row (the row of B over its ``scale``); 0 for a row without entries.
-    One multiplication by B squared entrywise: no solve (collective).
-    """
-    B = system.B
+    v[~ineq | (kind == Kind.TANGENT)] = 0.0  # friction has residuals of its own
     kdiag = system.K.diagonal()
     inv = B.createVecRight()
     inv.array[:] = np.divide(1.0, kdiag, out=np.zeros_like(kdiag), where=kdiag > 0)
@@ -168,9 +147,12 @@ def row_stiffness(system, scale: np.ndarray) -> np.ndarray:
     comp = B.createVecLeft()
     B2.mult(inv, comp)
     c = comp.array_r / (scale * scale)  # the row's compliance, physical units
+    k = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
+    force = comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
+    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
     for obj in (inv, B2, comp):
         obj.destroy()
-    return np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
+    return force / ref
 
 
 def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -185,20 +167,6 @@ def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return own.scale, own.kind, own.inequality
 
 
-def _force_bound(qp, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """What :class:`KKTGradientTest` needs beyond the lengths (collective).
-
-    ``k_i / scale_i`` on the QP's contact rows (0 elsewhere), the rows' scales, λ̂ and ``‖f‖∞``.
-    """
-    _, kind, ineq = row_data(qp)
-    rows = qp.row_index
-    k = row_stiffness(qp.system, scale)[rows]
-    contact = _contact_rows(kind, ineq)[rows]
-    sc = scale[rows]
-    return (np.where(contact, k / sc, 0.0), sc, qp.lam_hat.array_r.copy(),
-            qp.system.f.norm(PETSc.NormType.INFINITY))
-
-
 #: The residuals measured in lengths against U (what the weighted gradient bounds).
 LENGTHS = ("primal_feasibility", "equality", "complementarity")
 
@@ -206,51 +174,6 @@ LENGTHS = ("primal_feasibility", "equality", "complementarity")
 def _lengths(kkt: dict[str, float]) -> float:
     """The largest residual of :data:`LENGTHS` (relative to U)."""
     return max(kkt.get(k, 0.0) for k in LENGTHS)
-
-
-class KKTGradientTest(MaxGradientTest):
-    """The bound of :class:`KKTStop`: lengths and, on the contact rows, forces (collective).
-
-    ``max(max_i w_i |g^P_i|, U / R max_i k_i w_i |g^P_i|) <= tol`` and ``‖G̃x‖ <= eq_tol``,
-    ``w_i = 1 / scale_i``. Row i's projected gradient is its violation ``v_i = w_i g^P_i`` (up
-    to the term of ‖G̃x‖), so the first part bounds the length residuals and the second
-    ``violation_force``, ``max_i k_i |v_i| / R`` with ``R = max(max_i |λ_i| scale_i, ‖f‖∞)`` of
-    the iterate (``λ = λ̂ + x``), brought to lengths by U (``tol`` is θ rtol U). Without the
-    second part the first check passed the lengths and failed on the forces 15 times in 16 on
-    the problems of docs/benchmarks.md § 19 (1.1–470 rtol), and the bound aimed from it
-    over-solved the next run (history § 29).
-
-    Args:
-        weight: ``w`` on the QP's rows.
-        force_weight: ``k_i w_i`` on the contact rows, 0 on the others.
-        scale: The QP's rows' scales.
-        lam_hat: Local array of λ̂ (the iterate is ``x = λ − λ̂``).
-        f_inf: ``‖f‖∞``.
-        U: The displacement scale.
-        tol: Tolerance of the weighted gradient (a length).
-        comm: The communicator of the rows.
-        eq_tol: Tolerance of ``‖G̃x‖``.
-    """
-
-    def __init__(self, weight: np.ndarray, force_weight: np.ndarray, scale: np.ndarray,
-                 lam_hat: np.ndarray, f_inf: float, U: float, tol: float, comm: MPI.Comm,
-                 eq_tol: float = math.inf) -> None:
-        super().__init__(weight, tol, comm, eq_tol)
-        self.force_weight, self.scale, self.lam_hat = force_weight, scale, lam_hat
-        self.f_inf, self.U = f_inf, U
-
-    def __call__(self, gP: np.ndarray, x: PETSc.Vec | None = None) -> bool:
-        """Whether the bound holds for the local projected gradient ``gP`` at ``x``."""
-        g = np.abs(gP)
-        lam = 0.0 if x is None else float(
-            np.max(np.abs((self.lam_hat + x.array_r) * self.scale), initial=0.0))
-        local = np.array([np.max(self.weight * g, initial=0.0),
-                          np.max(self.force_weight * g, initial=0.0), lam])
-        both = np.empty(3)
-        self.comm.Allreduce(local, both, op=MPI.MAX)  # one reduction for the three
-        length, force, lam = (float(v) for v in both)
-        self.last = max(length, force * self.U / max(lam, self.f_inf, 1e-300))
-        return self.last <= self.tol
 
 
 class KKTStop:
@@ -289,8 +212,6 @@ class KKTStop:
         self.eq_unit = self.eq_unit_max = max(qp.norm_A * w_max, 1e-300)
         self.tol_g = rtol * self.U
         self.tol_e = min(rtol * self.Lam, self.tol_g / self.eq_unit)
-        self.forces = _force_bound(qp, scale) if getattr(qp.system, "K", None) is not None \
-            else None  # Newton's nonlinear residual has no K, nor violation_force
         self.checks = 0
         self.stalled, self.flat = False, 0
         self.worst = math.inf
@@ -303,10 +224,8 @@ class KKTStop:
         ``loosen > 1`` asks for less accuracy (Coulomb's early fixed-point steps).
         """
         floor = ROUND_OFF * np.finfo(float).eps * self.eq_unit_max * self.Lam
-        tol, eq_tol = max(self.tol_g * loosen, floor), self.tol_e * loosen
-        self.test = MaxGradientTest(self.weight, tol, self.comm, eq_tol) \
-            if self.forces is None else KKTGradientTest(
-                self.weight, *self.forces, self.U, tol, self.comm, eq_tol)
+        self.test = MaxGradientTest(self.weight, max(self.tol_g * loosen, floor), self.comm,
+                                    self.tol_e * loosen)
         return self.test
 
     def rescale(self, u: PETSc.Vec, lam_qp: PETSc.Vec) -> None:
@@ -384,5 +303,4 @@ class KKTStop:
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop", "kkt_residuals",
-           "row_data", "row_stiffness"]
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data"]
