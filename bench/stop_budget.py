@@ -23,7 +23,11 @@ is unchanged):
 - ``safety1``: the current bound, but a failed check aims the next bound at what would just
   pass (``kkt_stop.SAFETY`` 1 instead of 0.5);
 - ``keep_m``: the current bound, and a run after a failed check starts SMALBE from the inner
-  precision factor M the run before ended with (not from the option's M).
+  precision factor M the run before ended with (not from the option's M);
+- ``force_bound``: the current bound of ‖G̃x‖, and the bound of the gradient also in force
+  units on the contact rows, ``U max_i k_i |g^P_i| / scale_i / max(max|λ|, ‖f‖∞)`` (``k_i``
+  the row's stiffness of ``violation_force``, λ = λ̂ + x of the iterate) against the same
+  ``θ rtol U`` (history § 29: it pays on 2D Hertz, not adopted).
 
 Run: ``python bench/stop_budget.py`` (seconds; ``--problems hertz --methods fetidp --rtols
 1e-6 --trace`` prints every outer iteration, ``--units`` with it the unit of each iterate's
@@ -46,6 +50,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx_feti as df
+from dolfinx_feti.constraints.rows import Kind
+from dolfinx_feti.qp import MaxGradientTest
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -53,7 +59,7 @@ sys.path.insert(0, str(HERE))
 import rtol_accuracy as RA  # noqa: E402  (its problems)
 
 KS = importlib.import_module("dolfinx_feti.drivers.kkt_stop")
-VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m")
+VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m", "force_bound")
 SM = importlib.import_module("dolfinx_feti.qp.smalbe")
 QS = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 
@@ -90,6 +96,21 @@ def install(variant: str) -> None:
             runs_init(self, *args, **kwargs)
         SM._SMALBESolve.__init__, SM._SMALBESolve._result = start_m, end_m
         QS._KKTRuns.__init__ = new_solve
+    if variant == "force_bound":
+        init = stop.__init__
+
+        def with_forces(self, qp, *args, **kwargs):
+            init(self, qp, *args, **kwargs)
+            self.forces = _force_data(qp) if getattr(qp.system, "K", None) is not None \
+                else None
+
+        def force_test(self, loosen: float = 1.0):
+            floor = KS.ROUND_OFF * np.finfo(float).eps * self.eq_unit_max * self.Lam
+            tol, eq_tol = max(self.tol_g * loosen, floor), self.tol_e * loosen
+            self.test = MaxGradientTest(self.weight, tol, self.comm, eq_tol) \
+                if self.forces is None else ForceBound(self, tol, eq_tol)
+            return self.test
+        stop.__init__, stop.make_test = with_forces, force_test
     if variant == "exact":
         init, accept = stop.__init__, stop.accept
 
@@ -116,6 +137,51 @@ def install(variant: str) -> None:
             self.tol_e = min(self.rtol * self.Lam, self.tol_g / self.eq_unit)
             return done
         stop.__init__, stop.accept = keep_qp, exact_unit
+
+
+class ForceBound(MaxGradientTest):
+    """The gradient bound in lengths and, on the contact rows, in forces; and ‖G̃x‖.
+
+    ``max(max_i w_i |g_i|, U / R max_i k_i w_i |g_i|) <= tol`` (``w = 1/scale``,
+    ``R = max(max_i |λ_i| scale_i, ‖f‖∞)`` of the iterate).
+    """
+
+    def __init__(self, stop, tol: float, eq_tol: float) -> None:
+        super().__init__(stop.weight, tol, stop.comm, eq_tol)
+        self.kw, self.scale, self.lam_hat, self.f_inf = stop.forces
+        self.U = stop.U
+
+    def __call__(self, gP: np.ndarray, x=None) -> bool:
+        g = np.abs(gP)
+        lam = 0.0 if x is None else float(
+            np.max(np.abs((self.lam_hat + x.array_r) * self.scale), initial=0.0))
+        both = np.empty(3)
+        self.comm.Allreduce(np.array([np.max(self.weight * g, initial=0.0),
+                                      np.max(self.kw * g, initial=0.0), lam]), both,
+                            op=MPI.MAX)
+        self.last = max(both[0], both[1] * self.U / max(both[2], self.f_inf, 1e-300))
+        return self.last <= self.tol
+
+
+def _force_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """``k_i / scale_i`` on the QP's contact rows (0 elsewhere), their scales, λ̂, ‖f‖∞."""
+    scale, kind, ineq = KS.row_data(qp)
+    rows = qp.row_index
+    system, B = qp.system, qp.system.B
+    kdiag = system.K.diagonal()
+    inv = B.createVecRight()
+    inv.array[:] = np.divide(1.0, kdiag, out=np.zeros_like(kdiag), where=kdiag > 0)
+    ai, aj, av = B.getValuesCSR()
+    B2 = PETSc.Mat().createAIJ(B.getSizes(), csr=(ai, aj, av * av), comm=B.comm)
+    comp = B.createVecLeft()
+    B2.mult(inv, comp)  # the rows' compliance, sides in series (kkt_stop._violation_force)
+    c = comp.array_r / (scale * scale)
+    k = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)[rows]
+    for obj in (inv, B2, comp):
+        obj.destroy()
+    contact = (ineq & (kind != Kind.TANGENT))[rows]
+    return (np.where(contact, k / scale[rows], 0.0), scale[rows], qp.lam_hat.array_r.copy(),
+            system.f.norm(PETSc.NormType.INFINITY))
 
 
 def probe_units() -> None:
