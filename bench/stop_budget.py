@@ -167,18 +167,8 @@ def _force_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
     """``k_i / scale_i`` on the QP's contact rows (0 elsewhere), their scales, λ̂, ‖f‖∞."""
     scale, kind, ineq = KS.row_data(qp)
     rows = qp.row_index
-    system, B = qp.system, qp.system.B
-    kdiag = system.K.diagonal()
-    inv = B.createVecRight()
-    inv.array[:] = np.divide(1.0, kdiag, out=np.zeros_like(kdiag), where=kdiag > 0)
-    ai, aj, av = B.getValuesCSR()
-    B2 = PETSc.Mat().createAIJ(B.getSizes(), csr=(ai, aj, av * av), comm=B.comm)
-    comp = B.createVecLeft()
-    B2.mult(inv, comp)  # the rows' compliance, sides in series (kkt_stop._violation_force)
-    c = comp.array_r / (scale * scale)
-    k = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)[rows]
-    for obj in (inv, B2, comp):
-        obj.destroy()
+    system = qp.system
+    k = KS.row_stiffness(system, scale)[rows]  # violation_force's row stiffness
     contact = (ineq & (kind != Kind.TANGENT))[rows]
     return (np.where(contact, k / scale[rows], 0.0), scale[rows], qp.lam_hat.array_r.copy(),
             system.f.norm(PETSc.NormType.INFINITY))

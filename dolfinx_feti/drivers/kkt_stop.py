@@ -133,12 +133,24 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     the soft side decides how much force a violation hides (``b K bᵀ`` of the stiff side
     over-estimates it by the jump). One multiplication by B squared entrywise: no solve.
     """
-    comm, B = system.comm, system.B
     # contact rows only: a gluing violation of a smooth mode hides little force, which
     # k_i |v_i| over-estimates by the number of rows (50× on 2D Hertz in 4 parts, 40 % more
     # F-multiplications for no gain in the contact forces); ``equality`` bounds it in lengths
     v = np.where(lam_phys > 0.0, viol, np.maximum(viol, 0.0))
     v[~ineq | (kind == Kind.TANGENT)] = 0.0  # friction has residuals of its own
+    k = row_stiffness(system, scale)
+    force = system.comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
+    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
+    return force / ref
+
+
+def row_stiffness(system, scale: np.ndarray) -> np.ndarray:
+    """Per local row, its stiffness with its sides in series, ``1 / Σ_j b_ij² / K_jj``.
+
+    ``b`` the physical row (the row of B over its ``scale``); 0 for a row without entries.
+    One multiplication by B squared entrywise: no solve (collective).
+    """
+    B = system.B
     kdiag = system.K.diagonal()
     inv = B.createVecRight()
     inv.array[:] = np.divide(1.0, kdiag, out=np.zeros_like(kdiag), where=kdiag > 0)
@@ -147,12 +159,9 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     comp = B.createVecLeft()
     B2.mult(inv, comp)
     c = comp.array_r / (scale * scale)  # the row's compliance, physical units
-    k = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
-    force = comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
-    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
     for obj in (inv, B2, comp):
         obj.destroy()
-    return force / ref
+    return np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
 
 
 def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -303,4 +312,5 @@ class KKTStop:
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data"]
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data",
+           "row_stiffness"]
