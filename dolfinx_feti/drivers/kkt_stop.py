@@ -27,9 +27,14 @@ rows out of reach. :class:`KKTStop` makes them the stopping test: during the ite
 bound — the projected gradient of the dual QP is, row by row, the violation ``B u − c`` of the
 primal solution its iterate implies (scaled by the row's ``scale``), so
 ``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
-``primal_feasibility`` and ``complementarity`` up to the term ``P F P G̃ᵀG̃x`` of an iterate
-off ker G̃ (SMALBE's), and ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))``
-(``Λ`` a force scale) bounds that term and ``equilibrium``; when the bound holds, the primal
+``primal_feasibility`` and ``complementarity`` up to the term ``P F G̃ᵀG̃x`` of an iterate
+off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0), and
+``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))`` (``Λ`` a force scale) bounds
+that term and ``equilibrium``. That unit of ‖G̃x‖ is a worst case (the term's own unit
+``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` measured 0.07–3.6 on 2D Hertz against 4–26), but
+a truer one does not pay: SMALBE's multiplier update cuts ‖G̃x‖ 2–40× per outer iteration
+at 0–7 F-multiplications, and the bound of ‖G̃x‖ alone takes 3.6 % of § 19's F-multiplications
+(docs/benchmarks_history.md § 31, ``bench/stop_budget.py``). When the bound holds, the primal
 solution is recovered (one F and one K⁺ application, counted) and the residuals above are
 evaluated exactly. If one exceeds rtol, the scales and the factors θ are set from what was
 measured and the QP solver continues from where it stopped (warm: the iterate and SMALBE's
@@ -128,12 +133,24 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     the soft side decides how much force a violation hides (``b K bᵀ`` of the stiff side
     over-estimates it by the jump). One multiplication by B squared entrywise: no solve.
     """
-    comm, B = system.comm, system.B
     # contact rows only: a gluing violation of a smooth mode hides little force, which
     # k_i |v_i| over-estimates by the number of rows (50× on 2D Hertz in 4 parts, 40 % more
     # F-multiplications for no gain in the contact forces); ``equality`` bounds it in lengths
     v = np.where(lam_phys > 0.0, viol, np.maximum(viol, 0.0))
     v[~ineq | (kind == Kind.TANGENT)] = 0.0  # friction has residuals of its own
+    k = row_stiffness(system, scale)
+    force = system.comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
+    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
+    return force / ref
+
+
+def row_stiffness(system, scale: np.ndarray) -> np.ndarray:
+    """Per local row, its stiffness with its sides in series, ``1 / Σ_j b_ij² / K_jj``.
+
+    ``b`` the physical row (the row of B over its ``scale``); 0 for a row without entries.
+    One multiplication by B squared entrywise: no solve (collective).
+    """
+    B = system.B
     kdiag = system.K.diagonal()
     inv = B.createVecRight()
     inv.array[:] = np.divide(1.0, kdiag, out=np.zeros_like(kdiag), where=kdiag > 0)
@@ -142,12 +159,9 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     comp = B.createVecLeft()
     B2.mult(inv, comp)
     c = comp.array_r / (scale * scale)  # the row's compliance, physical units
-    k = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
-    force = comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
-    ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
     for obj in (inv, B2, comp):
         obj.destroy()
-    return force / ref
+    return np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
 
 
 def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -298,4 +312,5 @@ class KKTStop:
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data"]
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data",
+           "row_stiffness"]

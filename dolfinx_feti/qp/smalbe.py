@@ -249,6 +249,8 @@ class SMALBE(QPSolver):
             None at ``k = 0``), ``M_decreased``, ``inner_reason``. ``reason`` is
             ``'converged'``, ``'max_it'``, ``'max_outer'`` or the inner failure
             (``'unbounded'``, ``'breakdown'``); ``converged_reason`` the signed code.
+            With ``test``, each record also holds ``test_gP`` (the test's weighted gradient
+            at the last inner iterate), ``test_tol`` and ``eq_tol`` (its two bounds).
 
         Raises:
             ValueError: For a QP without equality constraint, non-finite ``b``, non-positive
@@ -355,8 +357,10 @@ class _SMALBESolve:
         final_test = None
         if self.test is not None:  # the caller's final test, checked first (reason 'rtol')
             def final_test(gPa: np.ndarray, xv: PETSc.Vec) -> bool:
-                return float(np.linalg.norm(D.mult(xv))) <= self.test.eq_tol and \
-                    self.test(gPa, xv)
+                # both parts evaluated at every iterate: ``test.last`` is then the weighted
+                # gradient of the last one, which the history records against its bound
+                passed = self.test(gPa, xv)
+                return float(np.linalg.norm(D.mult(xv))) <= self.test.eq_tol and passed
 
         res = self.s.inner.solve(self.inner_qp, self.x, stop=inner_stop, rtol=0.0, atol=0.0,
                                  max_it=self.s.max_it - self.total_it, b_norm=self.b_norm,
@@ -382,6 +386,9 @@ class _SMALBESolve:
                   "M_next": self.M, "rho": rho, "L": L, "L_prev": L_prev,
                   "L_increase_ok": increase_ok, "M_decreased": increase_ok is False,
                   "inner_reason": res.reason}
+        if self.test is not None:  # where the caller's bounds stand (which one binds)
+            record.update(test_gP=self.test.last, test_tol=self.test.tol,
+                          eq_tol=self.test.eq_tol)
         self.history.append(record)
         if self.s.monitor is not None:
             self.s.monitor(k, record)

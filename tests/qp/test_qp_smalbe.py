@@ -16,6 +16,10 @@ from qp_helpers import (
 )
 
 from dolfinx_feti.qp import (
+    QP,
+    SMALBE,
+    Absolute,
+    MaxGradientTest,
     Projector,
     homogenize,
     orthonormalize,
@@ -232,3 +236,32 @@ def test_rho_growth_cuts_a_slow_outer_loop():
         assert h[k + 1]["rho"] == pytest.approx(expect, rel=1e-15)
         grown += h[k + 1]["rho"] > h[k]["rho"]
     assert grown >= 2
+
+
+def test_history_records_where_the_callers_bounds_stand():
+    """With a caller's test (the KKT stop's), each outer record holds the weighted gradient
+    of its last inner iterate against ``test_tol`` and ``eq_tol``: the last meets both, one
+    before missed one of them; without a test the records have no such entries."""
+    F, G, e, d, lower, _ = feti_like(seed=3)
+    n = len(d)
+    con = orthonormalize(row_block_constraint(G, COMM), rhs=e)
+    lam_hat = make_vec(np.zeros(n), COMM)
+    homogenize(con, lam_hat)
+    Fm = make_mat(F, COMM)
+    b = make_vec(d, COMM)
+    tmp = b.duplicate()
+    Fm.mult(lam_hat, tmp)
+    b.axpy(-1.0, tmp)
+    Projector(con).apply(b, b)
+    lb = make_vec(lower - gather(lam_hat), COMM)
+    qp = QP.create(projected_operator(Fm, con), b, lb=lb, eq=con)
+    weight = np.linspace(0.5, 2.0, n)[slice(*b.getOwnershipRange())]
+    test = MaxGradientTest(weight, 1e-8 * b.norm(), COMM.tompi4py(), 1e-9 * b.norm())
+    res = SMALBE(M=Absolute(1.0), rho=Absolute(10.0)).solve(qp, b.duplicate(), test=test)
+    assert res.converged and res.outer_iterations > 1
+    last = res.history[-1]
+    assert last["test_gP"] == test.last <= last["test_tol"] == test.tol
+    assert last["Dx"] <= last["eq_tol"] == test.eq_tol
+    assert any(h["test_gP"] > h["test_tol"] or h["Dx"] > h["eq_tol"] for h in res.history[:-1])
+    plain = SMALBE(M=Absolute(1.0), rho=Absolute(10.0), rtol=1e-8).solve(qp, b.duplicate())
+    assert plain.converged and all("test_gP" not in h for h in plain.history)
