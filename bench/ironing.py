@@ -48,6 +48,9 @@ parser.add_argument("--coefficient", type=float, default=0.3)
 parser.add_argument("--method", default="fetidp")
 parser.add_argument("--rtol", type=float, default=1e-9)
 parser.add_argument("--newton-rtol", type=float, default=1e-8)
+parser.add_argument("--steps", type=int, default=0, help="only the first N steps (0: all)")
+parser.add_argument("--no-project", action="store_true",
+                    help="mprgp_project false (expansions by MPRGP's own step only)")
 args = parser.parse_args()
 comm = MPI.COMM_WORLD
 mesh = df.build_mesh(ironing_block, lx=LX, ly=LY, h_top=args.h_top, h_far=args.h_far,
@@ -71,13 +74,15 @@ def problem(material, t: float) -> df.ContactProblem:
 
 times = np.r_[np.arange(1, args.press_steps + 1) / args.press_steps,
               1.0 + np.arange(1, args.slide_steps + 1) / args.slide_steps]
+if args.steps:
+    times = times[:args.steps]
 out = ROOT / "output/bench"
 if comm.rank == 0:
     out.mkdir(parents=True, exist_ok=True)
 wall = time.perf_counter()
 sols = df.solve_path(lambda t: problem(df.NeoHookean(E, NU), t), times, comm=comm,
                      rtol=args.rtol, newton_rtol=args.newton_rtol, method=args.method,
-                     history=out / "ironing_history.json")
+                     mprgp_project=not args.no_project, history=out / "ironing_history.json")
 wall = comm.allreduce(time.perf_counter() - wall, op=MPI.MAX)
 
 rows = []

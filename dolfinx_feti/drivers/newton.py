@@ -421,7 +421,10 @@ class NewtonSolver:
                 solver.recycle is not None:
             # once more cold, without the recycled CG directions: bench/ironing.py's step 44
             # had one Tresca solve of Coulomb's fixed point (inner rtol 5e-11) run MPRGP
-            # with them to its 5 000 iterations; cold it converged in 122 F-multiplications
+            # with them to its 5 000 iterations; cold it converged in 122 F-multiplications.
+            # Its cause (deflated CG blind to the gradient an inexact Galerkin step left in
+            # span W) is now caught in the solver (qp/mpgp_steps.py, DEFLATE_DESCENT); kept
+            # as a safety net: it costs nothing unless a recycled solve fails
             spent = qp.report.hessian_mults
             qp = solver.solve(COLD)
             qp.report.hessian_mults += spent

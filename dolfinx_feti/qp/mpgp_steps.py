@@ -49,6 +49,14 @@ _ENERGY_NOISE = 64 * np.finfo(float).eps
 # half punch at 0.9 𝓕N with SMALBE's Anderson acceleration: 3 588 → 2 093 F-multiplications
 # (0.01: 2 004, 0.5: 1 935).
 DRIFT_RTOL = 0.1
+# A deflated CG direction p keeps the descent g^T p = g^T r of its undeflated r (z or phi) only
+# while the gradient is orthogonal to the recycled directions W; below this fraction of g^T r
+# the free gradient lies mostly in span W, which the deflated directions cannot reduce (the
+# Galerkin step that started the face was inexact: a Gram matrix W^T A W of condition 1e10
+# leaves ~1e-6 of W^T g). bench/ironing.py at h = 0.15, step 44 (with mprgp_project false):
+# ||g^P|| stood at 1.25e-12 (|W^T phi| 9.3e-13) for 4 997 CG steps of length ~0 until max_it.
+# The face's CG then goes on undeflated (counts['undeflated']).
+DEFLATE_DESCENT = 0.5
 
 
 class MPGPSolve:
@@ -264,10 +272,10 @@ class MPGPSolve:
                 r = z
         if not self.cg_pending:
             r.copy(p)
-            self._deflate(p)
+            self._deflate(p, r)
             return
         p.aypx(-r.dot(self.Hp) / self.pHp, r)
-        self._deflate(p)
+        self._deflate(p, r)
         if self.tangent:  # the face: interior blocks and the tangents of rotating pairs
             pa = S.tangential(x.array_r, p.array_r, self.rot)
             pa[fixed] = 0.0
@@ -302,10 +310,23 @@ class MPGPSolve:
         self.basis = basis if self.recycle.deflate and t >= t_min else None
         return True
 
-    def _deflate(self, p: PETSc.Vec) -> None:
-        """Make ``p`` A-conjugate to the face's recycled directions (deflated CG)."""
-        if self.basis is not None:
-            p.array[:] = self.basis.conjugate(p.array_r)
+    def _deflate(self, p: PETSc.Vec, r: PETSc.Vec) -> None:
+        """Make ``p`` A-conjugate to the face's recycled directions (deflated CG).
+
+        With the gradient orthogonal to them, deflation keeps ``g^T p = g^T r``; where it
+        loses more than :data:`DEFLATE_DESCENT` of it, the gradient lies in their span (the
+        Galerkin step was inexact) and the deflated operator cannot reduce it: the basis is
+        dropped for the rest of this face and CG restarts from ``r`` (one dot product more).
+        """
+        if self.basis is None:
+            return
+        p.array[:] = self.basis.conjugate(p.array_r)
+        gp, gr = self.comm.allreduce(np.array([float(self.g.array_r @ p.array_r),
+                                               float(self.g.array_r @ r.array_r)]))
+        if gp < DEFLATE_DESCENT * gr:
+            self.basis, self.cg_pending = None, False
+            self.counts["undeflated"] = self.counts.get("undeflated", 0) + 1
+            r.copy(p)
 
     def cg_step(self, t_cg: float, moves: bool) -> str | None:
         """The feasible CG step ``x <- x - t_cg p``: ``'cg'``, or None if rejected.
@@ -443,4 +464,4 @@ class MPGPSolve:
                         objective=self.energy())
 
 
-__all__ = ["CURVATURE_RTOL", "CURVATURE_SCALE", "MPGPSolve"]
+__all__ = ["CURVATURE_RTOL", "CURVATURE_SCALE", "DEFLATE_DESCENT", "MPGPSolve"]
