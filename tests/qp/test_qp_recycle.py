@@ -25,7 +25,7 @@ from qp_helpers import (
 )
 
 from dolfinx_feti.qp import MPRGP, QP, SMALBE
-from dolfinx_feti.qp.recycle import Recycle
+from dolfinx_feti.qp.recycle import PROJECT_TRIES, Recycle
 
 N = 120
 
@@ -306,3 +306,20 @@ def test_inexact_galerkin_step_does_not_stall_deflated_cg():
     assert res_warm.counts.get("undeflated", 0) >= 1
     ref = np.linalg.solve(A, b)
     assert np.linalg.norm(x_warm - ref) <= 1e-10 * np.linalg.norm(ref)
+
+
+def test_projected_expansion_goes_on_only_while_it_pays():
+    """The projected Galerkin expansion is tried PROJECT_TRIES times; then only while at least
+    half of the tries were kept (each rejected try is a product spent for nothing)."""
+    rejected, kept = Recycle(4), Recycle(4)
+    for i in range(PROJECT_TRIES):
+        assert rejected.project_pays() and kept.project_pays()
+        rejected.projected(i == 0)
+        kept.projected(i != 0)
+    assert not rejected.project_pays()
+    assert kept.project_pays()
+    rejected.clear()  # the record outlives a new operator: it is the problem's, not the store's
+    assert not rejected.project_pays()
+    for _ in range(PROJECT_TRIES):
+        kept.projected(False)
+    assert not kept.project_pays()  # 7 of 16 kept
