@@ -191,10 +191,17 @@ class GalerkinExpansion(Expansion):
 
     def expand(self, s: MPGPSolve, t_cg: float, t_f: float, gp: float, pAp: float,
                positive: bool) -> bool:
-        """The projected Galerkin step (``counts['galerkin']``), or the variant's own."""
-        if math.isfinite(t_cg) and ProjectedCGExpansion.projected(s, t_cg, t_f, gp, pAp):
-            s.counts["galerkin"] = s.counts.get("galerkin", 0) + 1
-            return True
+        """The projected Galerkin step (``counts['galerkin']``), or the variant's own.
+
+        Each try is recorded in the store (:meth:`.recycle.Recycle.projected`), whose record
+        decides whether the next expansions try it (:meth:`.recycle.Recycle.project_pays`).
+        """
+        if math.isfinite(t_cg):
+            kept = ProjectedCGExpansion.projected(s, t_cg, t_f, gp, pAp)
+            s.recycle.projected(kept)
+            if kept:
+                s.counts["galerkin"] = s.counts.get("galerkin", 0) + 1
+                return True
         return self.own.expand(s, t_cg, t_f, gp, pAp, positive)
 
 

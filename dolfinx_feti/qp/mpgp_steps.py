@@ -233,15 +233,14 @@ class MPGPSolve:
             self.fresh_gradient()
             self.projected_step(self.alpha_bar)
             return "expansion"
-        if self.recycled and self.stop is None and math.isfinite(t_cg) and \
+        step = self.solver.expansion_step
+        if self.recycled and self.stop is None and \
                 self.solver.galerkin_expansion is not None and self.recycle.project_pays():
             # a face started from the recycled space, in a solve that no outer iteration cuts
-            # short (SMALBE's inner solves keep their own step: GalerkinExpansion)
-            taken = self.counts.get("galerkin", 0)
-            ok = self.solver.galerkin_expansion.expand(self, t_cg, t_f, gp, pHp, positive)
-            self.recycle.projected(self.counts.get("galerkin", 0) > taken)
-        else:
-            ok = self.solver.expansion_step.expand(self, t_cg, t_f, gp, pHp, positive)
+            # short (SMALBE's inner solves keep their own step: GalerkinExpansion), while the
+            # projection's record says it pays
+            step = self.solver.galerkin_expansion
+        ok = step.expand(self, t_cg, t_f, gp, pHp, positive)
         return "expansion" if ok else "unbounded"
 
     def direction(self, fixed: np.ndarray, phi2: float) -> None:

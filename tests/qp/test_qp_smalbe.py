@@ -41,22 +41,30 @@ def feti_like(seed: int = 0, n: int = 80, m: int = 8):
     return F, G, e, d, lower, feasible
 
 
-def solve_feti_like(F, G, e, d, lower, comm=COMM, **kw):
-    """The FETI pipeline: orthonormalize G, homogenize, project, SMALBE on mu = l - l_hat."""
+def projected_feti_qp(Fm, G, e, d, comm=COMM):
+    """The FETI pipeline's QP: orthonormalize G, homogenize, project.
+
+    Returns ``(P F P, P (d - F l_hat), the constraint, l_hat gathered)`` for the Mat ``Fm``.
+    """
     n = len(d)
     con = orthonormalize(row_block_constraint(G, comm), rhs=e)
     assert con.inconsistency < 1e-12
     lam_hat = make_vec(np.zeros(n), comm)
     homogenize(con, lam_hat)
-    Fm, ctx = counting(make_mat(F, comm))
-    A = projected_operator(Fm, con)
     # Linear term P (d - F l_hat).
     b = make_vec(d, comm)
     tmp = b.duplicate()
     Fm.mult(lam_hat, tmp)
     b.axpy(-1.0, tmp)
     Projector(con).apply(b, b)
-    lh = gather(lam_hat)
+    return projected_operator(Fm, con), b, con, gather(lam_hat)
+
+
+def solve_feti_like(F, G, e, d, lower, comm=COMM, **kw):
+    """The FETI pipeline (:func:`projected_feti_qp`), SMALBE on mu = l - l_hat."""
+    n = len(d)
+    Fm, ctx = counting(make_mat(F, comm))
+    A, b, con, lh = projected_feti_qp(Fm, G, e, d, comm)
     ctx.calls = 0
     mu = make_vec(np.zeros(n), comm)
     res = smalbe(A, b, con, mu, lb=make_vec(lower - lh, comm), **kw)
@@ -243,19 +251,9 @@ def test_history_records_where_the_callers_bounds_stand():
     of its last inner iterate against ``test_tol`` and ``eq_tol``: the last meets both, one
     before missed one of them; without a test the records have no such entries."""
     F, G, e, d, lower, _ = feti_like(seed=3)
-    n = len(d)
-    con = orthonormalize(row_block_constraint(G, COMM), rhs=e)
-    lam_hat = make_vec(np.zeros(n), COMM)
-    homogenize(con, lam_hat)
-    Fm = make_mat(F, COMM)
-    b = make_vec(d, COMM)
-    tmp = b.duplicate()
-    Fm.mult(lam_hat, tmp)
-    b.axpy(-1.0, tmp)
-    Projector(con).apply(b, b)
-    lb = make_vec(lower - gather(lam_hat), COMM)
-    qp = QP.create(projected_operator(Fm, con), b, lb=lb, eq=con)
-    weight = np.linspace(0.5, 2.0, n)[slice(*b.getOwnershipRange())]
+    A, b, con, lh = projected_feti_qp(make_mat(F, COMM), G, e, d)
+    qp = QP.create(A, b, lb=make_vec(lower - lh, COMM), eq=con)
+    weight = np.linspace(0.5, 2.0, len(d))[slice(*b.getOwnershipRange())]
     test = MaxGradientTest(weight, 1e-8 * b.norm(), COMM.tompi4py(), 1e-9 * b.norm())
     res = SMALBE(M=Absolute(1.0), rho=Absolute(10.0)).solve(qp, b.duplicate(), test=test)
     assert res.converged and res.outer_iterations > 1
