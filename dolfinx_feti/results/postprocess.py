@@ -17,8 +17,10 @@ Files are written atomically: to a temporary name in the target folder, renamed 
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
+import threading
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -203,12 +205,38 @@ def pressure_profile(solution, contact: int = 0, along: str = "x"
     return coord[order], data.pressure[order]
 
 
+@functools.cache
+def _matplotlib() -> tuple[type, type]:
+    """matplotlib's ``Figure`` and ``FigureCanvasAgg``, imported the first time on a thread.
+
+    The first import of matplotlib leaves reference cycles (the exceptions its mathtext
+    grammar raises while pyparsing builds it, with their tracebacks) whose frames reach every
+    caller's frame and locals through ``f_back``: a plot made after a solve would keep the
+    Solutions and their PETSc objects until each rank's cyclic collector runs, at its own
+    moment (tests/feti/test_reference_cycles.py). A thread's first frame has no caller.
+    """
+    loaded: dict = {}
+
+    def load() -> None:
+        try:
+            from matplotlib.backends.backend_agg import FigureCanvasAgg
+            from matplotlib.figure import Figure
+            loaded["classes"] = Figure, FigureCanvasAgg
+        except BaseException as e:  # re-raised on the caller's thread
+            loaded["error"] = e
+
+    thread = threading.Thread(target=load, name="dolfinx_feti-import-matplotlib")
+    thread.start()
+    thread.join()
+    if "error" in loaded:
+        raise loaded.pop("error")
+    return loaded["classes"]
+
+
 def plot_pressure(solution, path: str | os.PathLike, contact: int = 0, along: str = "x",
                   title: str | None = None) -> None:
     """Write a PNG plot of the contact pressure along a contact surface (call on one rank)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
+    Figure, FigureCanvasAgg = _matplotlib()
     s, p = pressure_profile(solution, contact, along)
     spec = solution.problem.contact[contact]
     group = getattr(spec, "slave", None) or spec.group
