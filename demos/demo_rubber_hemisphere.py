@@ -29,6 +29,7 @@ import dolfinx_feti as df
 from dolfinx_feti.io.meshes_rubber import quarter_hemisphere
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests" / "support"))
+from rubber_cases import hemisphere_bounds  # noqa: E402
 from snes_vi import match, neo_hookean, snes_vi  # noqa: E402
 
 parser = argparse.ArgumentParser(description=__doc__)
@@ -81,20 +82,13 @@ for s, u in zip(sols, nodal, strict=True):
 # ## The reference: SNES VI on the same energy and mesh (rank 0)
 #
 # The same load steps; the Dirichlet values are equal bounds, the plane a lower bound on
-# $u_z$; the plane's force is the residual $\partial\Pi/\partial u$ at the nodes that touch
-# it. Compared at the last step.
+# $u_z$ (`hemisphere_bounds`, shared with the tests); the plane's force is the residual
+# $\partial\Pi/\partial u$ at the nodes that touch it. Compared at the last step.
 
 # +
-def fixed(X, comp, load):
-    top = (comp == 2) & (np.abs(X[:, 2]) < 1e-12)
-    sym = ((comp == 0) & (np.abs(X[:, 0]) < 1e-12)) | ((comp == 1) & (np.abs(X[:, 1]) < 1e-12))
-    m = top | sym
-    return m, np.where(top, -load, 0.0)[m]
-
-
 summary = None
 if comm.rank == 0:
-    Xr, Ur, Rr, its = snes_vi(mesh, neo_hookean(mu, lmbda), fixed, -R, loads)
+    Xr, Ur, Rr, its = snes_vi(mesh, neo_hookean(mu, lmbda), hemisphere_bounds, -R, loads)
     touching = Xr[:, 2] + Ur[:, 2] + R < 1e-9
     ref_force = float(Rr[touching, 2].sum())
     ref_u = Ur[match(Xr, mesh.x)]
