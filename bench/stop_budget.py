@@ -24,10 +24,8 @@ is unchanged):
   pass (``kkt_stop.SAFETY`` 1 instead of 0.5);
 - ``keep_m``: the current bound, and a run after a failed check starts SMALBE from the inner
   precision factor M the run before ended with (not from the option's M);
-- ``force_bound``: the current bound of ‖G̃x‖, and the bound of the gradient also in force
-  units on the contact rows, ``U max_i k_i |g^P_i| / scale_i / max(max|λ|, ‖f‖∞)`` (``k_i``
-  the row's stiffness of ``violation_force``, λ = λ̂ + x of the iterate) against the same
-  ``θ rtol U`` (history § 31: it pays on 2D Hertz, not adopted).
+- ``lengths``: the gradient bound in lengths only (the library before history § 33: no force
+  part on the contact rows, ``kkt_stop.KKTStop.forces`` None; the before of § 33).
 
 Run: ``python bench/stop_budget.py`` (seconds; ``--problems hertz --methods fetidp --rtols
 1e-6 --trace`` prints every outer iteration, ``--units`` with it the unit of each iterate's
@@ -50,8 +48,6 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 import dolfinx_feti as df
-from dolfinx_feti.constraints.rows import Kind
-from dolfinx_feti.qp import MaxGradientTest
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -59,7 +55,7 @@ sys.path.insert(0, str(HERE))
 import rtol_accuracy as RA  # noqa: E402  (its problems)
 
 KS = importlib.import_module("dolfinx_feti.drivers.kkt_stop")
-VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m", "force_bound")
+VARIANTS = ("current", "force", "none", "exact", "safety1", "keep_m", "lengths")
 SM = importlib.import_module("dolfinx_feti.qp.smalbe")
 QS = importlib.import_module("dolfinx_feti.drivers.qp_solve")
 
@@ -96,21 +92,13 @@ def install(variant: str) -> None:
             runs_init(self, *args, **kwargs)
         SM._SMALBESolve.__init__, SM._SMALBESolve._result = start_m, end_m
         QS._KKTRuns.__init__ = new_solve
-    if variant == "force_bound":
+    if variant == "lengths":
         init = stop.__init__
 
-        def with_forces(self, qp, *args, **kwargs):
+        def lengths_only(self, qp, *args, **kwargs):
             init(self, qp, *args, **kwargs)
-            self.forces = _force_data(qp) if getattr(qp.system, "K", None) is not None \
-                else None
-
-        def force_test(self, loosen: float = 1.0):
-            floor = KS.ROUND_OFF * np.finfo(float).eps * self.eq_unit_max * self.Lam
-            tol, eq_tol = max(self.tol_g * loosen, floor), self.tol_e * loosen
-            self.test = MaxGradientTest(self.weight, tol, self.comm, eq_tol) \
-                if self.forces is None else ForceBound(self, tol, eq_tol)
-            return self.test
-        stop.__init__, stop.make_test = with_forces, force_test
+            self.forces = None
+        stop.__init__ = lengths_only
     if variant == "exact":
         init, accept = stop.__init__, stop.accept
 
@@ -137,41 +125,6 @@ def install(variant: str) -> None:
             self.tol_e = min(self.rtol * self.Lam, self.tol_g / self.eq_unit)
             return done
         stop.__init__, stop.accept = keep_qp, exact_unit
-
-
-class ForceBound(MaxGradientTest):
-    """The gradient bound in lengths and, on the contact rows, in forces; and ‖G̃x‖.
-
-    ``max(max_i w_i |g_i|, U / R max_i k_i w_i |g_i|) <= tol`` (``w = 1/scale``,
-    ``R = max(max_i |λ_i| scale_i, ‖f‖∞)`` of the iterate).
-    """
-
-    def __init__(self, stop, tol: float, eq_tol: float) -> None:
-        super().__init__(stop.weight, tol, stop.comm, eq_tol)
-        self.kw, self.scale, self.lam_hat, self.f_inf = stop.forces
-        self.U = stop.U
-
-    def __call__(self, gP: np.ndarray, x=None) -> bool:
-        g = np.abs(gP)
-        lam = 0.0 if x is None else float(
-            np.max(np.abs((self.lam_hat + x.array_r) * self.scale), initial=0.0))
-        both = np.empty(3)
-        self.comm.Allreduce(np.array([np.max(self.weight * g, initial=0.0),
-                                      np.max(self.kw * g, initial=0.0), lam]), both,
-                            op=MPI.MAX)
-        self.last = max(both[0], both[1] * self.U / max(both[2], self.f_inf, 1e-300))
-        return self.last <= self.tol
-
-
-def _force_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """``k_i / scale_i`` on the QP's contact rows (0 elsewhere), their scales, λ̂, ‖f‖∞."""
-    scale, kind, ineq = KS.row_data(qp)
-    rows = qp.row_index
-    system = qp.system
-    k = KS.row_stiffness(system, scale)[rows]  # violation_force's row stiffness
-    contact = (ineq & (kind != Kind.TANGENT))[rows]
-    return (np.where(contact, k / scale[rows], 0.0), scale[rows], qp.lam_hat.array_r.copy(),
-            system.f.norm(PETSc.NormType.INFINITY))
 
 
 def probe_units() -> None:

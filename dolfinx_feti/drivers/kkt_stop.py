@@ -28,7 +28,12 @@ bound — the projected gradient of the dual QP is, row by row, the violation ``
 primal solution its iterate implies (scaled by the row's ``scale``), so
 ``max_i |g^P_i| / scale_i <= θ rtol U`` (``U`` the displacement scale) bounds ``equality``,
 ``primal_feasibility`` and ``complementarity`` up to the term ``P F G̃ᵀG̃x`` of an iterate
-off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0), and
+off ker G̃ (SMALBE's; the QP's Hessian P F P does not see it, P G̃ᵀ = 0); on the contact rows
+the same gradient in force units, ``U max_i k_i |g^P_i| / scale_i / max(max|λ|, ‖f‖∞) <=
+θ rtol U`` (:class:`KKTGradientTest`, λ of the iterate), bounds ``violation_force`` (without
+it 15 of 16 first checks on docs/benchmarks.md § 19's problems passed the lengths and failed
+on the forces, and the bound aimed from that check over-solved the next run: history §§ 31,
+33); and
 ``‖G̃x‖ <= min(θ_e rtol Λ, θ rtol U / (‖PFP‖ max_i 1/scale_i))`` (``Λ`` a force scale) bounds
 that term and ``equilibrium``. That unit of ‖G̃x‖ is a worst case (the term's own unit
 ``max_i |(P F G̃ᵀ G̃x)_i| / scale_i / ‖G̃x‖`` measured 0.07–3.6 on 2D Hertz against 4–26), but
@@ -137,11 +142,16 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     # k_i |v_i| over-estimates by the number of rows (50× on 2D Hertz in 4 parts, 40 % more
     # F-multiplications for no gain in the contact forces); ``equality`` bounds it in lengths
     v = np.where(lam_phys > 0.0, viol, np.maximum(viol, 0.0))
-    v[~ineq | (kind == Kind.TANGENT)] = 0.0  # friction has residuals of its own
+    v[~_contact_rows(kind, ineq)] = 0.0  # friction has residuals of its own
     k = row_stiffness(system, scale)
     force = system.comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
     ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
     return force / ref
+
+
+def _contact_rows(kind: np.ndarray, ineq: np.ndarray) -> np.ndarray:
+    """The rows ``violation_force`` measures: the inequalities, friction's tangents not."""
+    return ineq & (kind != Kind.TANGENT)
 
 
 def row_stiffness(system, scale: np.ndarray) -> np.ndarray:
@@ -176,6 +186,20 @@ def row_data(qp) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return own.scale, own.kind, own.inequality
 
 
+def _force_bound(qp, scale: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """What :class:`KKTGradientTest` needs beyond the lengths (collective).
+
+    ``k_i / scale_i`` on the QP's contact rows (0 elsewhere), the rows' scales, λ̂ and ``‖f‖∞``.
+    """
+    _, kind, ineq = row_data(qp)
+    rows = qp.row_index
+    k = row_stiffness(qp.system, scale)[rows]
+    contact = _contact_rows(kind, ineq)[rows]
+    sc = scale[rows]
+    return (np.where(contact, k / sc, 0.0), sc, qp.lam_hat.array_r.copy(),
+            qp.system.f.norm(PETSc.NormType.INFINITY))
+
+
 #: The residuals measured in lengths against U (what the weighted gradient bounds).
 LENGTHS = ("primal_feasibility", "equality", "complementarity")
 
@@ -183,6 +207,58 @@ LENGTHS = ("primal_feasibility", "equality", "complementarity")
 def _lengths(kkt: dict[str, float]) -> float:
     """The largest residual of :data:`LENGTHS` (relative to U)."""
     return max(kkt.get(k, 0.0) for k in LENGTHS)
+
+
+class KKTGradientTest(MaxGradientTest):
+    """The bound of :class:`KKTStop`: lengths and, on the contact rows, forces (collective).
+
+    ``max(max_i w_i |g^P_i|, U / R max_i k_i w_i |g^P_i|) <= tol`` and ``‖G̃x‖ <= eq_tol``,
+    ``w_i = 1 / scale_i``. Row i's projected gradient is its violation ``v_i = w_i g^P_i`` (up
+    to the term of ‖G̃x‖), so the first part bounds the length residuals and the second
+    ``violation_force``, ``max_i k_i |v_i| / R`` with ``R = max(max_i |λ_i| scale_i, ‖f‖∞)`` of
+    the iterate (``λ = λ̂ + x``), brought to lengths by U (``tol`` is θ rtol U).
+
+    Args:
+        weight: ``w`` on the QP's rows.
+        force_weight: ``k_i w_i`` on the contact rows, 0 on the others.
+        scale: The QP's rows' scales.
+        lam_hat: Local array of λ̂ (the iterate is ``x = λ − λ̂``).
+        f_inf: ``‖f‖∞``.
+        U: The displacement scale.
+        tol: Tolerance of the weighted gradient (a length).
+        comm: The communicator of the rows.
+        eq_tol: Tolerance of ``‖G̃x‖``.
+
+    Attributes:
+        length, force: The two parts of :attr:`last` (lengths, and forces brought to lengths).
+    """
+
+    def __init__(self, weight: np.ndarray, force_weight: np.ndarray, scale: np.ndarray,
+                 lam_hat: np.ndarray, f_inf: float, U: float, tol: float, comm: MPI.Comm,
+                 eq_tol: float = math.inf) -> None:
+        super().__init__(weight, tol, comm, eq_tol)
+        self.force_weight, self.scale, self.lam_hat = force_weight, scale, lam_hat
+        self.f_inf, self.U = f_inf, U
+        self.length = self.force = math.inf
+
+    def __call__(self, gP: np.ndarray, x: PETSc.Vec | None = None) -> bool:
+        """Whether the bound holds for the local projected gradient ``gP`` at ``x``."""
+        g = np.abs(gP)
+        lam = 0.0 if x is None else float(
+            np.max(np.abs((self.lam_hat + x.array_r) * self.scale), initial=0.0))
+        local = np.array([np.max(self.weight * g, initial=0.0),
+                          np.max(self.force_weight * g, initial=0.0), lam])
+        both = np.empty(3)
+        self.comm.Allreduce(local, both, op=MPI.MAX)  # one reduction for the three
+        length, force, lam = (float(v) for v in both)
+        ref = max(lam, self.f_inf)
+        # no force yet (λ = 0, no load: a problem driven by its Dirichlet values): the force
+        # part cannot pass (a floor like 1e-300 instead made the value depend on the load's
+        # scale, and the QP solver's path with it)
+        self.force = force * self.U / ref if ref > 0 else (math.inf if force > 0 else 0.0)
+        self.length = length
+        self.last = max(self.length, self.force)
+        return self.last <= self.tol
 
 
 class KKTStop:
@@ -221,6 +297,8 @@ class KKTStop:
         self.eq_unit = self.eq_unit_max = max(qp.norm_A * w_max, 1e-300)
         self.tol_g = rtol * self.U
         self.tol_e = min(rtol * self.Lam, self.tol_g / self.eq_unit)
+        self.forces = _force_bound(qp, scale) if getattr(qp.system, "K", None) is not None \
+            else None  # a system without K has no violation_force to bound
         self.checks = 0
         self.stalled, self.flat = False, 0
         self.worst = math.inf
@@ -233,8 +311,10 @@ class KKTStop:
         ``loosen > 1`` asks for less accuracy (Coulomb's early fixed-point steps).
         """
         floor = ROUND_OFF * np.finfo(float).eps * self.eq_unit_max * self.Lam
-        self.test = MaxGradientTest(self.weight, max(self.tol_g * loosen, floor), self.comm,
-                                    self.tol_e * loosen)
+        tol, eq_tol = max(self.tol_g * loosen, floor), self.tol_e * loosen
+        self.test = MaxGradientTest(self.weight, tol, self.comm, eq_tol) \
+            if self.forces is None else KKTGradientTest(
+                self.weight, *self.forces, self.U, tol, self.comm, eq_tol)
         return self.test
 
     def rescale(self, u: PETSc.Vec, lam_qp: PETSc.Vec) -> None:
@@ -312,5 +392,5 @@ class KKTStop:
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTStop", "kkt_residuals", "row_data",
-           "row_stiffness"]
+__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop", "kkt_residuals",
+           "row_data", "row_stiffness"]

@@ -87,14 +87,26 @@ def blocks_problem(mesh, factor):
 
 
 def test_fixed_point_does_not_stall_on_scaled_loads(blocks):
-    sols = {f: df.solve(blocks_problem(blocks, f), rtol=RTOL) for f in (1.0, 0.2, 5.0)}
+    """Scaled by a power of 2 the solve is the same in floating point: the same steps.
+
+    Scaled by 0.2 or 5 it is the same only up to round-off, which the QP solver's active-set
+    decisions amplify: its gradient tests leave the scaled ones from the 9th on (history
+    § 33), and whether the second fixed-point step's QP, at the loose inner accuracy 1e-2,
+    takes 0 iterations (then g does not change, r = 0 and the fixed point goes straight to
+    the tight inner accuracy) or 1 decides 4 or 7 steps. Those scalings are checked on the
+    solution and for a stall (the stall took 46 steps).
+    """
+    factors = (1.0, 0.25, 4.0, 0.2, 5.0)
+    sols = {f: df.solve(blocks_problem(blocks, f), rtol=RTOL) for f in factors}
     steps = {f: s.report.extra["friction"]["fixed_point_steps"] for f, s in sols.items()}
     for f, s in sols.items():
         assert s.report.converged, s.report.summary()
         assert s.report.extra["friction"]["fixed_point_converged"]
         v = coulomb_violations(s, 0.3)
         assert max(v.values()) <= 1e-6, (f, v)
-    assert max(steps.values()) - min(steps.values()) <= 2, steps
+    exact = {f: (steps[f], sols[f].report.hessian_mults) for f in (1.0, 0.25, 4.0)}
+    assert len(set(exact.values())) == 1, exact
+    assert max(steps.values()) <= 2 * steps[1.0], steps
     u1 = sols[1.0].nodal_values()
     umax = np.abs(u1).max()
     for f in (0.2, 5.0):  # Coulomb's problem with zero gaps is positively homogeneous

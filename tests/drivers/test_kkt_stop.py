@@ -15,7 +15,13 @@ from petsc4py import PETSc
 
 import dolfinx_feti as df
 from dolfinx_feti.constraints.rows import Kind
-from dolfinx_feti.drivers.kkt_stop import KEYS, SAFETY, KKTStop, kkt_residuals
+from dolfinx_feti.drivers.kkt_stop import (
+    KEYS,
+    SAFETY,
+    KKTGradientTest,
+    KKTStop,
+    kkt_residuals,
+)
 from dolfinx_feti.io import meshes
 from dolfinx_feti.qp import MPRGP, QP, MaxGradientTest
 
@@ -133,6 +139,40 @@ def test_max_gradient_test_replaces_the_relative_one():
     assert res.converged and res.reason == "rtol" and test.last <= 1e-10
     exact = np.linalg.solve(A[:5, :5], np.ones(5))
     assert np.abs(x.array[:5] - exact).max() <= 1e-9 and x.array[5] == 0.0
+
+
+def test_gradient_bound_in_lengths_and_forces():
+    """max(max_i w_i |g_i|, U / R max_i k_i w_i |g_i|), R = max(max_i |λ̂_i + x_i| s_i, ‖f‖∞):
+    the lengths on every row, the forces on the contact rows only; a load scaled by a factor
+    scales the value by it; without any force (λ = 0, no load) the force part cannot pass."""
+    comm = MPI.COMM_SELF
+    w = np.array([0.5, 1.0, 2.0])  # 1 / scale
+    kw = np.array([0.0, 30.0, 0.0])  # row 1 the only contact row
+    scale, lam_hat, U = 1.0 / w, np.array([0.0, 1.0, -2.0]), 0.1
+    g = np.array([4e-3, 1e-4, -1e-3])
+    x = PETSc.Vec().createWithArray(np.array([0.0, 3.0, 0.0]), comm=comm)
+
+    def value(factor, f_inf=0.5):
+        test = KKTGradientTest(w, kw, scale, factor * lam_hat, factor * f_inf, factor * U,
+                               1.0, comm)
+        xs = x.copy()
+        xs.scale(factor)
+        test(factor * g, xs)
+        return test
+
+    test = value(1.0)
+    R = max(np.max(np.abs((lam_hat + x.array) * scale)), 0.5)  # 4 (row 1: (1 + 3) · 1)
+    assert test.length == pytest.approx(2e-3)
+    assert test.force == pytest.approx(U / R * 30.0 * 1e-4)
+    assert test.last == max(test.length, test.force) == pytest.approx(2e-3)
+    kw[1] = 3e3  # a stiff contact row: the force part decides
+    assert value(1.0).last == pytest.approx(U / R * 3e3 * 1e-4)
+    for factor in (0.2, 5.0):
+        assert value(factor).last == pytest.approx(factor * value(1.0).last, rel=1e-14)
+    none = KKTGradientTest(w, kw, scale, np.zeros(3), 0.0, U, 1.0, comm)
+    zero = PETSc.Vec().createWithArray(np.zeros(3), comm=comm)
+    assert not none(g, zero) and none.force == np.inf
+    assert none(np.zeros(3), zero)
 
 
 def test_violation_force_is_the_violation_times_the_rows_stiffness_in_series():
