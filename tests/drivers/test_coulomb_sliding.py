@@ -94,7 +94,7 @@ def test_fixed_point_does_not_stall_on_scaled_loads(blocks):
     § 33), and whether the second fixed-point step's QP, at the loose inner accuracy 1e-2,
     takes 0 iterations (then g does not change, r = 0 and the fixed point goes straight to
     the tight inner accuracy) or 1 decides 4 or 7 steps. Those scalings are checked on the
-    solution and for a stall (the stall took 46 steps).
+    solution and for a stall (at most two steps more than at 1; the stall took 46 steps).
     """
     factors = (1.0, 0.25, 4.0, 0.2, 5.0)
     sols = {f: df.solve(blocks_problem(blocks, f), rtol=RTOL) for f in factors}
@@ -106,7 +106,7 @@ def test_fixed_point_does_not_stall_on_scaled_loads(blocks):
         assert max(v.values()) <= 1e-6, (f, v)
     exact = {f: (steps[f], sols[f].report.hessian_mults) for f in (1.0, 0.25, 4.0)}
     assert len(set(exact.values())) == 1, exact
-    assert max(steps.values()) <= 2 * steps[1.0], steps
+    assert max(steps.values()) <= steps[1.0] + 2, steps  # fewer is no stall
     u1 = sols[1.0].nodal_values()
     umax = np.abs(u1).max()
     for f in (0.2, 5.0):  # Coulomb's problem with zero gaps is positively homogeneous
