@@ -220,9 +220,15 @@ class FetiSolver:
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
                          factors_of=old, dual_operator=self.options.dual_operator)
+        same = not self.comm.allreduce(old.b.getSizes() != qp.b.getSizes(), op=MPI.LOR)
         self._adopt(qp, rows)
         self._new_preconditioner()
-        self._forget_directions()  # of another F
+        if self.recycle is not None and same and self.options.mprgp_carry:
+            # rows of the same layout (a moved curved obstacle): F changed a little, the
+            # directions are kept as stale pairs; the next solve checks the change (qp.recycle)
+            self.recycle.carry()
+        else:
+            self._forget_directions()  # of another F
         self._mu = None  # the multiplier of another G̃
         self._new_case = True
 

@@ -35,6 +35,11 @@ from mpi4py import MPI
 GRAM_RTOL = 1e-10
 
 
+#: A store carried across a small change of the operator (:meth:`Recycle.carry`) is kept
+#: (stale) only if the newest stored direction's new product differs from its stored one by
+#: at most this fraction of it; else it is cleared as before.
+CARRY_RTOL = 1e-2
+
 #: Tries of the projected Galerkin expansion before their record decides
 #: (:meth:`Recycle.project_pays`).
 PROJECT_TRIES = 8
@@ -62,9 +67,15 @@ class Recycle:
         self._next = 0  # the column the next pair overwrites
         self._pending: list[tuple[np.ndarray, np.ndarray]] = []
         self._key: tuple | None = None
+        self._carry = False  # the next new key: keep the pairs, stale (:meth:`carry`)
+        self._old = np.zeros(self.k, dtype=bool)  # columns whose product is of an earlier A
+        self.checked = True  # the guard of a carried store was applied (:meth:`check`)
+        #: the relative change of the newest direction's product that :meth:`check` measured
+        self.change = 0.0
         #: Galerkin steps taken, and the directions they used; projected Galerkin expansions
         #: tried and kept (over the store's life, across clears).
-        self.stats = {"steps": 0, "directions": 0, "projections": 0, "projections_kept": 0}
+        self.stats = {"steps": 0, "directions": 0, "projections": 0, "projections_kept": 0,
+                      "carried": 0, "carry_refused": 0}
 
     def __len__(self) -> int:
         return self._filled
@@ -74,10 +85,12 @@ class Recycle:
         self._filled = self._next = 0
         self._pending.clear()
         self._key = None
+        self._carry, self.checked = False, True
         if self.k != self.base_k:
             self.k = self.base_k
             self._W = self._AW = None
             self._C = np.zeros((self.k, self.k))
+        self._old = np.zeros(self.k, dtype=bool)
 
     def grow(self, k: int) -> None:
         """Keep up to ``k`` pairs from now on (no fewer than now); the kept ones stay.
@@ -98,6 +111,9 @@ class Recycle:
             self._W, self._AW = W, AW
         C = np.zeros((k, k))
         C[:f, :f] = self._C[np.ix_(order, order)]
+        old = np.zeros(k, dtype=bool)
+        old[:f] = self._old[order]
+        self._old = old
         self._C, self.k, self._next = C, k, f
 
     def project_pays(self) -> bool:
@@ -129,8 +145,65 @@ class Recycle:
             a == b if isinstance(a, int | float) else a is b
             for a, b in zip(old, key, strict=True))
         if not same:
-            self.clear()
+            # only to a Hessian named by itself (MPRGP alone): not to SMALBE's inner Hessian
+            # A + ρG̃ᵀG̃, whose G̃ and ρ change too (docs/solvers.md)
+            carried = self._carry and old is not None and len(old) == len(key) == 1
+            if carried:
+                self._old[:self._filled] = True
+                self.checked = False
+            else:
+                self.clear()
+        self._carry = False
         self._key = key
+
+    def carry(self) -> None:
+        """The operator changes a little in place of the next one bound (same unknowns).
+
+        The next :meth:`bind` with another key (the same numbers, another Hessian object)
+        keeps the pairs as a stale store: their products are of the old operator. The solve
+        that binds it checks the change (:meth:`check`, one product) and its Galerkin steps
+        multiply their step by the new operator; its first :meth:`commit` drops the stale
+        pairs (the new ones are exact). Nothing to carry: as :meth:`clear`.
+        """
+        if self._filled == 0:
+            self.clear()
+            return
+        self._carry = True
+
+    @property
+    def stale(self) -> bool:
+        """Whether some stored products are of an earlier operator (:meth:`carry`)."""
+        return bool(self._old[:self._filled].any())
+
+    def newest(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last stored pair ``(w, A_old w)`` (views)."""
+        j = (self._next - 1) % self.k
+        return self._W[:, j], self._AW[:, j]
+
+    def check(self, Aw: np.ndarray, comm: MPI.Comm) -> bool:
+        """Keep the stale store if the newest direction's new product ``Aw`` is near its old.
+
+        ``‖A_new w − A_old w‖ <= CARRY_RTOL ‖A_old w‖`` (collective); else :meth:`clear`.
+        Returns whether the store was kept.
+        """
+        w, aw = self.newest()
+        d2, a2 = comm.allreduce(np.array([float((Aw - aw) @ (Aw - aw)), float(aw @ aw)]),
+                                op=MPI.SUM)
+        self.checked = True
+        self.change = math.sqrt(d2 / a2) if a2 > 0.0 else math.inf
+        if not d2 <= CARRY_RTOL ** 2 * a2:
+            self.stats["carry_refused"] += 1
+            self.clear()
+            return False
+        self.stats["carried"] += 1
+        j = (self._next - 1) % self.k
+        self._AW[:, j] = Aw
+        self._old[j] = False
+        f = self._filled
+        col = comm.allreduce(self._W[:, :f].T @ Aw, op=MPI.SUM)
+        self._C[:f, j] = col
+        self._C[j, :f] = col
+        return True
 
     def record(self, p: np.ndarray, Ap: np.ndarray) -> None:
         """Keep the pair ``(p, A p)`` (copied) when the solve ends (:meth:`commit`)."""
@@ -147,6 +220,7 @@ class Recycle:
         if self._W is None or self._W.shape[0] != n:
             self._W, self._AW = np.zeros((n, self.k)), np.zeros((n, self.k))
             self._filled = self._next = 0
+            self._old[:] = False
         # unit columns: the Gram matrix's eigenvalues then lie in A's spectrum for conjugate
         # directions, and GRAM_RTOL drops dependence, not the late CG directions' small norms
         norms = np.sqrt(comm.allreduce(np.array([float(w @ w) for w, _ in self._pending]),
@@ -157,6 +231,7 @@ class Recycle:
                 continue
             j = self._next
             self._W[:, j], self._AW[:, j] = w / nw, a / nw
+            self._old[j] = False
             self._next = (j + 1) % self.k
             self._filled = min(self._filled + 1, self.k)
             cols.append(j)
@@ -178,7 +253,8 @@ class Recycle:
         use = np.flatnonzero(comm.allreduce(bad, op=MPI.SUM) == 0)
         if use.size == 0:
             return None
-        return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm)
+        return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm,
+                     stale=bool(self._old[use].any()))
 
 
 class Basis:
@@ -189,8 +265,10 @@ class Basis:
     """
 
     def __init__(self, W: np.ndarray, AW: np.ndarray, C: np.ndarray, use: np.ndarray,
-                 comm: MPI.Comm) -> None:
+                 comm: MPI.Comm, stale: bool = False) -> None:
         self.W, self.AW, self.use, self.comm = W, AW, use, comm
+        #: ``AW`` and ``C`` are of an earlier operator (:meth:`Recycle.carry`)
+        self.stale = stale
         Cu = C[np.ix_(use, use)]
         lam, Q = np.linalg.eigh(0.5 * (Cu + Cu.T))
         keep = lam > GRAM_RTOL * max(float(lam[-1]), 0.0)
@@ -236,4 +314,4 @@ def galerkin_step(S, xa: np.ndarray, ga: np.ndarray, d: np.ndarray, Ad: np.ndarr
     return (t, t_min) if t > 0.0 else None
 
 
-__all__ = ["GRAM_RTOL", "PROJECT_TRIES", "Basis", "Recycle", "galerkin_step"]
+__all__ = ["CARRY_RTOL", "GRAM_RTOL", "PROJECT_TRIES", "Basis", "Recycle", "galerkin_step"]
