@@ -57,14 +57,6 @@ DRIFT_RTOL = 0.1
 # ||g^P|| stood at 1.25e-12 (|W^T phi| 9.3e-13) for 4 997 CG steps of length ~0 until max_it.
 # The face's CG then goes on undeflated (counts['undeflated']).
 DEFLATE_DESCENT = 0.5
-# A Galerkin step on stale pairs (a store carried across a small change of the operator,
-# :meth:`.recycle.Recycle.carry`) updates g with the old products A_old d: g then errs by
-# (A - A_old) d, taken as at most this times the relative change the store's guard measured
-# (one direction's) times |A_old d|; while these bounds sum to at most DRIFT_RTOL ||g^P||
-# no fresh gradient, and a stopping test is passed only on a fresh one. bench/reuse.py
-# --case sphere3d --cases 0 --method auto (before STALE_REFINES): 42 F-multiplications, 47
-# with the true product per Galerkin step (the same iterates).
-STALE_SAFETY = 10.0
 # A face started by a Galerkin step on stale pairs whose deflation loses the descent
 # (DEFLATE_DESCENT: the gradient lies in span W, which the inexact step could not clear) takes
 # the Galerkin step on them again, at most this many times a face, before CG goes on
@@ -124,7 +116,6 @@ class MPGPSolve:
         self.drift = np.zeros(n) if self.tangent else None
         self.drift_norm = 0.0
         self.gP = math.inf
-        self.stale_err = 0.0  # bound of g's error from stale products (Galerkin steps)
         # Krylov recycling (flat sets only: on circles the face is not a subspace)
         self.recycle = solver.recycle if not S.curved else None
         self.basis = None  # the recycled directions of this face; deflation on when set
@@ -143,7 +134,7 @@ class MPGPSolve:
             phi_a, phi2, beta2, gP, active = self.split()
             self.gP = gP
             reason = self.stopping(gP)
-            if reason is not None and (self.drift_norm > 0.0 or self.stale_err > 0.0):
+            if reason is not None and self.drift_norm > 0.0:
                 self.history.pop()  # tested again on the exact gradient
                 self.fresh_gradient()
                 continue
@@ -316,9 +307,11 @@ class MPGPSolve:
 
         ``x <- x + t d``, ``g <- g + t A d`` (no product), ``d`` the Galerkin correction on
         the stored directions that vanish on the active entries, ``t`` its minimizing length
-        cut at the boundary. With ``deflate`` (and an uncut step) the face's CG directions are
-        then kept A-conjugate to them. Returns whether ``x`` moved. ``basis``: the face's
-        (a stale one's refinement, :meth:`_deflate`), else the store's for ``active``.
+        cut at the boundary. On stale pairs (:meth:`.recycle.Recycle.carry`) ``c`` comes from
+        the old Gram matrix and ``A d`` is multiplied (one product). With ``deflate`` (and an
+        uncut step) the face's CG directions are then kept A-conjugate to them. Returns
+        whether ``x`` moved. ``basis``: the face's (a stale one's refinement,
+        :meth:`_deflate`), else the store's for ``active``.
         """
         if basis is None:
             self.refined = 0
@@ -330,17 +323,16 @@ class MPGPSolve:
         if dAd is None:
             return False
         d, Ad = dAd
+        if basis.stale:  # A W of the old operator: the step's own product (p is free here)
+            self.p.array[:] = d
+            self.mult(self.p, self.Ap)
+            Ad = self.Ap.array_r.copy()
         ts = galerkin_step(self.S, xa, ga, d, Ad, self.comm)
         if ts is None:
             return False
         t, t_min = ts
         self.x.array[:] = self.S.step(xa, -d, t)
         self.g.array[:] = ga + t * Ad
-        if basis.stale:  # g errs by t (A - A_old) d: bounded, a fresh gradient beyond
-            nAd = math.sqrt(self.comm.allreduce(float(Ad @ Ad)))
-            self.stale_err += STALE_SAFETY * self.recycle.change * t * nAd
-            if self.stale_err > DRIFT_RTOL * self.gP:
-                self.fresh_gradient()
         self.recycle.stats["steps"] += 1
         self.recycle.stats["directions"] += basis.m
         self.basis = basis if self.recycle.deflate and t >= t_min else None
@@ -458,7 +450,6 @@ class MPGPSolve:
         """``g = A x - b`` (one product)."""
         self.mult(self.x, self.g)
         self.g.axpy(-1.0, self.b)
-        self.stale_err = 0.0
         if self.drift is not None:
             self.drift[:] = 0.0
             self.drift_norm = 0.0
@@ -512,4 +503,4 @@ class MPGPSolve:
 
 
 __all__ = ["CURVATURE_RTOL", "CURVATURE_SCALE", "DEFLATE_DESCENT", "STALE_REFINES",
-           "STALE_SAFETY", "MPGPSolve"]
+           "MPGPSolve"]
