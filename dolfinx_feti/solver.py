@@ -211,7 +211,10 @@ class FetiSolver:
                 contact search: the next solve then starts cold).
 
         B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the
-        subdomain factorizations are kept.
+        subdomain factorizations are kept. The recycled CG directions are forgotten for rows
+        of another number; for rows of the same layout (``mprgp_carry``) they are kept as
+        stale pairs of the old F, which the next solve checks and uses
+        (:meth:`.qp.recycle.Recycle.carry`).
         """
         self._refuse_boundary_elements("update_rows")
         old = self.qp
