@@ -169,13 +169,14 @@ class Recycle:
         self._key = key
 
     def carry(self) -> None:
-        """The operator changes a little in place of the next one bound (same unknowns).
+        """The next operator bound is a slightly changed one on the same unknowns.
 
-        The next :meth:`bind` with another key (the same numbers, another Hessian object)
-        keeps the pairs as a stale store: their products are of the old operator. The solve
-        that binds it checks the change (:meth:`check`, one product) and its Galerkin steps
-        multiply their step by the new operator; its first :meth:`commit` drops the stale
-        pairs (the new ones are exact). Nothing to carry: as :meth:`clear`.
+        The next :meth:`bind` with another key of one Hessian object alone (MPRGP's; a key
+        with numbers, SMALBE's ``(A, ρ)``, clears as before) keeps the pairs as stale ones:
+        their products are of the old operator. The solve that binds it checks the change
+        (:meth:`check`, one product); its Galerkin steps on stale columns multiply their step
+        by the new operator; the pairs it records are exact and overwrite the oldest columns
+        (the stale ones first). Nothing stored: as :meth:`clear`.
         """
         if self._filled == 0:
             self.clear()
