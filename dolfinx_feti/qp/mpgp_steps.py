@@ -308,10 +308,11 @@ class MPGPSolve:
         ``x <- x + t d``, ``g <- g + t A d`` (no product), ``d`` the Galerkin correction on
         the stored directions that vanish on the active entries, ``t`` its minimizing length
         cut at the boundary. On stale pairs (:meth:`.recycle.Recycle.carry`) ``c`` comes from
-        the old Gram matrix and ``A d`` is multiplied (one product). With ``deflate`` (and an
-        uncut step) the face's CG directions are then kept A-conjugate to them. Returns
-        whether ``x`` moved. ``basis``: the face's (a stale one's refinement,
-        :meth:`_deflate`), else the store's for ``active``.
+        the old Gram matrix and ``A d`` is multiplied (one product); the pair ``(d, A d)``
+        then replaces the stale column of the largest weight (:meth:`.recycle.Recycle.swap`).
+        With ``deflate`` (and an uncut step) the face's CG directions are then kept
+        A-conjugate to them. Returns whether ``x`` moved. ``basis``: the face's (a stale
+        one's refinement, :meth:`_deflate`), else the store's for ``active``.
         """
         if basis is None:
             self.refined = 0
@@ -327,6 +328,10 @@ class MPGPSolve:
             self.p.array[:] = d
             self.mult(self.p, self.Ap)
             Ad = self.Ap.array_r.copy()
+            # the exact pair replaces the stale column of the largest weight (the span kept):
+            # the stale store turns exact where this solve's errors lie
+            if self.recycle.swap(basis.c, d, Ad, self.comm):
+                basis = self.recycle.basis(active, self.comm)
         ts = galerkin_step(self.S, xa, ga, d, Ad, self.comm)
         if ts is None:
             return False

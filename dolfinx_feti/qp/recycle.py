@@ -29,7 +29,8 @@ products are of the old operator. The next solve checks the change with one prod
 old Gram matrix and multiply their step by the new operator, its deflation is approximate
 (:mod:`.mpgp_steps`: refined by repeated Galerkin steps where it loses the descent). The new
 exact pairs go into the same ring (their Gram columns are exact; the stale ones, the oldest,
-are overwritten first); each column knows whether its product is stale.
+are overwritten first), and each Galerkin step's exact pair replaces the stale column of its
+largest weight (:meth:`Recycle.swap`); each column knows whether its product is stale.
 """
 
 from __future__ import annotations
@@ -48,8 +49,8 @@ GRAM_RTOL = 1e-10
 #: A store carried across a small change of the operator (:meth:`Recycle.carry`) is kept
 #: (stale) only if the newest stored direction's new product differs from its stored one by
 #: at most this fraction of it; else it is cleared as before. The moving sphere S3: 3e-4; a
-#: random QP of tests/qp (docs/benchmarks_history.md § 33) gained at 2.4e-3 (228 against 237
-#: products) and lost at 2.4e-2 (267 against 250).
+#: random QP of tests/qp (docs/benchmarks_history.md § 33) gained at 2.4e-3 (221 against 237
+#: products) and lost at 2.4e-2 (262 against 250).
 CARRY_RTOL = 1e-2
 
 #: Tries of the projected Galerkin expansion before their record decides
@@ -218,6 +219,32 @@ class Recycle:
         self._C[j, :f] = col
         return True
 
+    def swap(self, c: np.ndarray, d: np.ndarray, Ad: np.ndarray, comm: MPI.Comm) -> bool:
+        """Put the exact pair ``(d, A d)`` of a Galerkin step ``d = W c`` in the store.
+
+        It replaces the stale column ``j`` of the largest ``|c_j|`` (unit columns), so the span
+        stays (``c_j ≠ 0``) and one column more is exact, the one this solve's error needed
+        most; its Gram row and column are computed again (exact, ``f`` dot products). Returns
+        whether a column was replaced (collective). The 4-step moving sphere of
+        tests/drivers/test_krylov_recycle.py on DOLFINx 0.11's mesh: 56, 53, 51 →
+        55, 28, 30 F-multiplications (0.5.2's: 34, 27, 32 → 34, 27, 29; the moving sphere S3's
+        path 170 → 167).
+        """
+        f = self._filled
+        wgt = np.where(self._old[:f], np.abs(c[:f]), 0.0)
+        j = int(np.argmax(wgt))
+        if not wgt[j] > 0.0:
+            return False
+        nd = math.sqrt(comm.allreduce(float(d @ d), op=MPI.SUM))
+        if not nd > 0.0:
+            return False
+        self._W[:, j], self._AW[:, j] = d / nd, Ad / nd
+        self._old[j] = False
+        col = comm.allreduce(self._W[:, :f].T @ self._AW[:, j], op=MPI.SUM)
+        self._C[:f, j] = col
+        self._C[j, :f] = col
+        return True
+
     def record(self, p: np.ndarray, Ap: np.ndarray) -> None:
         """Keep the pair ``(p, A p)`` (copied) when the solve ends (:meth:`commit`)."""
         if self.k:
@@ -282,6 +309,7 @@ class Basis:
         self.W, self.AW, self.use, self.comm = W, AW, use, comm
         #: ``AW`` and ``C`` are of an earlier operator (:meth:`Recycle.carry`)
         self.stale = stale
+        self.c: np.ndarray | None = None  # the weights of the last Galerkin step
         Cu = C[np.ix_(use, use)]
         lam, Q = np.linalg.eigh(0.5 * (Cu + Cu.T))
         keep = lam > GRAM_RTOL * max(float(lam[-1]), 0.0)
@@ -303,6 +331,7 @@ class Basis:
         c = self._solve(-self.comm.allreduce(self.W.T @ g, op=MPI.SUM))
         if not np.all(np.isfinite(c)) or not np.any(c):
             return None
+        self.c = c  # the weights of the last step (Recycle.swap)
         return self.W @ c, self.AW @ c
 
     def conjugate(self, p: np.ndarray) -> np.ndarray:

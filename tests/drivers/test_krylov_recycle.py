@@ -224,5 +224,5 @@ def test_directions_carried_across_a_moving_obstacle(indented_cube):
     m_carried = [s.report.hessian_mults for s in carried]
     m_cleared = [s.report.hessian_mults for s in cleared]
     assert m_carried[0] == m_cleared[0]
-    # DOLFINx 0.5.2: 93 against 190; 0.11 (another mesh): 160 against 188
-    assert sum(m_carried[1:]) < 0.9 * sum(m_cleared[1:]), (m_carried, m_cleared)
+    # DOLFINx 0.5.2: 90 against 190; 0.11 (another mesh): 113 against 188
+    assert sum(m_carried[1:]) < 0.75 * sum(m_cleared[1:]), (m_carried, m_cleared)

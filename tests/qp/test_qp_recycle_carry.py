@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
+from mpi4py import MPI
 from qp_helpers import MPI_COMM, gather, kkt, make_mat, make_vec, membrane
 
 from dolfinx_feti.qp import MPRGP, QP
@@ -119,3 +120,31 @@ def test_carry_bookkeeping():
     rec.carry()
     rec.bind((other, 1.0))
     assert len(rec) == 0
+
+
+def test_swap_replaces_the_stale_column_of_the_largest_weight():
+    """A Galerkin step's exact pair takes the place of the stale column it weighs most; the
+    Gram matrix's row and column of it are the exact ones; exact columns are never replaced."""
+    n = 4
+    A_old, A_new = np.diag([1.0, 2.0, 3.0, 4.0]), np.diag([1.0, 2.0, 3.0, 4.4])
+    rec = Recycle(3)
+    rec.bind((object(),))
+    for w in (np.eye(n)[0] + np.eye(n)[3], np.eye(n)[1]):
+        w = w / np.sqrt(MPI_COMM.size)  # each rank holds the same rows: unit over the ranks
+        rec.record(w, A_old @ w)
+    rec.commit(MPI_COMM)
+    rec.carry()
+    rec.bind((object(),))
+    basis = rec.basis(np.zeros(n, dtype=bool), MPI_COMM)
+    assert basis.stale
+    c = np.array([2.0, 0.5])
+    d = basis.W @ c
+    assert rec.swap(c, d, A_new @ d, MPI_COMM)
+    basis = rec.basis(np.zeros(n, dtype=bool), MPI_COMM)
+    assert basis.stale  # column 1 still of A_old
+    W, AW = basis.W, basis.AW
+    assert np.allclose(W[:, 0], d / np.sqrt(MPI_COMM.allreduce(float(d @ d), op=MPI.SUM)))
+    assert np.allclose(AW[:, 0], A_new @ W[:, 0])
+    C = MPI_COMM.allreduce(W.T @ AW, op=MPI.SUM)
+    assert np.allclose(rec._C[:2, 0], C[:2, 0]) and np.allclose(rec._C[0, :2], C[:2, 0])
+    assert not rec.swap(np.array([1.0, 0.0]), d, A_new @ d, MPI_COMM)  # 0 is exact now
