@@ -21,16 +21,16 @@ e.g. SMALBE's ρ) and forgets everything when the key changes; a caller whose op
 in place (new constraint rows, a new stiffness) calls :meth:`Recycle.clear`. Memory: ``k``
 pairs of vectors (a caller may make room for more: :meth:`Recycle.grow`).
 
-A caller whose operator changes a little (a moving curved obstacle turns the contact rows:
-F = B K⁺ Bᵀ moves by ~the turn of the normals) calls :meth:`Recycle.carry` instead: the next
-key (a Hessian named by itself, not SMALBE's ``(A, ρ)``) keeps the pairs as *stale* ones, whose
-products are of the old operator. The next solve checks the change with one product
+A caller whose operator changes a little (a moving curved obstacle turns the contact rows: F = B
+K⁺ Bᵀ moves by ~the turn of the normals) calls :meth:`Recycle.carry` instead: the next key of
+the same form (the Hessian, or SMALBE's ``(A, ρ)`` whatever ρ) keeps the pairs as *stale* ones,
+whose products are of the old operator. The next solve checks the change with one product
 (:meth:`Recycle.check`, :data:`CARRY_RTOL`); its Galerkin steps take the coefficients from the
 old Gram matrix and multiply their step by the new operator, its deflation is approximate
 (:mod:`.mpgp_steps`: refined by repeated Galerkin steps where it loses the descent). The new
-exact pairs go into the same ring (their Gram columns are exact; the stale ones, the oldest,
-are overwritten first), and each Galerkin step's exact pair replaces the stale column of its
-largest weight (:meth:`Recycle.swap`); each column knows whether its product is stale.
+exact pairs go into the same ring (their Gram columns are exact; the stale ones, the oldest, are
+overwritten first), and each Galerkin step's exact pair replaces the stale column of its largest
+weight (:meth:`Recycle.swap`); each column knows whether its product is stale.
 """
 
 from __future__ import annotations
@@ -158,9 +158,9 @@ class Recycle:
             a == b if isinstance(a, int | float) else a is b
             for a, b in zip(old, key, strict=True))
         if not same:
-            # only to a Hessian named by itself (MPRGP alone): not to SMALBE's inner Hessian
-            # A + ρG̃ᵀG̃, whose G̃ and ρ change too (docs/solvers.md)
-            carried = self._carry and old is not None and len(old) == len(key) == 1
+            # to a key of the same form whatever its numbers (SMALBE's inner Hessian A + ρG̃ᵀG̃:
+            # G̃ changes with the rows and ρ with the new ‖A‖): the guard measures the change
+            carried = self._carry and old is not None and len(old) == len(key)
             if carried:
                 self._old[:self._filled] = True
                 self.checked = False
@@ -172,11 +172,11 @@ class Recycle:
     def carry(self) -> None:
         """The next operator bound is a slightly changed one on the same unknowns.
 
-        The next :meth:`bind` with another key of one Hessian object alone (MPRGP's; a key
-        with numbers, SMALBE's ``(A, ρ)``, clears as before) keeps the pairs as stale ones:
-        their products are of the old operator. The solve that binds it checks the change
-        (:meth:`check`, one product); its Galerkin steps on stale columns multiply their step
-        by the new operator; the pairs it records are exact and overwrite the oldest columns
+        The next :meth:`bind` with another key of the same form (MPRGP's Hessian, SMALBE's
+        ``(A, ρ)`` with another A and any ρ; a key of another form clears) keeps the pairs as
+        stale ones: their products are of the old operator. The solve that binds it checks the
+        change (:meth:`check`, one product); its Galerkin steps on stale columns multiply their
+        step by the new operator; the pairs it records are exact and overwrite the oldest columns
         (the stale ones first). Nothing stored: as :meth:`clear`.
         """
         if self._filled == 0:

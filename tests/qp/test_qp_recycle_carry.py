@@ -93,7 +93,7 @@ def test_large_change_clears_after_one_product():
 
 def test_carry_bookkeeping():
     """An empty store is not carried; a carried one is stale until its columns are replaced
-    by exact pairs; a key with a penalty (SMALBE's inner Hessian) is never carried."""
+    by exact pairs; a key of another form clears it."""
     rec = Recycle(2)
     rec.carry()
     rec.bind((object(),))
@@ -118,7 +118,10 @@ def test_carry_bookkeeping():
     rec.record(np.ones(3), np.ones(3))
     rec.commit(MPI_COMM)
     rec.carry()
-    rec.bind((other, 1.0))
+    rec.bind((other, 2.0))  # SMALBE's inner Hessian with a new penalty: carried, the guard
+    assert len(rec) == 1 and rec.stale  # measures the whole change
+    rec.carry()
+    rec.bind((op,))  # a key of another form: cleared
     assert len(rec) == 0
 
 
