@@ -21,9 +21,10 @@ Run (one process): ``python bench/load_path.py --case hertz2d`` (seconds), ``--c
 ``output/bench/load_path_<case>.json``; prints a Markdown table.
 ``--reuse k`` keeps k CG directions (Krylov recycling, the default 80; ``--reuse 0``: the
 counts without it; ``--no-deflate``: its Galerkin steps only; ``--no-project``: no projected
-Galerkin expansion), ``--expansion``/``--alpha`` MPRGP's expansion step, in the warm and the
-cold solves alike. The JSON holds each step's step counts (CG, expansion, proportioning,
-Galerkin steps and projected Galerkin expansions) and KKT checks, warm and cold.
+Galerkin expansion; ``--no-carry``: a row update clears the directions),
+``--expansion``/``--alpha`` MPRGP's expansion step, in the warm and the cold solves alike.
+The JSON holds each step's step counts (CG, expansion, proportioning, Galerkin steps and
+projected Galerkin expansions) and KKT checks, warm and cold.
 """
 
 from __future__ import annotations

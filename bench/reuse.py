@@ -77,7 +77,8 @@ def b1(mesh, scale: float, H: float) -> df.ContactProblem:
 def add_recycle_arguments(ap: argparse.ArgumentParser) -> None:
     """The Krylov recycling's and MPRGP's expansion arguments, for warm and cold solves alike.
 
-    ``--reuse k``, ``--no-deflate``, ``--no-project``, ``--expansion``, ``--alpha``.
+    ``--reuse k``, ``--no-deflate``, ``--no-project``, ``--no-carry``, ``--expansion``,
+    ``--alpha``.
     """
     defaults = df.SolverOptions()
     ap.add_argument("--reuse", type=int, default=defaults.mprgp_reuse,
@@ -87,6 +88,9 @@ def add_recycle_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--no-project", dest="project", action="store_false",
                     help="with --reuse: expansions in recycled faces by MPRGP's own step only "
                          "(no projected Galerkin step)")
+    ap.add_argument("--no-carry", dest="carry", action="store_false",
+                    help="with --reuse: a row update (a moved curved obstacle) clears the "
+                         "recycled directions (no stale carry)")
     ap.add_argument("--expansion", default=defaults.mprgp_expansion,
                     help="MPRGP's expansion step: fixed, optimal or projcg")
     ap.add_argument("--alpha", default=defaults.mprgp_alpha,
@@ -96,7 +100,8 @@ def add_recycle_arguments(ap: argparse.ArgumentParser) -> None:
 def recycle_options(args: argparse.Namespace) -> dict:
     """The solver options of :func:`add_recycle_arguments`' arguments."""
     return {"mprgp_reuse": args.reuse, "mprgp_deflate": args.deflate,
-            "mprgp_project": args.project, "mprgp_expansion": args.expansion,
+            "mprgp_project": args.project, "mprgp_carry": args.carry,
+            "mprgp_expansion": args.expansion,
             "mprgp_alpha": args.alpha}
 
 

@@ -211,7 +211,10 @@ class FetiSolver:
                 contact search: the next solve then starts cold).
 
         B changes, so F, G, the coarse factor, ‖P F P‖ and the preconditioner are rebuilt; the
-        subdomain factorizations are kept.
+        subdomain factorizations are kept. The recycled CG directions are forgotten for rows
+        of another number; for rows of the same layout (``mprgp_carry``) they are kept as
+        stale pairs of the old F, which the next solve checks and uses
+        (:meth:`.qp.recycle.Recycle.carry`).
         """
         self._refuse_boundary_elements("update_rows")
         old = self.qp
@@ -220,9 +223,15 @@ class FetiSolver:
         qp = qp_of_share(self.problem, self._shared, self._data, factor=self.options.factor,
                          norm_rtol=self.options.norm_rtol, timer=self._timer,
                          factors_of=old, dual_operator=self.options.dual_operator)
+        same = not self.comm.allreduce(old.b.getSizes() != qp.b.getSizes(), op=MPI.LOR)
         self._adopt(qp, rows)
         self._new_preconditioner()
-        self._forget_directions()  # of another F
+        if self.recycle is not None and same and self.options.mprgp_carry:
+            # rows of the same layout (a moved curved obstacle): F changed a little, the
+            # directions are kept as stale pairs; the next solve checks the change (qp.recycle)
+            self.recycle.carry()
+        else:
+            self._forget_directions()  # of another F
         self._mu = None  # the multiplier of another G̃
         self._new_case = True
 

@@ -81,7 +81,11 @@ OPTIONS = OptionSet(
                    "recycled ones (deflated CG)"),
     project=Option(True, Flag(), "with reuse: an expansion in a face started by the Galerkin "
                    "step on the recycled directions first tries the projected Galerkin step "
-                   "(qp.expansion.GalerkinExpansion)"))
+                   "(qp.expansion.GalerkinExpansion)"),
+    carry=Option(True, Flag(), "with reuse: a FetiSolver's row update of the same layout (a "
+                 "moving curved obstacle) keeps the recycled directions as stale pairs of the "
+                 "old operator if one product shows a small change (qp.recycle.Recycle.carry); "
+                 "false: cleared"))
 
 
 class MPGP(QPSolver):
@@ -185,6 +189,10 @@ class MPGP(QPSolver):
             recycled directions started first tries the projected Galerkin step over them and
             the face's CG directions (:class:`.expansion.GalerkinExpansion`;
             ``-<prefix>mprgp_project``).
+        carry: With ``reuse``: whether the owner of the store keeps it across a small change
+            of the operator (:meth:`.recycle.Recycle.carry`; ``-<prefix>mprgp_carry``): read
+            by :class:`~dolfinx_feti.FetiSolver` at a row update; a caller of this solver
+            that changes its operator calls ``recycle.carry()`` itself.
         recycle: A :class:`.recycle.Recycle` store to use (and keep) instead of a new one
             (e.g. one owned by a FETI solver across its solvers); its ``k`` and ``deflate``
             win over ``reuse`` and ``deflate``.
@@ -210,7 +218,7 @@ class MPGP(QPSolver):
                  monitor: Callable[[int, float, str], None] | None = None,
                  options_prefix: str | None = None, reuse: int | None = None,
                  deflate: bool | None = None, project: bool | None = None,
-                 recycle: Recycle | None = None) -> None:
+                 carry: bool | None = None, recycle: Recycle | None = None) -> None:
         name = self.name
         if expansion is not None and expansion not in EXPANSIONS:
             raise ValueError(f"{name}: expansion must be one of {EXPANSIONS}, got {expansion!r}")
@@ -219,7 +227,7 @@ class MPGP(QPSolver):
         if alpha is not None and alpha not in ALPHAS:
             raise ValueError(f"{name}: alpha must be one of {ALPHAS}, got {alpha!r}")
         self._set_options(options_prefix, gamma=gamma, expansion=expansion, alpha=alpha,
-                          reuse=reuse, deflate=deflate, project=project)
+                          reuse=reuse, deflate=deflate, project=project, carry=carry)
         #: The recycled directions (kept across solves on one operator), or None.
         self.recycle = recycle if recycle is not None else \
             Recycle(self.reuse, deflate=self.deflate) if self.reuse else None

@@ -20,6 +20,17 @@ The operator must be the same: the store is bound to a key (the Hessian object a
 e.g. SMALBE's ρ) and forgets everything when the key changes; a caller whose operator changes
 in place (new constraint rows, a new stiffness) calls :meth:`Recycle.clear`. Memory: ``k``
 pairs of vectors (a caller may make room for more: :meth:`Recycle.grow`).
+
+A caller whose operator changes a little (a moving curved obstacle turns the contact rows: F = B
+K⁺ Bᵀ moves by ~the turn of the normals) calls :meth:`Recycle.carry` instead: the next key of
+the same form (the Hessian, or SMALBE's ``(A, ρ)`` whatever ρ) keeps the pairs as *stale* ones,
+whose products are of the old operator. The next solve checks the change with one product
+(:meth:`Recycle.check`, :data:`CARRY_RTOL`); its Galerkin steps take the coefficients from the
+old Gram matrix and multiply their step by the new operator, its deflation is approximate
+(:mod:`.mpgp_steps`: refined by repeated Galerkin steps where it loses the descent). The new
+exact pairs go into the same ring (their Gram columns are exact; the stale ones, the oldest, are
+overwritten first), and each Galerkin step's exact pair replaces the stale column of its largest
+weight (:meth:`Recycle.swap`); each column knows whether its product is stale.
 """
 
 from __future__ import annotations
@@ -34,6 +45,13 @@ from mpi4py import MPI
 # dependent.
 GRAM_RTOL = 1e-10
 
+
+#: A store carried across a small change of the operator (:meth:`Recycle.carry`) is kept
+#: (stale) only if the newest stored direction's new product differs from its stored one by
+#: at most this fraction of it; else it is cleared as before. The moving sphere S3: 3e-4; a
+#: random QP of tests/qp (docs/benchmarks_history.md § 34) gained at 2.4e-3 (221 against 237
+#: products) and lost at 2.4e-2 (262 against 250).
+CARRY_RTOL = 1e-2
 
 #: Tries of the projected Galerkin expansion before their record decides
 #: (:meth:`Recycle.project_pays`).
@@ -62,9 +80,15 @@ class Recycle:
         self._next = 0  # the column the next pair overwrites
         self._pending: list[tuple[np.ndarray, np.ndarray]] = []
         self._key: tuple | None = None
+        self._carry = False  # the next new key: keep the pairs, stale (:meth:`carry`)
+        self._old = np.zeros(self.k, dtype=bool)  # columns whose product is of an earlier A
+        self.checked = True  # the guard of a carried store was applied (:meth:`check`)
+        #: the relative change of the newest direction's product that :meth:`check` measured
+        self.change = 0.0
         #: Galerkin steps taken, and the directions they used; projected Galerkin expansions
         #: tried and kept (over the store's life, across clears).
-        self.stats = {"steps": 0, "directions": 0, "projections": 0, "projections_kept": 0}
+        self.stats = {"steps": 0, "directions": 0, "projections": 0, "projections_kept": 0,
+                      "carried": 0, "carry_refused": 0}
 
     def __len__(self) -> int:
         return self._filled
@@ -74,10 +98,12 @@ class Recycle:
         self._filled = self._next = 0
         self._pending.clear()
         self._key = None
+        self._carry, self.checked = False, True
         if self.k != self.base_k:
             self.k = self.base_k
             self._W = self._AW = None
             self._C = np.zeros((self.k, self.k))
+        self._old = np.zeros(self.k, dtype=bool)
 
     def grow(self, k: int) -> None:
         """Keep up to ``k`` pairs from now on (no fewer than now); the kept ones stay.
@@ -98,6 +124,9 @@ class Recycle:
             self._W, self._AW = W, AW
         C = np.zeros((k, k))
         C[:f, :f] = self._C[np.ix_(order, order)]
+        old = np.zeros(k, dtype=bool)
+        old[:f] = self._old[order]
+        self._old = old
         self._C, self.k, self._next = C, k, f
 
     def project_pays(self) -> bool:
@@ -129,8 +158,92 @@ class Recycle:
             a == b if isinstance(a, int | float) else a is b
             for a, b in zip(old, key, strict=True))
         if not same:
-            self.clear()
+            # to a key of the same form whatever its numbers (SMALBE's inner Hessian A + ρG̃ᵀG̃:
+            # G̃ changes with the rows and ρ with the new ‖A‖): the guard measures the change
+            carried = self._carry and old is not None and len(old) == len(key)
+            if carried:
+                self._old[:self._filled] = True
+                self.checked = False
+            else:
+                self.clear()
+        self._carry = False
         self._key = key
+
+    def carry(self) -> None:
+        """The next operator bound is a slightly changed one on the same unknowns.
+
+        The next :meth:`bind` with another key of the same form (MPRGP's Hessian, SMALBE's
+        ``(A, ρ)`` with another A and any ρ; a key of another form clears) keeps the pairs as
+        stale ones: their products are of the old operator. The solve that binds it checks the
+        change (:meth:`check`, one product); its Galerkin steps on stale columns multiply their
+        step by the new operator; the pairs it records are exact and overwrite the oldest columns
+        (the stale ones first). Nothing stored: as :meth:`clear`.
+        """
+        if self._filled == 0:
+            self.clear()
+            return
+        self._carry = True
+
+    @property
+    def stale(self) -> bool:
+        """Whether some stored products are of an earlier operator (:meth:`carry`)."""
+        return bool(self._old[:self._filled].any())
+
+    def newest(self) -> tuple[np.ndarray, np.ndarray]:
+        """The last stored pair ``(w, A_old w)`` (views)."""
+        j = (self._next - 1) % self.k
+        return self._W[:, j], self._AW[:, j]
+
+    def check(self, Aw: np.ndarray, comm: MPI.Comm) -> bool:
+        """Keep the stale store if the newest direction's new product ``Aw`` is near its old.
+
+        ``‖A_new w − A_old w‖ <= CARRY_RTOL ‖A_old w‖`` (collective); else :meth:`clear`.
+        Returns whether the store was kept.
+        """
+        w, aw = self.newest()
+        d2, a2 = comm.allreduce(np.array([float((Aw - aw) @ (Aw - aw)), float(aw @ aw)]),
+                                op=MPI.SUM)
+        self.checked = True
+        self.change = math.sqrt(d2 / a2) if a2 > 0.0 else math.inf
+        if not d2 <= CARRY_RTOL ** 2 * a2:
+            self.stats["carry_refused"] += 1
+            self.clear()
+            return False
+        self.stats["carried"] += 1
+        j = (self._next - 1) % self.k
+        self._AW[:, j] = Aw
+        self._old[j] = False
+        f = self._filled
+        col = comm.allreduce(self._W[:, :f].T @ Aw, op=MPI.SUM)
+        self._C[:f, j] = col
+        self._C[j, :f] = col
+        return True
+
+    def swap(self, c: np.ndarray, d: np.ndarray, Ad: np.ndarray, comm: MPI.Comm) -> bool:
+        """Put the exact pair ``(d, A d)`` of a Galerkin step ``d = W c`` in the store.
+
+        It replaces the stale column ``j`` of the largest ``|c_j|`` (unit columns), so the span
+        stays (``c_j ≠ 0``) and one column more is exact, the one this solve's error needed
+        most; its Gram row and column are computed again (exact, ``f`` dot products). Returns
+        whether a column was replaced (collective). The 4-step moving sphere of
+        tests/drivers/test_krylov_recycle.py on DOLFINx 0.11's mesh: 56, 53, 51 →
+        55, 28, 30 F-multiplications (0.5.2's: 34, 27, 32 → 34, 27, 29; the moving sphere S3's
+        path 170 → 167).
+        """
+        f = self._filled
+        wgt = np.where(self._old[:f], np.abs(c[:f]), 0.0)
+        j = int(np.argmax(wgt))
+        if not wgt[j] > 0.0:
+            return False
+        nd = math.sqrt(comm.allreduce(float(d @ d), op=MPI.SUM))
+        if not nd > 0.0:
+            return False
+        self._W[:, j], self._AW[:, j] = d / nd, Ad / nd
+        self._old[j] = False
+        col = comm.allreduce(self._W[:, :f].T @ self._AW[:, j], op=MPI.SUM)
+        self._C[:f, j] = col
+        self._C[j, :f] = col
+        return True
 
     def record(self, p: np.ndarray, Ap: np.ndarray) -> None:
         """Keep the pair ``(p, A p)`` (copied) when the solve ends (:meth:`commit`)."""
@@ -147,6 +260,7 @@ class Recycle:
         if self._W is None or self._W.shape[0] != n:
             self._W, self._AW = np.zeros((n, self.k)), np.zeros((n, self.k))
             self._filled = self._next = 0
+            self._old[:] = False
         # unit columns: the Gram matrix's eigenvalues then lie in A's spectrum for conjugate
         # directions, and GRAM_RTOL drops dependence, not the late CG directions' small norms
         norms = np.sqrt(comm.allreduce(np.array([float(w @ w) for w, _ in self._pending]),
@@ -157,6 +271,7 @@ class Recycle:
                 continue
             j = self._next
             self._W[:, j], self._AW[:, j] = w / nw, a / nw
+            self._old[j] = False
             self._next = (j + 1) % self.k
             self._filled = min(self._filled + 1, self.k)
             cols.append(j)
@@ -178,7 +293,8 @@ class Recycle:
         use = np.flatnonzero(comm.allreduce(bad, op=MPI.SUM) == 0)
         if use.size == 0:
             return None
-        return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm)
+        return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm,
+                     stale=bool(self._old[use].any()))
 
 
 class Basis:
@@ -189,8 +305,11 @@ class Basis:
     """
 
     def __init__(self, W: np.ndarray, AW: np.ndarray, C: np.ndarray, use: np.ndarray,
-                 comm: MPI.Comm) -> None:
+                 comm: MPI.Comm, stale: bool = False) -> None:
         self.W, self.AW, self.use, self.comm = W, AW, use, comm
+        #: ``AW`` and ``C`` are of an earlier operator (:meth:`Recycle.carry`)
+        self.stale = stale
+        self.c: np.ndarray | None = None  # the weights of the last Galerkin step
         Cu = C[np.ix_(use, use)]
         lam, Q = np.linalg.eigh(0.5 * (Cu + Cu.T))
         keep = lam > GRAM_RTOL * max(float(lam[-1]), 0.0)
@@ -212,6 +331,7 @@ class Basis:
         c = self._solve(-self.comm.allreduce(self.W.T @ g, op=MPI.SUM))
         if not np.all(np.isfinite(c)) or not np.any(c):
             return None
+        self.c = c  # the weights of the last step (Recycle.swap)
         return self.W @ c, self.AW @ c
 
     def conjugate(self, p: np.ndarray) -> np.ndarray:
@@ -236,4 +356,4 @@ def galerkin_step(S, xa: np.ndarray, ga: np.ndarray, d: np.ndarray, Ad: np.ndarr
     return (t, t_min) if t > 0.0 else None
 
 
-__all__ = ["GRAM_RTOL", "PROJECT_TRIES", "Basis", "Recycle", "galerkin_step"]
+__all__ = ["CARRY_RTOL", "GRAM_RTOL", "PROJECT_TRIES", "Basis", "Recycle", "galerkin_step"]

@@ -246,3 +246,14 @@ def scaled(A, rng: np.random.Generator, decades: float = 2.0):
     if sp.issparse(A):
         return (sp.diags(s) @ A @ sp.diags(s)).tocsr()
     return (A * s[:, None]) * s[None, :]
+
+
+def membrane(m: int) -> tuple[sp.csr_matrix, np.ndarray]:
+    """The 5-point Laplacian of an ``m × m`` grid (held on its boundary) and a paraboloid
+    obstacle below it: pushed down by a growing uniform load, the contact zone grows by rings
+    of nodes, as a contact zone on a load path."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    A = (sp.kron(sp.identity(m), T) + sp.kron(T, sp.identity(m))).tocsr() * (m + 1) ** 2
+    t = np.arange(1, m + 1) / (m + 1)
+    X, Y = np.meshgrid(t, t)
+    return A, (-0.05 - 2.0 * ((X - 0.5) ** 2 + (Y - 0.5) ** 2)).ravel()

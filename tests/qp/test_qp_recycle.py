@@ -18,6 +18,7 @@ from qp_helpers import (
     kkt,
     make_mat,
     make_vec,
+    membrane,
     ownership,
     random_spd,
     ref_box,
@@ -162,17 +163,6 @@ def test_smalbe_inner_solves_share_directions():
     assert np.linalg.norm(D @ x_w) <= 1e-7 * np.linalg.norm(x_c)
     assert res_w.hessian_mults < res_c.hessian_mults, (res_w.hessian_mults,
                                                        res_c.hessian_mults)
-
-
-def membrane(m: int) -> tuple[sp.csr_matrix, np.ndarray]:
-    """The 5-point Laplacian of an ``m × m`` grid (held on its boundary) and a paraboloid
-    obstacle below it: pushed down by a growing uniform load, the contact zone grows by rings
-    of nodes, as a contact zone on a load path."""
-    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
-    A = (sp.kron(sp.identity(m), T) + sp.kron(T, sp.identity(m))).tocsr() * (m + 1) ** 2
-    t = np.arange(1, m + 1) / (m + 1)
-    X, Y = np.meshgrid(t, t)
-    return A, (-0.05 - 2.0 * ((X - 0.5) ** 2 + (Y - 0.5) ** 2)).ravel()
 
 
 def obstacle_path(project: bool, steps: int = 5, m: int = 32):

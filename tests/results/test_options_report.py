@@ -58,6 +58,7 @@ DEFAULTS = {"rtol": 1e-6, "stop_test": "kkt", "eq_rtol": None, "max_it": 5000, "
             "smalbe_rho": 1.1, "smalbe_M": 1.0, "smalbe_eta": None, "smalbe_beta": 2.0,
             "norm_rtol": 1e-4, "verbose": 0, "mprgp_alpha": "fixed",
             "mprgp_reuse": 80, "mprgp_deflate": True, "mprgp_project": True,
+            "mprgp_carry": True,
             "preconditioner": "lumped",
             "qp": "auto", "penalty_rho": 1e3, "smalbe_acceleration": "auto",
             "preconditioner_scaling": "stiffness",
