@@ -307,7 +307,7 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
          b_norm: float | None = None, g: PETSc.Vec | None = None, g_valid: bool = False,
          preconditioner=None, alpha: str = "fixed", face: str = "tangent",
          proportioning: str = "projection", name: str = "mpgp", reuse: int = 80,
-         deflate: bool = True, project: bool = True) -> QPResult:
+         deflate: bool = True, project: bool = True, carry: bool = True) -> QPResult:
     """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` and the discs (collective).
 
     The function form of :class:`MPGP`: ``MPGP(...).solve(QP.create(A, b, lb=lb, ub=ub,
@@ -317,7 +317,8 @@ def mpgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None,
     """
     solver = MPGP(rtol=rtol, atol=atol, max_it=max_it, gamma=gamma, expansion=expansion,
                   alpha=alpha, alpha_bar=alpha_bar, face=face, proportioning=proportioning,
-                  monitor=monitor, reuse=reuse, deflate=deflate, project=project)
+                  monitor=monitor, reuse=reuse, deflate=deflate, project=project,
+                  carry=carry)
     solver.name = name
     qp = QP.create(A, b, lb=lb, ub=ub, discs=discs, norm_A=norm_A, preconditioner=preconditioner)
     return solver.solve(qp, x, stop=stop, b_norm=b_norm, g=g, g_valid=g_valid)

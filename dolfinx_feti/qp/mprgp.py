@@ -44,16 +44,17 @@ def mprgp(A: PETSc.Mat, b: PETSc.Vec, x: PETSc.Vec, *, lb=None, ub=None, rtol: f
           monitor: Callable[[int, float, str], None] | None = None,
           b_norm: float | None = None, g: PETSc.Vec | None = None,
           g_valid: bool = False, preconditioner=None, alpha: str = "fixed", reuse: int = 80,
-          deflate: bool = True, project: bool = True) -> QPResult:
+          deflate: bool = True, project: bool = True, carry: bool = True) -> QPResult:
     """Solve ``min 1/2 x^T A x - b^T x`` s.t. ``lb <= x <= ub`` by MPRGP (collective).
 
     The function form of :class:`MPRGP` (see :class:`.mpgp.MPGP` for the arguments, the steps,
     the counts and the result); ``reuse`` recycles CG directions within this one solve
-    (``deflate``, ``project`` as there).
+    (``deflate``, ``project`` as there; ``carry`` is accepted with the option set and has
+    nothing to carry across in one solve).
     """
     solver = MPRGP(rtol=rtol, atol=atol, max_it=max_it, gamma=gamma, expansion=expansion,
                    alpha=alpha, alpha_bar=alpha_bar, monitor=monitor, reuse=reuse,
-                   deflate=deflate, project=project)
+                   deflate=deflate, project=project, carry=carry)
     qp = QP.create(A, b, lb=lb, ub=ub, norm_A=norm_A, preconditioner=preconditioner)
     return solver.solve(qp, x, stop=stop, b_norm=b_norm, g=g, g_valid=g_valid)
 
