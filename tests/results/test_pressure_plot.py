@@ -17,8 +17,8 @@ from cli_helpers import PROBLEMS, ROOT
 
 SCRIPT = textwrap.dedent("""
     import gc, sys
+    from dolfinx_feti.cli import main  # first: it loads MPI before PETSc (0.11's wheels)
     from petsc4py import PETSc
-    from dolfinx_feti.cli import main
     assert "matplotlib" not in sys.modules
     gc.collect()
     gc.disable()
