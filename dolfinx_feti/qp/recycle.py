@@ -212,11 +212,7 @@ class Recycle:
         self.stats["carried"] += 1
         j = (self._next - 1) % self.k
         self._AW[:, j] = Aw
-        self._old[j] = False
-        f = self._filled
-        col = comm.allreduce(self._W[:, :f].T @ Aw, op=MPI.SUM)
-        self._C[:f, j] = col
-        self._C[j, :f] = col
+        self._exact(j, comm)
         return True
 
     def swap(self, c: np.ndarray, d: np.ndarray, Ad: np.ndarray, comm: MPI.Comm) -> bool:
@@ -239,11 +235,16 @@ class Recycle:
         if not nd > 0.0:
             return False
         self._W[:, j], self._AW[:, j] = d / nd, Ad / nd
+        self._exact(j, comm)
+        return True
+
+    def _exact(self, j: int, comm: MPI.Comm) -> None:
+        """Column ``j``'s product is now of the current operator: its Gram row and column."""
         self._old[j] = False
+        f = self._filled
         col = comm.allreduce(self._W[:, :f].T @ self._AW[:, j], op=MPI.SUM)
         self._C[:f, j] = col
         self._C[j, :f] = col
-        return True
 
     def record(self, p: np.ndarray, Ap: np.ndarray) -> None:
         """Keep the pair ``(p, A p)`` (copied) when the solve ends (:meth:`commit`)."""
