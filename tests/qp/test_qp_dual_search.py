@@ -161,7 +161,11 @@ def _ridge_solve(acceleration: str):
 
 
 def test_smalbe_search_cuts_the_stagnating_outer_loop():
-    """'search' against 'aitken' on the ridge QP: far fewer outer iterations, the same KKT point."""
+    """'search' against 'aitken' on the ridge QP: far fewer outer iterations, the same KKT point.
+
+    Measured: 30 outer iterations against 159 ('none' 246; the search without its corrections
+    of the direction 76).
+    """
     A, b, lb, ub, D = ridge_qp()
     out = {}
     for acc in ("aitken", "search"):
