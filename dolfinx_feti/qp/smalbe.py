@@ -21,6 +21,7 @@ from petsc4py import PETSc
 from ..validation import Choice, Integer, Maybe, Option, OptionSet, Real
 from .aitken import Aitken
 from .anderson import Anderson
+from .dual_search import DualSearch
 from .equality import EqualityConstraint, penalized_operator
 from .mpgp import MPGP
 from .mprgp import MPRGP
@@ -33,7 +34,7 @@ from .solver import QPSolver
 _RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_it",
              "preconditioner")
 PRECONDITIONER_FORMS = ("projected", "plain")
-ACCELERATIONS = ("auto", "none", "anderson", "aitken")
+ACCELERATIONS = ("auto", "none", "anderson", "aitken", "search")
 #: The inner solvers of :func:`smalbe` by name.
 INNER = {"mprgp": MPRGP, "mpgp": MPGP}
 
@@ -52,8 +53,10 @@ OPTIONS = OptionSet(
                         "update μ += ρDx of the theory), 'anderson' (Anderson acceleration of "
                         "that update, memory reset when the active set changes), 'aitken' "
                         "(the plain update extrapolated where the residual keeps its direction "
-                        "and shrinks slowly) or 'auto' ('aitken' when the constraint set has "
-                        "discs, i.e. 3D friction, else 'anderson')"),
+                        "and shrinks slowly), 'search' (a safeguarded secant search of the dual "
+                        "along that direction, the factor growing while the residual keeps its "
+                        "sign) or 'auto' ('search' when the constraint set has discs, i.e. 3D "
+                        "friction, else 'anderson')"),
     depth=Option(3, Integer(ge=1, le=100), "the memory of the Anderson acceleration (number "
                  "of past updates)"),
     rho_growth=Option(None, Maybe(Real(ge=1)), "ρ is multiplied by this (up to rho_max) after "
@@ -140,14 +143,22 @@ class SMALBE(QPSolver):
             test are unchanged, and the returned multiplier is always the plain update of the
             final ``x``, i.e. the KKT multiplier). ``'aitken'``: the plain update, multiplied
             by ``min(1/(1 - q), 10)`` when ``D x`` kept its direction and shrank by the ratio
-            ``q`` in (0.5, 1) (:class:`.aitken.Aitken`). ``'auto'`` (default): ``'aitken'``
-            when the QP's set is curved (discs: 3D friction), else ``'anderson'``. With discs
-            near gross sliding Anderson's steps threw the multiplier far off on some loads
-            (‖Dx‖ up to 1e5, no convergence in 20 000 iterations on the coarse half punch of
+            ``q`` in (0.5, 1) (:class:`.aitken.Aitken`). ``'search'``: along the direction ``d``
+            of such a residual, a secant search for the root of ``d^T D x(mu + t d)`` (the
+            factor over the plain step doubled while the sign holds, the secant root on a
+            sign change; the plain update across ``d``; ``d`` corrected by the residual across
+            it and made conjugate to the last search that found its root:
+            :class:`.dual_search.DualSearch`). ``'auto'`` (default): ``'search'`` when the
+            QP's set is curved (discs: 3D friction), else ``'anderson'``. With discs near
+            gross sliding Anderson's steps threw the multiplier far off on some loads (‖Dx‖ up
+            to 1e5, no convergence in 20 000 iterations on the coarse half punch of
             tests/drivers/test_friction_symmetry.py at 0.7 and 0.99 𝓕N, tipped over by
             changing CURVATURE_SCALE by 2 %); the plain update converged on all, and its slow
             outer loops (‖Dx‖ −0.3 % per outer iteration over 150 of them on the punch at
-            0.9 𝓕N) are what the extrapolation cuts (bench/coulomb_sliding.py).
+            0.9 𝓕N) are what the extrapolation and the search cut (bench/coulomb_sliding.py:
+            the five loads of the full / half punch 5 758 / 7 465 F-mults with 'aitken',
+            5 253 / 6 867 with 'search'; DOLFINx 0.11's medium mesh at 0.99 𝓕N converged in
+            3 708 with 'search', not in 1 000 outer iterations with 'aitken').
         depth: Memory of the Anderson acceleration.
         rho_growth: After an outer iteration that left ``||D x||`` above :data:`SLOW_OUTER`
             times the one before, ``rho`` is multiplied by this, up to ``rho_max`` (None or 1:
@@ -300,9 +311,11 @@ class _SMALBESolve:
         acceleration = solver.acceleration
         if acceleration == "auto":
             curved = getattr(qp.constraints, "curved", False)
-            acceleration = "aitken" if curved else "anderson"
+            acceleration = "search" if curved else "anderson"
         self.anderson = Anderson(solver.depth) if acceleration == "anderson" else None
-        self.aitken = Aitken() if acceleration == "aitken" else None
+        #: The extrapolation of a slow outer loop along D x ('aitken', 'search') or None.
+        self.extrapolation = Aitken() if acceleration == "aitken" else \
+            DualSearch() if acceleration == "search" else None
         self.prev_active: np.ndarray | None = None
         self.history: list[dict] = []
         self.total_it, self.L_prev = 0, None
@@ -423,8 +436,8 @@ class _SMALBESolve:
         old.A.destroy()
         if self.anderson is not None:
             self.anderson.reset()
-        if self.aitken is not None:
-            self.aitken.reset()
+        if self.extrapolation is not None:
+            self.extrapolation.reset()
         self.L_prev = None
 
     def _update_multiplier(self, Dx: np.ndarray, res: QPResult, final: bool) -> None:
@@ -442,8 +455,8 @@ class _SMALBESolve:
                 self.anderson.reset()
             step = self.anderson.step(self.mu, step)
             self.prev_active = res.active.copy()
-        elif not final and self.aitken is not None:
-            step = self.aitken.step(Dx, step)
+        elif not final and self.extrapolation is not None:
+            step = self.extrapolation.step(Dx, step)
         self.mu += step
         self.D.mult_transpose(step, self.tmp)
         self.inner_qp.b.axpy(-1.0, self.tmp)

@@ -1,4 +1,4 @@
-"""The extrapolation of SMALBE's slow outer loop (qp/aitken.py) and its choice by 'auto'."""
+"""The extrapolation of SMALBE's slow outer loop (qp/aitken.py) and the choice of 'auto'."""
 
 from __future__ import annotations
 
@@ -56,10 +56,11 @@ def _smalbe_run(acceleration: str, discs: bool):
     return res.iterations, res.hessian_mults, gather(x)
 
 
-@pytest.mark.parametrize("discs, chosen", [(True, "aitken"), (False, "anderson")])
-def test_auto_takes_aitken_on_discs_and_anderson_otherwise(discs, chosen):
+@pytest.mark.parametrize("discs, chosen", [(True, "search"), (False, "anderson")])
+def test_auto_takes_search_on_discs_and_anderson_otherwise(discs, chosen):
+    """'auto' is 'search' (qp/dual_search.py) with discs, 'anderson' without."""
     it, mults, x = _smalbe_run("auto", discs)
     it_c, mults_c, x_c = _smalbe_run(chosen, discs)
     assert (it, mults) == (it_c, mults_c) and np.array_equal(x, x_c)
-    other = "anderson" if chosen == "aitken" else "aitken"
+    other = "anderson" if chosen == "search" else "search"
     assert _smalbe_run(other, discs)[:2] != (it, mults)  # the choice is visible in the counts

@@ -293,7 +293,7 @@ def _body_lines(fn: ast.FunctionDef) -> int:
 def test_solver_functions_are_short():
     """No function of the QP solvers is longer than 60 lines of code (docstrings aside)."""
     files = ["cg.py", "mpgp.py", "mpgp_steps.py", "expansion.py", "mprgp.py", "smalbe.py",
-             "solver.py", "problem.py", "anderson.py", "aitken.py"]
+             "solver.py", "problem.py", "anderson.py", "aitken.py", "dual_search.py"]
     long = []
     for name in files:
         tree = ast.parse((QP_DIR / name).read_text())
