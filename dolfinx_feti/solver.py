@@ -124,6 +124,7 @@ class FetiSolver:
         self._tangential: np.ndarray | None = None  # the friction rows' c (None: 0)
         self._normal_force: np.ndarray | None = None  # of the last friction solve
         self._normal_before: np.ndarray | None = None  # of the friction solve of the case before
+        self._scales: tuple[float, float] | None = None  # the KKT test's (U, Λ) of the last solve
         # a lower bound of the KKT test's displacement scale: a Newton increment is solved
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
@@ -450,9 +451,17 @@ class FetiSolver:
             else (None, None)
         start_mults = qp.feti.hessian_mults - mults0
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
+        # a warm Coulomb solve of a load path takes the last solve's KKT scales before its
+        # first Tresca step: before them U is max|b_i| / scale_i (the gaps of rows far out of
+        # reach, 42x the displacement on the 2D Coulomb path), so that step's length bound
+        # is void, and the rescale after it costs a recovery (history § 37). Not under Newton
+        # (u_floor > 0): the last increment's ‖Δu‖ is not the next one's scale
+        scales = self._scales if x0 is None and start is not None and fdata is not None and \
+            fdata.coulomb and self.u_floor == 0 else None
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle)
+                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle,
+                       scales=scales)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
@@ -461,6 +470,8 @@ class FetiSolver:
             start.destroy()
         new_case = self._new_case
         self._remember(out)
+        if fdata is not None and fdata.coulomb:
+            self._scales = (out.u.norm(PETSc.NormType.INFINITY), self._lam.norm())
         if friction is not None:
             if new_case:  # another solve of the same case only replaces the last
                 self._normal_before = self._normal_force
@@ -570,9 +581,21 @@ class FetiSolver:
         self._lam = self.qp.multipliers(out.x)
         self._d_last = self.qp.feti.d.copy()
         self._new_case = False
-        # SMALBE-M only lowers M; a warm solve continues from where the last one left it
+        # SMALBE-M only lowers M; a warm solve continues from where the last one left it.
+        # Not after Coulomb's fixed point with the Krylov recycling: each of its Tresca
+        # solves starts SMALBE from the same M and lowers it, so the last one's M, carried,
+        # ratchets down along a path (‖A‖/4 → ‖A‖/32 over the 2D Coulomb path's 8 steps)
+        # and every Tresca solve of the next case runs its inner solves tighter. Started
+        # from the options' M, as a cold solve is, SMALBE takes more outer iterations whose
+        # inner solves start from the recycled directions (1.4 F-multiplications per outer
+        # iteration against 4.5): the path's warm steps 24 % fewer. Without the recycling
+        # each of them starts CG afresh (8.9 against 15.9 per outer iteration, but 3x as
+        # many): 70 % more, so there M is carried (docs/benchmarks_history.md § 37)
         last = out.result.history[-1] if out.result.history else {}
-        self._M = last["M"] / self.qp.norm_A if "M" in last and self.qp.norm_A > 0 else None
+        restart = self.recycle is not None and self.qp.friction is not None and \
+            self.qp.friction.coulomb
+        self._M = last["M"] / self.qp.norm_A if "M" in last and self.qp.norm_A > 0 and \
+            not restart else None
         mu = out.result.multiplier
         self._mu = None if mu is None else np.array(mu, dtype=float)
 

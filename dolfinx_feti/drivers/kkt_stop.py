@@ -324,9 +324,13 @@ class KKTStop:
         of reach can make much larger than the displacements; a loosened bound (Coulomb's
         early steps) would then be no bound at all.
         """
-        U = max(u.norm(PETSc.NormType.INFINITY), self.u_floor)
+        self.take_scales(u.norm(PETSc.NormType.INFINITY), lam_qp.norm())
+
+    def take_scales(self, U: float, Lam: float) -> None:
+        """Take the displacement scale U and the force scale Λ (see :meth:`rescale`)."""
+        U = max(U, self.u_floor)
         if U > 0:
-            self.U, self.Lam = U, lam_qp.norm()
+            self.U, self.Lam = U, Lam
             self.tol_g = min(self.tol_g, self.rtol * U)
             self.tol_e = min(self.tol_e, self.rtol * self.Lam, self.tol_g / self.eq_unit)
 

@@ -88,7 +88,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              progress: Progress | None = None, timer: Timer | None = None,
              friction: FrictionSolve | None = None, preconditioner=None,
              x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None,
-             u_floor: float = 0.0, recycle: Recycle | None = None) -> QPSolve:
+             u_floor: float = 0.0, recycle: Recycle | None = None,
+             scales: tuple[float, float] | None = None) -> QPSolve:
     """Run the QP solver the dual QP needs and map its solution back (collective).
 
     Under the KKT stopping test a converged run is recovered and checked in physical units; a
@@ -111,6 +112,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
         recycle: The store of recycled CG directions the MPRGP solves use and keep
             (:mod:`dolfinx_feti.qp.recycle`; the owner clears it when the operator changes);
             None: a new one per run when ``opts.mprgp_reuse`` (reuse within the run only).
+        scales: The KKT test's scales (U, Λ) of an earlier solve of a case near this one (a
+            warm step of a load path), taken before the first run (:meth:`.KKTStop.rescale`).
     """
     report = Report() if report is None else report
     timer = Timer() if timer is None else timer
@@ -123,7 +126,7 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     report.warnings.extend(getattr(preconditioner, "notes", []))
     runs = _KKTRuns(qp, opts, report, Progress(qp.feti.comm, 0) if progress is None else
                     progress, timer, friction, preconditioner, x0, multiplier0, u_floor,
-                    recycle)
+                    recycle, scales)
     out = runs.solve()
     if own_precond and preconditioner is not None and hasattr(preconditioner, "destroy"):
         preconditioner.destroy()
@@ -179,7 +182,7 @@ class _KKTRuns:
     def __init__(self, qp: DualQP, opts: SolverOptions, report: Report, progress: Progress,
                  timer: Timer, friction: FrictionSolve | None, precond,
                  x0: PETSc.Vec | None, multiplier0: np.ndarray | None, u_floor: float = 0.0,
-                 recycle: Recycle | None = None):
+                 recycle: Recycle | None = None, scales: tuple[float, float] | None = None):
         self.qp, self.opts, self.report, self.progress, self.timer = \
             qp, opts, report, progress, timer
         self.friction, self.precond, self.multiplier0 = friction, precond, multiplier0
@@ -191,6 +194,9 @@ class _KKTRuns:
             friction.relabel(self.qp_row)
         self.x = _start(qp, x0, self.n_ineq, friction)
         self.stop = KKTStop(qp, opts.rtol, u_floor) if opts.stop_test == "kkt" else None
+        self.scaled = self.stop is not None and scales is not None
+        if self.scaled:
+            self.stop.take_scales(*scales)
         self.rho_factor = 1.0  # qp="penalty": ρ grows by PENALTY_GROWTH after a failed check
         self.runs: list[QPResult] = []
         self.check_mults = self.kplus = 0
@@ -272,7 +278,9 @@ class _KKTRuns:
     def _rescale(self, res: QPResult) -> None:
         # the scales of the KKT test from the first friction step's solution (one recovery)
         stop = self.stop
-        if stop is None or stop.checks or self.kplus:
+        # (not when the solve started from an earlier solve's scales: they are as good as
+        # this step's, and the recovery is an F and a K⁺ application)
+        if stop is None or stop.checks or self.kplus or self.scaled:
             return
         u1, lam1, _, _ = _recover(self.qp, res, self.x, self.friction)
         self.friction.relabel(self.qp_row)

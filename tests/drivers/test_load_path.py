@@ -396,6 +396,56 @@ def test_coulomb_start_predicted_along_the_path(disk):
     cold.destroy()
 
 
+def smalbe_history(sol) -> list[tuple[int, float]]:
+    """(k, M) of each SMALBE outer iteration in the solve's history (kept on rank 0)."""
+    comm = MPI.COMM_WORLD
+    h = sol.report.extra["history"] if comm.rank == 0 else []
+    return comm.bcast([(e["k"], e["M"]) for e in h], root=0)
+
+
+def test_coulomb_warm_solve_restarts_smalbe_and_keeps_the_scales(disk):
+    """A warm Coulomb solve with the Krylov recycling starts SMALBE's M from the options, as a
+    cold one does (not from the last Tresca solve's lowered M, which ratcheted down along a
+    path; without the recycling it is carried), and takes the last solve's KKT scales before
+    its first Tresca step (no recovery for a rescale after it); the result is the cold
+    solve's. Under Newton (``u_floor`` > 0) the scales are not carried."""
+    qs = (0.3, 0.33, 0.363)
+    opts = {"rtol": 1e-8, "method": "tfeti"}
+    solver = df.FetiSolver(disk_problem(disk, P, qs[0] * F * P), **opts)
+    cold = df.FetiSolver(disk_problem(disk, P, qs[0] * F * P), **opts)
+    prev = solver.solve()
+    M0 = solver.qp.norm_A  # the options' M, 1.0 ‖A‖
+    hist = smalbe_history(prev)
+    first = [m for k, m in hist if k == 0]
+    assert first and all(m == pytest.approx(M0) for m in first)
+    assert hist[-1][1] < M0  # SMALBE-M lowered it
+    for q in qs[1:]:
+        solver.update(disk_problem(disk, P, q * F * P), slip_from=prev)
+        cold.update(disk_problem(disk, P, q * F * P), slip_from=prev)
+        prev, ref = solver.solve(), cold.solve(x0="cold")
+        assert_same(prev, ref)
+        starts = [m for k, m in smalbe_history(prev) if k == 0]
+        assert starts and all(m == pytest.approx(M0) for m in starts)
+        warm_stop, cold_stop = prev.report.stopping, ref.report.stopping
+        assert warm_stop["met"] and cold_stop["met"]
+        assert warm_stop["check_kplus_solves"] == warm_stop["checks"] - 1  # no rescale
+        assert cold_stop["check_kplus_solves"] == cold_stop["checks"]  # the rescale's
+        assert prev.report.kkt["coulomb_bound"] <= df.Coulomb(F).rtol
+    solver.u_floor = 1e-12  # as Newton sets it: the rescale is back
+    solver.update(disk_problem(disk, P, 0.4 * F * P), slip_from=prev)
+    stop = solver.solve().report.stopping
+    assert stop["check_kplus_solves"] == stop["checks"]
+    solver.destroy()
+    cold.destroy()
+    # without the recycling M is carried (each restart of the inner solves starts CG afresh)
+    plain = df.FetiSolver(disk_problem(disk, P, qs[0] * F * P), mprgp_reuse=0, **opts)
+    last = smalbe_history(plain.solve())[-1][1]
+    plain.update(disk_problem(disk, P, qs[1] * F * P))
+    starts = [m for k, m in smalbe_history(plain.solve()) if k == 0]
+    assert last < M0 and starts and all(m == pytest.approx(last) for m in starts)
+    plain.destroy()
+
+
 # --- the [loading] table of a problem file ---------------------------------------------------
 @contextmanager
 def command_path(root, name: str, capsys, problem_at_of):
