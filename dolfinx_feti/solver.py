@@ -127,6 +127,9 @@ class FetiSolver:
         # a lower bound of the KKT test's displacement scale: a Newton increment is solved
         # against the total displacement (drivers/kkt_stop.KKTStop)
         self.u_floor = 0.0
+        # the last KKT check's ratio of all rows' largest force to the QP rows': the force
+        # part of a warm solve's bound (drivers/kkt_stop.KKTStop's force_ratio)
+        self._force_ratio = 1.0
         self.solves = 0
         # the CG directions of the last solves on this operator (qp.recycle; None: off)
         self.recycle = Recycle(opts.mprgp_reuse, deflate=opts.mprgp_deflate) \
@@ -442,7 +445,7 @@ class FetiSolver:
         fdata = qp.friction
         friction = None if fdata is None else FrictionSolve(fdata, rows, system.rows_local, comm)
         mults0 = qp.feti.hessian_mults
-        start, scale, omega = self._start(x0)
+        start, scale, omega, g0 = self._start(x0)
         if friction is not None and start is not None:
             normal, predicted = self._normal_start(scale, omega) if x0 is None else (None, False)
             friction.start_from(normal, predicted)
@@ -452,13 +455,16 @@ class FetiSolver:
         warm_opts = opts.replace(smalbe_M=self._M) if mu is not None and self._M else opts
         out = solve_qp(qp, warm_opts, report=report, progress=progress, timer=timer,
                        friction=friction, preconditioner=self.preconditioner, x0=start,
-                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle)
+                       multiplier0=mu, u_floor=self.u_floor, recycle=self.recycle,
+                       force_ratio=self._force_ratio if x0 is None and start is not None
+                       else 1.0, g0=g0)
         report.hessian_mults += start_mults  # the warm start's line search
         report.extra["warm_start_scale"] = scale if start is not None else None
         report.extra["warm_start_secant"] = omega
         report.extra["warm_start_multiplier"] = mu_kind
-        if start is not None:
-            start.destroy()
+        for v in (start, g0):
+            if v is not None:
+                v.destroy()
         new_case = self._new_case
         self._remember(out)
         if friction is not None:
@@ -478,16 +484,18 @@ class FetiSolver:
                                f"{report.converged_reason}); see error.solution.report", sol)
         return sol
 
-    def _start(self, x0) -> tuple[PETSc.Vec | None, float, float | None]:
+    def _start(self, x0) -> tuple[PETSc.Vec | None, float, float | None, PETSc.Vec | None]:
         """The QP iterate to start from (None: the default start), its scale and secant step.
 
-        The scale and the step as :meth:`.DualQP.warm_start` returns them.
+        The scale and the step as :meth:`.DualQP.warm_start` returns them, and the start's
+        gradient where MPRGP runs alone (no coarse space, no friction: its first product is
+        that gradient, which the warm start's product gives; None otherwise).
         """
         if isinstance(x0, str):
             if x0 != COLD:
                 raise InputError(f"x0 must be None, {COLD!r}, a Solution or a Vec, got {x0!r}")
             self._forget_directions()  # a cold solve repeats a first solve: nothing recycled
-            return None, 1.0, None
+            return None, 1.0, None, None
         lam = self._lam if x0 is None else x0
         if isinstance(lam, Solution):
             if lam.feti.B.getSize() != self.qp.system.B.getSize():
@@ -496,17 +504,22 @@ class FetiSolver:
             lam = self.qp.b.duplicate()
             lam.array[:] = full.array_r[self.qp.row_index]
         if lam is None:
-            return None, 1.0, None
+            return None, 1.0, None, None
         if lam.getSizes() != self.qp.b.getSizes():
             raise InputError(f"x0: {lam.getSize()} multipliers for a QP of {self.qp.b.getSize()} "
                              "rows")
         x = self.qp.b.duplicate()
         earlier = (*self._before[:2], self._d_last) if x0 is None and self._new_case and \
             self._before is not None else None
-        scale, omega = self.qp.warm_start(lam, x, earlier)
+        alone = self.qp.constraint.m == 0 and self.qp.friction is None
+        g = x.duplicate() if alone else None
+        scale, omega, have = self.qp.warm_start(lam, x, earlier, g)
         if lam is not x0 and lam is not self._lam:
             lam.destroy()
-        return x, scale, omega
+        if g is not None and not have:
+            g.destroy()
+            g = None
+        return x, scale, omega, g
 
     def _mu_start(self, scale: float, omega: float | None, start: PETSc.Vec
                   ) -> tuple[np.ndarray | None, str | None]:
@@ -575,6 +588,7 @@ class FetiSolver:
         self._M = last["M"] / self.qp.norm_A if "M" in last and self.qp.norm_A > 0 else None
         mu = out.result.multiplier
         self._mu = None if mu is None else np.array(mu, dtype=float)
+        self._force_ratio = out.force_ratio
 
     def _forget_before(self) -> None:
         self._normal_before = None  # Coulomb's predictor goes with λ's
