@@ -426,5 +426,5 @@ class KKTStop:
         return False
 
 
-__all__ = ["FORCE_RATIO_MAX", "KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop", "kkt_residuals",
-           "row_data", "row_stiffness"]
+__all__ = ["FORCE_RATIO_MAX", "KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop",
+           "kkt_residuals", "row_data", "row_stiffness"]
