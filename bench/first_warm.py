@@ -16,7 +16,11 @@ the F-multiplications, the step counts, and for every iterate of the warm solve
 Variants (``--variants``): ``base`` (today's warm solve); ``last:N`` (the store cut to the
 directions of the first solve's last N faces); ``first:N`` (without its last N faces);
 ``empty`` (no recycled directions); ``fit`` (the start's Galerkin fit over span{λ_last, W}:
-the last solution enters the store as one more column, its product counted once).
+the last solution enters the store as one more column, its product counted once). Flags
+joined by ``+`` (``base+own``): ``own`` (this solve's CG directions join the store at each new
+face), ``gamma=G`` (MPRGP's Γ for the warm solve), ``noratio`` (the KKT bound's force part
+against the QP's rows alone, as before the calibration), ``nogradient`` (MPRGP's first
+product its own gradient, as before the warm start handed it over).
 
 Run (one process, a few minutes): ``python bench/first_warm.py``; writes
 ``output/bench/first_warm.json`` and prints the tables.
@@ -113,7 +117,7 @@ def save(solver) -> dict:
     st["d_last"] = solver._d_last.copy()
     st["before"] = None if solver._before is None else \
         (solver._before[0].copy(), solver._before[1].copy(), solver._before[2])
-    for k in ("_new_case", "_M", "_mu"):
+    for k in ("_new_case", "_M", "_mu", "_force_ratio"):
         st[k] = copy.deepcopy(getattr(solver, k))
     return st
 
@@ -129,7 +133,7 @@ def restore(solver, st: dict) -> None:
     solver._d_last = st["d_last"].copy()
     solver._before = None if st["before"] is None else \
         (st["before"][0].copy(), st["before"][1].copy(), st["before"][2])
-    for k in ("_new_case", "_M", "_mu"):
+    for k in ("_new_case", "_M", "_mu", "_force_ratio"):
         setattr(solver, k, copy.deepcopy(st[k]))
 
 
@@ -223,12 +227,23 @@ def solve_variant(solver, st, name, rtol, b_norm):
     REC["tests"].clear()
     REC["runs"].clear()
     opts = solver.options
+    start = solver._start
     for flag in full.split("+")[1:]:
         if flag.startswith("gamma="):
             solver.options = opts.replace(mprgp_gamma=float(flag[6:]))
+        elif flag == "noratio":  # the bound's force part against the QP's rows alone
+            solver._force_ratio = 1.0
+        elif flag == "nogradient":  # MPRGP's first product its own gradient
+            def _start_without(x0, start=start):
+                x, scale, omega, g = start(x0)
+                if g is not None:
+                    g.destroy()
+                return x, scale, omega, None
+            solver._start = _start_without
     m0 = solver.qp.feti.hessian_mults
     sol = solver.solve()
     solver.options = opts
+    solver._start = start
     tests = list(REC["tests"])
     runs = list(REC["runs"])
     hist = [h for run in runs for h in run["history"]]
