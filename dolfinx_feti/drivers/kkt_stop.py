@@ -345,9 +345,10 @@ class KKTStop:
         ``scale`` per local row of the problem, of which the QP's rows are ``qp.row_index``.
         """
         lam = np.abs(lam_all.array_r * scale)
-        all_max, qp_max = self.comm.allreduce(np.array([
-            float(np.max(lam, initial=0.0)), float(np.max(lam[self.rows], initial=0.0))]),
-            op=MPI.MAX)
+        local = np.array([np.max(lam, initial=0.0), np.max(lam[self.rows], initial=0.0)])
+        both = np.empty(2)
+        self.comm.Allreduce(local, both, op=MPI.MAX)  # elementwise (the buffer reduction)
+        all_max, qp_max = (float(v) for v in both)
         self.measured = float(all_max / qp_max) if qp_max > 0 else 1.0
         return self.measured
 
