@@ -71,6 +71,9 @@ MAX_CHECKS = 8
 ROUND_OFF = 1.0
 #: A failed check aims the next bound at this fraction of what would just pass.
 SAFETY = 0.5
+#: The largest ratio of all rows' largest force to the QP rows' that a warm solve's bound
+#: takes from the last solve (:class:`KKTStop`'s ``force_ratio``).
+FORCE_RATIO_MAX = 1e3
 #: A check whose largest residual is above this fraction of the best before, after the bound
 #: was tightened, has met the round-off floor of the dual QP (e.g. eps ‖b‖ of far gaps): the
 #: solve stops there, with a warning.
@@ -228,6 +231,11 @@ class KKTGradientTest(MaxGradientTest):
         tol: Tolerance of the weighted gradient (a length).
         comm: The communicator of the rows.
         eq_tol: Tolerance of ``‖G̃x‖``.
+        force_ratio: ``R`` is taken as ``max(force_ratio max_i |λ_i| scale_i, ‖f‖∞)``: the
+            exact ``violation_force`` is relative to the largest force of *all* rows, which
+            FETI-1 and FETI-DP partly eliminate from the QP (Dirichlet rows, corners), so a
+            ratio measured on an earlier solution (:attr:`KKTStop.force_ratio`) makes the
+            bound that much less conservative (the exact check still decides).
 
     Attributes:
         length, force: The two parts of :attr:`last` (lengths, and forces brought to lengths).
@@ -235,10 +243,10 @@ class KKTGradientTest(MaxGradientTest):
 
     def __init__(self, weight: np.ndarray, force_weight: np.ndarray, scale: np.ndarray,
                  lam_hat: np.ndarray, f_inf: float, U: float, tol: float, comm: MPI.Comm,
-                 eq_tol: float = math.inf) -> None:
+                 eq_tol: float = math.inf, force_ratio: float = 1.0) -> None:
         super().__init__(weight, tol, comm, eq_tol)
         self.force_weight, self.scale, self.lam_hat = force_weight, scale, lam_hat
-        self.f_inf, self.U = f_inf, U
+        self.f_inf, self.U, self.force_ratio = f_inf, U, force_ratio
         self.length = self.force = math.inf
 
     def __call__(self, gP: np.ndarray, x: PETSc.Vec | None = None) -> bool:
@@ -251,7 +259,7 @@ class KKTGradientTest(MaxGradientTest):
         both = np.empty(3)
         self.comm.Allreduce(local, both, op=MPI.MAX)  # one reduction for the three
         length, force, lam = (float(v) for v in both)
-        ref = max(lam, self.f_inf)
+        ref = max(lam * self.force_ratio, self.f_inf)
         # no force yet (λ = 0, no load: a problem driven by its Dirichlet values): the force
         # part cannot pass (a floor like 1e-300 instead made the value depend on the load's
         # scale, and the QP solver's path with it)
@@ -272,6 +280,11 @@ class KKTStop:
             falls below the round-off of F λ and the QP solver runs to its budget (the 3D
             friction runs under Newton that did not finish); the increment only needs to be
             accurate against the total displacement.
+        force_ratio: The ratio of the largest force of all rows to the largest of the QP's
+            rows, measured on an earlier solution of the same set-up (:attr:`force_ratio` of
+            its stop; a warm solve's): the force part of the bound is measured against that
+            many times the QP's largest force (:class:`KKTGradientTest`). 1: the QP's rows
+            alone (a lower bound of the exact reference: a conservative bound).
 
     Attributes:
         checks: Exact checks made (recoveries of u), the last one included.
@@ -281,12 +294,19 @@ class KKTStop:
             ``max_i |b_i| / scale_i``, the violation of λ = λ̂).
         Lam: The force scale of the equality bound (``‖λ‖`` of the QP's rows at the last
             check; before the first, ``‖b‖ / ‖A‖``).
+        force_ratio: The ratio the bound's force part uses.
+        measured: The ratio the last check measured (:meth:`measure`), for the next solve.
     """
 
-    def __init__(self, qp, rtol: float, u_floor: float = 0.0) -> None:
+    def __init__(self, qp, rtol: float, u_floor: float = 0.0,
+                 force_ratio: float = 1.0) -> None:
         self.rtol, self.comm, self.u_floor = rtol, qp.system.comm, u_floor
+        self.force_ratio = min(max(float(force_ratio), 1.0), FORCE_RATIO_MAX) \
+            if math.isfinite(force_ratio) else 1.0
         scale, _, _ = row_data(qp)
+        self.rows = qp.row_index
         self.weight = 1.0 / scale[qp.row_index]
+        self.measured = 1.0
         b = qp.b.array_r
         self.U = max(u_floor, self.comm.allreduce(
             float(np.max(np.abs(b) * self.weight, initial=0.0)), op=MPI.MAX))
@@ -314,8 +334,23 @@ class KKTStop:
         tol, eq_tol = max(self.tol_g * loosen, floor), self.tol_e * loosen
         self.test = MaxGradientTest(self.weight, tol, self.comm, eq_tol) \
             if self.forces is None else KKTGradientTest(
-                self.weight, *self.forces, self.U, tol, self.comm, eq_tol)
+                self.weight, *self.forces, self.U, tol, self.comm, eq_tol, self.force_ratio)
         return self.test
+
+    def measure(self, lam_all: PETSc.Vec, scale: np.ndarray) -> float:
+        """The ratio of the largest force of all rows to the QP rows' at a check (collective).
+
+        ``lam_all``: the multipliers of all rows, ``scale`` their scales (physical λ =
+        λ scale). Kept as :attr:`measured` (1 without a force on the QP's rows). With
+        ``scale`` per local row of the problem, of which the QP's rows are ``qp.row_index``.
+        """
+        lam = np.abs(lam_all.array_r * scale)
+        local = np.array([np.max(lam, initial=0.0), np.max(lam[self.rows], initial=0.0)])
+        both = np.empty(2)
+        self.comm.Allreduce(local, both, op=MPI.MAX)  # elementwise (the buffer reduction)
+        all_max, qp_max = (float(v) for v in both)
+        self.measured = float(all_max / qp_max) if qp_max > 0 else 1.0
+        return self.measured
 
     def rescale(self, u: PETSc.Vec, lam_qp: PETSc.Vec) -> None:
         """Take the scales U and Λ of an intermediate solution (collective).
@@ -396,5 +431,5 @@ class KKTStop:
         return False
 
 
-__all__ = ["KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop", "kkt_residuals",
-           "row_data", "row_stiffness"]
+__all__ = ["FORCE_RATIO_MAX", "KEYS", "MAX_CHECKS", "STALL", "KKTGradientTest", "KKTStop",
+           "kkt_residuals", "row_data", "row_stiffness"]

@@ -61,6 +61,9 @@ class QPSolve:
         lam: The multipliers of all rows of the original problem.
         alpha: The rigid-body amplitudes of the dualized problem's kernel.
         G_lambda: G λ of the QP's multipliers (to compare with ``e``).
+        force_ratio: The ratio of the largest force of all rows to the QP rows' at the last
+            KKT check (:meth:`.KKTStop.measure`; 1 without the KKT test), for the bound of a
+            next warm solve.
     """
 
     result: QPResult
@@ -69,6 +72,7 @@ class QPSolve:
     lam: PETSc.Vec
     alpha: np.ndarray
     G_lambda: np.ndarray
+    force_ratio: float = 1.0
 
 
 #: ``qp="penalty"`` under the KKT test: after a failed check ρ grows by twice the largest
@@ -89,7 +93,8 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
              friction: FrictionSolve | None = None, preconditioner=None,
              x0: PETSc.Vec | None = None, multiplier0: np.ndarray | None = None,
              u_floor: float = 0.0, recycle: Recycle | None = None,
-             scales: tuple[float, float] | None = None) -> QPSolve:
+             scales: tuple[float, float] | None = None, force_ratio: float = 1.0,
+             g0: PETSc.Vec | None = None) -> QPSolve:
     """Run the QP solver the dual QP needs and map its solution back (collective).
 
     Under the KKT stopping test a converged run is recovered and checked in physical units; a
@@ -114,6 +119,10 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
             None: a new one per run when ``opts.mprgp_reuse`` (reuse within the run only).
         scales: The KKT test's scales (U, Λ) of an earlier solve of a case near this one (a
             warm step of a load path), taken before the first run (:meth:`.KKTStop.rescale`).
+        force_ratio: The KKT bound's ratio of all rows' largest force to the QP rows'
+            (:class:`.KKTStop`; a warm solve passes the last solve's ``force_ratio``).
+        g0: The gradient A x0 − b at ``x0`` (:meth:`.DualQP.warm_start`), taken by the first
+            run of MPRGP alone (no coarse space, no friction) instead of its first product.
     """
     report = Report() if report is None else report
     timer = Timer() if timer is None else timer
@@ -126,7 +135,7 @@ def solve_qp(qp: DualQP, opts: SolverOptions, *, report: Report | None = None,
     report.warnings.extend(getattr(preconditioner, "notes", []))
     runs = _KKTRuns(qp, opts, report, Progress(qp.feti.comm, 0) if progress is None else
                     progress, timer, friction, preconditioner, x0, multiplier0, u_floor,
-                    recycle, scales)
+                    recycle, scales, force_ratio, g0)
     out = runs.solve()
     if own_precond and preconditioner is not None and hasattr(preconditioner, "destroy"):
         preconditioner.destroy()
@@ -182,7 +191,8 @@ class _KKTRuns:
     def __init__(self, qp: DualQP, opts: SolverOptions, report: Report, progress: Progress,
                  timer: Timer, friction: FrictionSolve | None, precond,
                  x0: PETSc.Vec | None, multiplier0: np.ndarray | None, u_floor: float = 0.0,
-                 recycle: Recycle | None = None, scales: tuple[float, float] | None = None):
+                 recycle: Recycle | None = None, scales: tuple[float, float] | None = None,
+                 force_ratio: float = 1.0, g0: PETSc.Vec | None = None):
         self.qp, self.opts, self.report, self.progress, self.timer = \
             qp, opts, report, progress, timer
         self.friction, self.precond, self.multiplier0 = friction, precond, multiplier0
@@ -193,7 +203,10 @@ class _KKTRuns:
         if friction is not None:
             friction.relabel(self.qp_row)
         self.x = _start(qp, x0, self.n_ineq, friction)
-        self.stop = KKTStop(qp, opts.rtol, u_floor) if opts.stop_test == "kkt" else None
+        # the start's gradient, for the first run only (then the iterate has moved)
+        self.g0 = g0 if x0 is not None and friction is None else None
+        self.stop = KKTStop(qp, opts.rtol, u_floor, force_ratio) \
+            if opts.stop_test == "kkt" else None
         self.scaled = self.stop is not None and scales is not None
         if self.scaled:
             self.stop.take_scales(*scales)
@@ -227,7 +240,8 @@ class _KKTRuns:
         res = _merge(self.runs)
         self.report.hessian_mults = m0 - mults0  # the iterations and the checks before the last
         self.report.stopping = self.record()
-        return QPSolve(result=res, x=self.x, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam)
+        return QPSolve(result=res, x=self.x, u=u, lam=lam_all, alpha=alpha, G_lambda=Glam,
+                       force_ratio=stop.measured if stop is not None else 1.0)
 
     def run(self) -> QPResult:
         """One run of the QP solver (with Coulomb friction: its fixed point) from ``x``."""
@@ -270,10 +284,11 @@ class _KKTRuns:
         max_it, max_outer = self.budget()
         if max_outer != opts.max_outer:
             o = o.replace(max_outer=max_outer)
+        g0, self.g0 = self.g0, None
         return _run_qp(o, self.report, self.progress, self.qp, self.x, self.n_ineq,
                        self.precond, self.friction, mu, max_it=max_it, recycle=self.recycle,
                        test=None if stop is None else stop.make_test(loosen),
-                       rho_factor=rho_factor)
+                       rho_factor=rho_factor, g0=g0)
 
     def _rescale(self, res: QPResult) -> None:
         # the scales of the KKT test from the first friction step's solution (one recovery)
@@ -297,6 +312,7 @@ class _KKTRuns:
                                friction=self.friction, u_floor=self.stop.u_floor)
         lam_qp = self.qp.multipliers(self.x)
         self.done = self.stop.accept(kkt, u, lam_qp, res.Dx_norm)
+        self.stop.measure(lam_all, scale)
         lam_qp.destroy()
         return kkt
 
@@ -425,13 +441,14 @@ def unused_on_discs(opts: SolverOptions) -> str | None:
 
 
 def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=None,
-            multiplier0=None, max_it=None, test=None, rho_factor=1.0, recycle=None):
+            multiplier0=None, max_it=None, test=None, rho_factor=1.0, recycle=None, g0=None):
     """Build the QP of this solve (bounds, friction) and run the solver it needs.
 
     With ``friction`` the start ``x`` is given (a warm start) and the friction rows are bounded.
     ``max_it`` is what is left of the budget of iterations (default ``opts.max_it``), ``test``
     the stopping test that replaces the solver's relative one (:class:`.kkt_stop.KKTStop`),
-    ``rho_factor`` a factor on the dual penalty's ρ (``qp="penalty"``).
+    ``rho_factor`` a factor on the dual penalty's ρ (``qp="penalty"``), ``g0`` the gradient
+    A x − b at ``x`` if known (used by MPRGP alone, whose QP it is; else ignored).
     """
     if max_it is not None:
         opts = opts.replace(max_it=max(int(max_it), 1))
@@ -450,8 +467,10 @@ def _run_qp(opts, report, progress, dual: DualQP, x, n_ineq, precond, friction=N
     if isinstance(solver, CG):
         return solver.solve(QP(dual.A, dual.b, eq=ocon, preconditioner=precond), x, test=test)
     if ocon.m == 0:
+        known = g0 is not None and discs is None and not isinstance(solver, CG)
         return solver.solve(QP.create(feti.F, feti.d, lb=lb, ub=ub, discs=discs,
-                                      norm_A=norm_A, preconditioner=precond), x, test=test)
+                                      norm_A=norm_A, preconditioner=precond), x, test=test,
+                            g=g0 if known else None, g_valid=known)
     if opts.qp == "penalty":
         # FETI-NCG_ρ: the equality G̃x = 0 replaced by the penalty ρQ; ||Gλ|| = O(1/ρ).
         report.solver = f"{solver.name} (dual penalty)"

@@ -145,8 +145,8 @@ class DualQP:
         return x
 
     def warm_start(self, lam: PETSc.Vec, out: PETSc.Vec,
-                   earlier: tuple[PETSc.Vec, PETSc.Vec, PETSc.Vec] | None = None
-                   ) -> tuple[float, float | None]:
+                   earlier: tuple[PETSc.Vec, PETSc.Vec, PETSc.Vec] | None = None,
+                   gradient: PETSc.Vec | None = None) -> tuple[float, float | None, bool]:
         """A start near the multipliers ``lam`` of an earlier load case, feasible for the bounds.
 
         x = max(s·w, lb), w = P lam: the earlier homogenized solution scaled by s, where
@@ -161,20 +161,42 @@ class DualQP:
         multipliers, the ``d`` of both cases; the same rows), the start is the secant predictor
         x = max(P(lam + ω (lam − lam_before)), lb) instead (:meth:`secant_step`).
 
+        ``gradient``: a Vec for the start's gradient A x − b, asked for by a QP solved without
+        a coarse space (MPRGP alone, whose first product is that gradient). The product s
+        needs is then that of the start: the scaled start's gradient is s·Aw − b (no product
+        more), and a secant start multiplies the start itself instead of w, whose s only a
+        coarse space's multiplier or friction's normal forces would use (s is then 1 + ω, the
+        load factor of the secant step, reported only). Without a coarse space e = 0, so s
+        is otherwise always the product's.
+
         Returns:
-            The factor s and the secant's step ω (None: not used), for SMALBE's multiplier,
-            which follows the load the same way.
+            The factor s, the secant's step ω (None: not used), for SMALBE's multiplier,
+            which follows the load the same way, and whether ``gradient`` holds A x − b at the
+            returned start.
         """
-        s = self._scaled(lam, out)
         omega = None if earlier is None else self.secant_step(earlier[1], earlier[2])
+        have = False
+        if omega is None or gradient is None:
+            s, have = self._scaled(lam, out, gradient)
+            have = have and omega is None
+        else:
+            s = 1.0 + omega
         if omega is not None:
             pred = lam.copy()
             pred.scale(1.0 + omega)
             pred.axpy(-omega, earlier[0])
             self.projector.apply(pred, out)
             pred.destroy()
-        out.array[:] = np.maximum(out.array_r, self.lb.array_r)
-        return s, omega
+        xa = out.array_r
+        xp = np.maximum(xa, self.lb.array_r)
+        moved = self.proj.b.getComm().tompi4py().allreduce(bool(np.any(xp != xa)), op=MPI.LOR)
+        if moved:
+            out.array[:] = xp
+        if gradient is not None and (moved or not have):
+            self.A.mult(out, gradient)  # the start's gradient: the product s did not need
+            gradient.axpy(-1.0, self.b)
+            have = True
+        return s, omega, have
 
     def secant_step(self, d_before: PETSc.Vec, d_last: PETSc.Vec) -> float | None:
         """The step ω of the load along the last step, by the data: d ≈ d_last + ω Δd.
@@ -201,8 +223,14 @@ class DualQP:
             return None
         return float(proj / dd2)
 
-    def _scaled(self, lam: PETSc.Vec, out: PETSc.Vec) -> float:
-        """``out`` ← s·P lam with the load factor s of :meth:`warm_start`; returns s."""
+    def _scaled(self, lam: PETSc.Vec, out: PETSc.Vec, gradient: PETSc.Vec | None = None
+                ) -> tuple[float, bool]:
+        """``out`` ← s·P lam with the load factor s of :meth:`warm_start`.
+
+        Returns s and whether ``gradient`` (if given) now holds A out − b: where s took a
+        product (e = 0); else it is untouched.
+        """
+        have = False
         Glam = self.constraint.base.mult(lam)
         e = self.feti.e
         g2, e2 = float(Glam @ Glam), float(e @ e)
@@ -214,10 +242,16 @@ class DualQP:
             self.A.mult(out, Aw)
             curvature = float(Aw.dot(out))
             s = float(self.b.dot(out)) / curvature if curvature > 0 else 1.0
+            s = max(s, 0.0)
+            if gradient is not None:
+                Aw.copy(gradient)
+                gradient.scale(s)
+                gradient.axpy(-1.0, self.b)
+                have = True
             Aw.destroy()
         s = max(s, 0.0)
         out.scale(s)
-        return s
+        return s, have
 
     def multiplier_estimate(self, x: PETSc.Vec) -> np.ndarray:
         """The least-squares multiplier μ of G̃ x = 0 at ``x`` (one multiplication by ``A``).

@@ -173,6 +173,11 @@ def test_gradient_bound_in_lengths_and_forces():
     zero = PETSc.Vec().createWithArray(np.zeros(3), comm=comm)
     assert not none(g, zero) and none.force == np.inf
     assert none(np.zeros(3), zero)
+    # a force ratio r measured on an earlier solution: R = max(r max_i |λ_i| s_i, ‖f‖∞)
+    for r in (2.5, 0.1 / R):  # the second leaves ‖f‖∞ = 0.5 the larger
+        calibrated = KKTGradientTest(w, kw, scale, lam_hat, 0.5, U, 1.0, comm, force_ratio=r)
+        calibrated(g, x)
+        assert calibrated.force == pytest.approx(U / max(r * R, 0.5) * 3e3 * 1e-4)
 
 
 def test_violation_force_is_the_violation_times_the_rows_stiffness_in_series():

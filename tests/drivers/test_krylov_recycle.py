@@ -189,6 +189,41 @@ def test_galerkin_expansion_on_a_growing_contact_zone(indented_cube):
     assert m_with < 0.9 * m_without, (m_with, m_without)
 
 
+def test_warm_start_product_and_force_scale_of_mprgp_alone(indented_cube):
+    """Where MPRGP runs alone (FETI-DP, every body held), a warm solve's first product is the
+    warm start's (the scaled start's load factor, or the secant start's gradient): every
+    product of the solve is a step's but that one. Its KKT bound takes the force scale of all
+    rows as the last solve measured it (FETI-DP eliminates the Dirichlet rows, whose
+    reactions are the largest forces here): the bound at the stop is the exact
+    violation_force residual, where the first solve's over-estimates it by that ratio. The
+    warm solutions equal cold ones."""
+    solver = df.FetiSolver(pushed(indented_cube, 1.0), rtol=RTOL, method="fetidp")
+    cold = df.FetiSolver(pushed(indented_cube, 1.0), rtol=RTOL, method="fetidp")
+    for k, s in enumerate(1.1 ** np.arange(3)):
+        if k:
+            solver.update(pushed(indented_cube, float(s)))
+            cold.update(pushed(indented_cube, float(s)))
+        sol, ref_sol = solver.solve(), cold.solve(x0="cold")
+        rep = sol.report
+        assert rep.converged and rep.solver == "mprgp"
+        assert_same(sol, ref_sol)
+        assert (rep.extra["warm_start_secant"] is not None) == (k == 2)
+        c = rep.counts
+        steps = c["cg"] + 2 * c["expansion"] + c["proportioning"] + c.get("rejected", 0) + \
+            rep.stopping["check_hessian_mults"]
+        assert rep.hessian_mults == steps + 1  # the first gradient, or the warm start's
+        (last,) = rep.stopping["history"][-1:]
+        bound, exact = last["bound"] / last["tol_g"], last["primal"] / RTOL
+        if k == 0:
+            ratio = solver._force_ratio
+            assert ratio > 1.5  # the bottom's reactions: ~2× the largest contact force
+            assert bound == pytest.approx(ratio * exact, rel=0.05)
+        else:
+            assert bound == pytest.approx(exact, rel=0.05)
+    solver.destroy()
+    cold.destroy()
+
+
 def indented(mesh, s: float) -> df.ContactProblem:
     """The cube held at its bottom, a rigid sphere pressed 0.02 s into its top: the sphere
     moves, its normals at the contact nodes turn, B changes (a row update of the same
