@@ -236,20 +236,18 @@ class DualQP:
         g2, e2 = float(Glam @ Glam), float(e @ e)
         self.projector.apply(lam, out)
         if e2 > 0 and g2 > 1e-24 * e2:
-            s = float(Glam @ e) / g2
+            s = max(float(Glam @ e) / g2, 0.0)
         else:
             Aw = out.duplicate()
             self.A.mult(out, Aw)
             curvature = float(Aw.dot(out))
-            s = float(self.b.dot(out)) / curvature if curvature > 0 else 1.0
-            s = max(s, 0.0)
+            s = max(float(self.b.dot(out)) / curvature if curvature > 0 else 1.0, 0.0)
             if gradient is not None:
                 Aw.copy(gradient)
                 gradient.scale(s)
                 gradient.axpy(-1.0, self.b)
                 have = True
             Aw.destroy()
-        s = max(s, 0.0)
         out.scale(s)
         return s, have
 

@@ -35,6 +35,8 @@ _RESERVED = ("lb", "ub", "rtol", "atol", "stop", "b_norm", "g", "g_valid", "max_
              "preconditioner")
 PRECONDITIONER_FORMS = ("projected", "plain")
 ACCELERATIONS = ("auto", "none", "anderson", "aitken", "search")
+#: The extrapolations of a slow outer loop along ``D x`` by acceleration name.
+EXTRAPOLATIONS = {"aitken": Aitken, "search": DualSearch}
 #: The inner solvers of :func:`smalbe` by name.
 INNER = {"mprgp": MPRGP, "mpgp": MPGP}
 
@@ -155,10 +157,8 @@ class SMALBE(QPSolver):
             tests/drivers/test_friction_symmetry.py at 0.7 and 0.99 𝓕N, tipped over by
             changing CURVATURE_SCALE by 2 %); the plain update converged on all, and its slow
             outer loops (‖Dx‖ −0.3 % per outer iteration over 150 of them on the punch at
-            0.9 𝓕N) are what the extrapolation and the search cut (bench/coulomb_sliding.py:
-            the five loads of the full / half punch 5 758 / 7 465 F-mults with 'aitken',
-            5 253 / 6 867 with 'search'; DOLFINx 0.11's medium mesh at 0.99 𝓕N converged in
-            3 708 with 'search', not in 1 000 outer iterations with 'aitken').
+            0.9 𝓕N) are what the extrapolation and the search cut (bench/coulomb_sliding.py,
+            docs/benchmarks.md § 24).
         depth: Memory of the Anderson acceleration.
         rho_growth: After an outer iteration that left ``||D x||`` above :data:`SLOW_OUTER`
             times the one before, ``rho`` is multiplied by this, up to ``rho_max`` (None or 1:
@@ -314,8 +314,8 @@ class _SMALBESolve:
             acceleration = "search" if curved else "anderson"
         self.anderson = Anderson(solver.depth) if acceleration == "anderson" else None
         #: The extrapolation of a slow outer loop along D x ('aitken', 'search') or None.
-        self.extrapolation = Aitken() if acceleration == "aitken" else \
-            DualSearch() if acceleration == "search" else None
+        extrapolation = EXTRAPOLATIONS.get(acceleration)
+        self.extrapolation = None if extrapolation is None else extrapolation()
         self.prev_active: np.ndarray | None = None
         self.history: list[dict] = []
         self.total_it, self.L_prev = 0, None
