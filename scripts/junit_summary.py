@@ -1,8 +1,9 @@
 """Print "N passed, N failed" for the pytest JUnit XML reports written by scripts/run.sh.
 
-Usage: python scripts/junit_summary.py REPORT_DIR NPROCS
+Usage: python scripts/junit_summary.py REPORT_DIR NPROCS [all|serial|mpi]
 
-REPORT_DIR holds serial.xml (the serial run) and mpi-rank<r>.xml for r < NPROCS (the mpirun run).
+REPORT_DIR holds serial.xml (the serial run) and mpi-rank<r>.xml for r < NPROCS (the mpirun run);
+the third argument counts one of the two runs alone (scripts/run.sh test --part).
 A test counts once per run; under mpirun it failed if it failed or errored on any rank. A report
 that is missing (pytest crashed or was killed) counts as one more failure.
 """
@@ -34,8 +35,13 @@ def merged_outcomes(paths: list[Path]) -> dict[tuple[str, str], str]:
 
 def main() -> None:
     reports, nprocs = Path(sys.argv[1]), int(sys.argv[2])
+    part = sys.argv[3] if len(sys.argv) > 3 else "all"
+    runs = {"serial": [["serial.xml"]], "mpi": [[f"mpi-rank{r}.xml" for r in range(nprocs)]]}
+    runs["all"] = runs["serial"] + runs["mpi"]
+    if part not in runs:
+        sys.exit(f"junit_summary: unknown part {part!r} (known: all, serial, mpi)")
     passed = failed = 0
-    for run in (["serial.xml"], [f"mpi-rank{r}.xml" for r in range(nprocs)]):
+    for run in runs[part]:
         paths = [reports / name for name in run if (reports / name).exists()]
         failed += len(run) - len(paths)
         outcomes = list(merged_outcomes(paths).values())

@@ -41,6 +41,14 @@ from ..validation import evaluate
 from .contact import surface
 from .rows import Kind, Rows
 
+#: Components of a unit normal within this of its smallest count as tied for t1's axis (the
+#: first of them wins): a normal in a coordinate plane, (ε, 1, ε') with ε, ε' round-off, must
+#: not swap t1 between e_x and e_z from one Newton iterate to the next — the tangential
+#: multipliers of the last iterate's rows would then act along the other tangent in the rows
+#: of the next one, and Newton's exact check with the rows of u fails until the round-off
+#: happens to agree.
+TANGENT_TIE = 1e-8
+
 #: Values of ``ContactData.state``.
 FRICTIONLESS, STICK, SLIP = 0, 1, 2
 
@@ -75,15 +83,17 @@ def tangent_basis(normal: np.ndarray, plane_axis: np.ndarray | None = None) -> n
     """Unit tangents orthogonal to unit normals, shape (k, gdim − 1, gdim).
 
     2D: t = (n_y, −n_x), so that (t, n) is right-handed. 3D: t1 is the coordinate axis least
-    aligned with n (the first one in a tie) made orthogonal to n by Gram–Schmidt, t2 = n × t1,
-    so that (t1, t2, n) is right-handed. A node on a symmetry plane of axis j
-    (``plane_axis`` >= 0, :func:`symmetry_axes`) gets t1 ∝ n × e_j instead (in the plane).
+    aligned with n (the first one in a tie, within :data:`TANGENT_TIE`) made orthogonal to n
+    by Gram–Schmidt, t2 = n × t1, so that (t1, t2, n) is right-handed. A node on a symmetry
+    plane of axis j (``plane_axis`` >= 0, :func:`symmetry_axes`) gets t1 ∝ n × e_j instead (in
+    the plane).
     """
     n = np.asarray(normal, dtype=float)
     k, d = n.shape
     if d == 2:
         return np.stack([n[:, 1], -n[:, 0]], axis=1)[:, None, :]
-    axis = np.argmin(np.abs(n), axis=1)
+    a = np.abs(n)
+    axis = np.argmax(a <= a.min(axis=1, keepdims=True) + TANGENT_TIE, axis=1)
     e = np.zeros((k, 3))
     e[np.arange(k), axis] = 1.0
     t1 = e - np.einsum("ij,ij->i", e, n)[:, None] * n

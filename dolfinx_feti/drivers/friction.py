@@ -30,6 +30,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..constraints.friction import SLIP, STICK, FrictionData
+from ..parallel.reduce import any_rank, max_scalar
 from ..qp import Discs, QPResult
 from ..setup.share import RankRows
 
@@ -127,7 +128,7 @@ class FrictionSolve:
         box = np.repeat(self._flat, self.nt) if self.nt == 2 else np.ones(self.t.size, bool)
         lb.array[self.t] = np.where(box, -r - lh, -np.inf)
         ub = None
-        if self.comm.allreduce(bool(box.any()), op=MPI.LOR):
+        if any_rank(self.comm, bool(box.any())):
             if self._ub is None:
                 self._ub = lb.duplicate()
             self._ub.set(np.inf)
@@ -192,9 +193,9 @@ class FrictionSolve:
                 rescale(res)
             lam_n = self.normal_force = self._normal_force(x, lam_hat)
             g_new = np.where(c, self.coef * np.maximum(lam_n, 0.0), self.tresca)
-            gmax = comm.allreduce(float(np.max(lam_n[c], initial=0.0)), op=MPI.MAX)
+            gmax = max_scalar(comm, float(np.max(lam_n[c], initial=0.0)))
             dg = np.abs(g_new[c] - self.g[c])
-            big = comm.allreduce(float(np.max(dg, initial=0.0)), op=MPI.MAX)
+            big = max_scalar(comm, float(np.max(dg, initial=0.0)))
             r = big / gmax if gmax > 0 else (0.0 if big == 0 else math.inf)
             steps.append({"step": len(steps), "change": r, "inner_rtol": eta,
                           "iterations": res.iterations,
@@ -303,7 +304,7 @@ class FrictionSolve:
                        / max(lam_max * u_max, 1e-300), nr / max(u_max, 1e-300))
 
         def gmax(a):
-            return self.comm.allreduce(float(a.max(initial=0.0)), op=MPI.MAX)
+            return max_scalar(self.comm, float(a.max(initial=0.0)))
 
         out = {"friction_feasibility": gmax(over) / max(lam_max, 1e-300),
                "friction_complementarity": gmax(gap)}

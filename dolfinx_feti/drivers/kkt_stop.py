@@ -56,6 +56,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..constraints.rows import Kind
+from ..parallel.reduce import max_scalar
 from ..qp import MaxGradientTest
 
 #: The residuals the stopping test bounds by rtol (friction adds its own two).
@@ -109,7 +110,7 @@ def kkt_residuals(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarray,
     lam_phys = lam.array_r * scale
 
     def gmax(a, default=0.0):
-        return comm.allreduce(float(a.max()) if a.size else default, op=MPI.MAX)
+        return max_scalar(comm, float(a.max()) if a.size else default)
 
     lam_max = gmax(np.abs(lam_phys))
     u_max = max(u.norm(PETSc.NormType.INFINITY), u_floor, 1e-300)
@@ -147,7 +148,7 @@ def _violation_force(system, scale: np.ndarray, kind: np.ndarray, ineq: np.ndarr
     v = np.where(lam_phys > 0.0, viol, np.maximum(viol, 0.0))
     v[~_contact_rows(kind, ineq)] = 0.0  # friction has residuals of its own
     k = row_stiffness(system, scale)
-    force = system.comm.allreduce(float(np.max(k * np.abs(v), initial=0.0)), op=MPI.MAX)
+    force = max_scalar(system.comm, float(np.max(k * np.abs(v), initial=0.0)))
     ref = max(lam_max, system.f.norm(PETSc.NormType.INFINITY), 1e-300)
     return force / ref
 

@@ -12,6 +12,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import any_rank, min_scalar
+
 
 def _local_bound(bound, x: PETSc.Vec, default: float) -> np.ndarray:
     if bound is None:
@@ -26,7 +28,7 @@ def _local_bound(bound, x: PETSc.Vec, default: float) -> np.ndarray:
 def check_finite(comm: MPI.Comm, what: str, *arrays: np.ndarray) -> None:
     """Raise ValueError on every rank if any local array holds a non-finite entry anywhere."""
     bad = any(not np.all(np.isfinite(a)) for a in arrays)
-    if comm.allreduce(bad, op=MPI.LOR):
+    if any_rank(comm, bad):
         raise ValueError(f"{what} has non-finite entries")
 
 
@@ -116,7 +118,7 @@ class Box:
     def max_step(self, xa: np.ndarray, pa: np.ndarray) -> float:
         """Largest ``t >= 0`` with ``x - t p`` feasible, over all ranks (inf if unbounded)."""
         local = float(self._ratios(xa, pa).min(initial=np.inf))
-        return max(self.comm.allreduce(local, op=MPI.MIN), 0.0)
+        return max(min_scalar(self.comm, local), 0.0)
 
     def step(self, xa: np.ndarray, pa: np.ndarray, t: float) -> np.ndarray:
         """Return ``x - t p`` with the entries that reach a bound set exactly to it.

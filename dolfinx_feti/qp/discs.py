@@ -14,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import min_scalar
 from .box import Box
 
 # A disc pair is on its circle when ||x - c|| >= (1 - _ON_CIRCLE) r: projections and snapped
@@ -182,7 +183,7 @@ class SeparableSet:
         local = float(self.box._ratios(xa, pa).min(initial=np.inf))
         if self.I.size:
             local = min(local, float(self._disc_ratios(xa, pa).min(initial=np.inf)))
-        return max(self.comm.allreduce(local, op=MPI.MIN), 0.0)
+        return max(min_scalar(self.comm, local), 0.0)
 
     def step(self, xa: np.ndarray, pa: np.ndarray, t: float) -> np.ndarray:
         """Return ``x - t p`` with the blocks that reach their boundary put exactly on it."""

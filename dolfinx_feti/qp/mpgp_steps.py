@@ -14,9 +14,9 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import any_rank, count, sum_array, sum_scalar
 from .box import Box, check_finite
 from .discs import SeparableSet
 from .precond import Preconditioner
@@ -200,7 +200,7 @@ class MPGPSolve:
     def proportional(self, phi_a: np.ndarray, beta2: float) -> bool:
         """The proportioning test ``||beta||² <= Gamma² phi~^T phi``."""
         phit_a = self.S.reduced_free(self.x.array_r, phi_a, self.alpha_bar)
-        phit_phi = self.comm.allreduce(float(np.dot(phit_a, phi_a)))
+        phit_phi = sum_scalar(self.comm, float(np.dot(phit_a, phi_a)))
         gamma = self.solver.gamma
         return beta2 <= gamma * gamma * phit_phi
 
@@ -226,7 +226,7 @@ class MPGPSolve:
         self.mult(p, Ap)
         if self.tangent:
             self.Hp.array[:] = Ap.array_r + self.curv * p.array_r
-            moves = self.comm.allreduce(bool(np.any(p.array_r[rot] != 0.0)), op=MPI.LOR)
+            moves = any_rank(self.comm, bool(np.any(p.array_r[rot] != 0.0)))
             pf = p.array_r.copy()
             pf[rot] = 0.0  # rotating pairs follow their circle: no limit on the step
         else:
@@ -364,8 +364,8 @@ class MPGPSolve:
         if self.basis is None:
             return
         p.array[:] = self.basis.conjugate(p.array_r)
-        gp, gr = self.comm.allreduce(np.array([float(self.g.array_r @ p.array_r),
-                                               float(self.g.array_r @ r.array_r)]))
+        gp, gr = sum_array(self.comm, np.array([float(self.g.array_r @ p.array_r),
+                                                 float(self.g.array_r @ r.array_r)]))
         if gp < DEFLATE_DESCENT * gr and self.basis.stale and self.refined < STALE_REFINES:
             self.refine = True
             return
@@ -413,7 +413,7 @@ class MPGPSolve:
         n0 = 0.0 if drift0 is None else drift0[1]
         while True:
             xa, ga = x.array_r, g.array_r
-            df, noise, dx2 = self.comm.allreduce(np.array([
+            df, noise, dx2 = sum_array(self.comm, np.array([
                 0.5 * float(np.dot(xa - x0, g0.array_r + ga)),
                 float(np.abs(x0) @ np.abs(g0.array_r) + np.abs(xa) @ np.abs(ga)),
                 float(np.dot(xa - x0, xa - x0))]))
@@ -441,7 +441,7 @@ class MPGPSolve:
         """
         c = self.x.array_r - (x0 - t * self.p.array_r)
         d = self.drift + c
-        nd = math.sqrt(self.comm.allreduce(float(d @ d)))
+        nd = math.sqrt(sum_scalar(self.comm, float(d @ d)))
         if self.scale_A * nd > DRIFT_RTOL * self.gP:
             return False
         self.drift[:] = d
@@ -502,7 +502,7 @@ class MPGPSolve:
         """The record of the solve."""
         if self.prec is not None:
             self.counts["precond"] = self.prec.count
-        active_count = self.comm.allreduce(int(np.count_nonzero(active)))
+        active_count = count(self.comm, int(np.count_nonzero(active)))
         return QPResult(x=self.x, converged=reason in ("rtol", "atol", "stop"), reason=reason,
                         iterations=self.it, hessian_mults=self.mult.n, counts=self.counts,
                         gP_norm=gP, b_norm=self.b_norm, active=active,

@@ -40,6 +40,8 @@ import math
 import numpy as np
 from mpi4py import MPI
 
+from ..parallel.reduce import sum_array, sum_scalar
+
 # Eigenvalues of WᵀAW below this fraction of the largest are dropped: the kept directions of
 # different CG segments (restarted at expansions) are not A-conjugate and may be nearly
 # dependent.
@@ -201,8 +203,7 @@ class Recycle:
         Returns whether the store was kept.
         """
         w, aw = self.newest()
-        d2, a2 = comm.allreduce(np.array([float((Aw - aw) @ (Aw - aw)), float(aw @ aw)]),
-                                op=MPI.SUM)
+        d2, a2 = sum_array(comm, np.array([float((Aw - aw) @ (Aw - aw)), float(aw @ aw)]))
         self.checked = True
         self.change = math.sqrt(d2 / a2) if a2 > 0.0 else math.inf
         if not d2 <= CARRY_RTOL ** 2 * a2:
@@ -231,7 +232,7 @@ class Recycle:
         j = int(np.argmax(wgt))
         if not wgt[j] > 0.0:
             return False
-        nd = math.sqrt(comm.allreduce(float(d @ d), op=MPI.SUM))
+        nd = math.sqrt(sum_scalar(comm, float(d @ d)))
         if not nd > 0.0:
             return False
         self._W[:, j], self._AW[:, j] = d / nd, Ad / nd
@@ -242,7 +243,7 @@ class Recycle:
         """Column ``j``'s product is now of the current operator: its Gram row and column."""
         self._old[j] = False
         f = self._filled
-        col = comm.allreduce(self._W[:, :f].T @ self._AW[:, j], op=MPI.SUM)
+        col = sum_array(comm, self._W[:, :f].T @ self._AW[:, j])
         self._C[:f, j] = col
         self._C[j, :f] = col
 
@@ -264,8 +265,7 @@ class Recycle:
             self._old[:] = False
         # unit columns: the Gram matrix's eigenvalues then lie in A's spectrum for conjugate
         # directions, and GRAM_RTOL drops dependence, not the late CG directions' small norms
-        norms = np.sqrt(comm.allreduce(np.array([float(w @ w) for w, _ in self._pending]),
-                                       op=MPI.SUM))
+        norms = np.sqrt(sum_array(comm, np.array([float(w @ w) for w, _ in self._pending])))
         cols = []
         for (w, a), nw in zip(self._pending, norms, strict=True):
             if not nw > 0.0:
@@ -281,7 +281,7 @@ class Recycle:
             return
         cols = np.array(sorted(set(cols)))
         f = self._filled
-        block = comm.allreduce(self._W[:, :f].T @ self._AW[:, cols], op=MPI.SUM)  # f × new
+        block = sum_array(comm, self._W[:, :f].T @ self._AW[:, cols])  # f × new
         self._C[:f, cols] = block
         self._C[cols, :f] = block.T
 
@@ -291,7 +291,7 @@ class Recycle:
         if f == 0:
             return None
         bad = np.any(self._W[fixed, :f] != 0.0, axis=0).astype(np.int64)
-        use = np.flatnonzero(comm.allreduce(bad, op=MPI.SUM) == 0)
+        use = np.flatnonzero(sum_array(comm, bad) == 0)
         if use.size == 0:
             return None
         return Basis(self._W[:, :f], self._AW[:, :f], self._C[:f, :f], use, comm,
@@ -329,7 +329,7 @@ class Basis:
         """``(d, A d)`` with ``d = W c``, ``(WᵀAW) c = -Wᵀg``; None when nothing to gain."""
         if self.m == 0:
             return None
-        c = self._solve(-self.comm.allreduce(self.W.T @ g, op=MPI.SUM))
+        c = self._solve(-sum_array(self.comm, self.W.T @ g))
         if not np.all(np.isfinite(c)) or not np.any(c):
             return None
         self.c = c  # the weights of the last step (Recycle.swap)
@@ -339,7 +339,7 @@ class Basis:
         """``p - W (WᵀAW)^+ (AW)ᵀ p``: A-conjugate to the usable directions."""
         if self.m == 0:
             return p
-        return p - self.W @ self._solve(self.comm.allreduce(self.AW.T @ p, op=MPI.SUM))
+        return p - self.W @ self._solve(sum_array(self.comm, self.AW.T @ p))
 
 
 def galerkin_step(S, xa: np.ndarray, ga: np.ndarray, d: np.ndarray, Ad: np.ndarray,
@@ -349,7 +349,7 @@ def galerkin_step(S, xa: np.ndarray, ga: np.ndarray, d: np.ndarray, Ad: np.ndarr
     Returns ``(t, t_min)`` with ``t_min`` the minimizing length, or None when ``d`` is no
     descent direction (rounding) or the step is empty.
     """
-    gd, dAd = comm.allreduce(np.array([float(ga @ d), float(d @ Ad)]), op=MPI.SUM)
+    gd, dAd = sum_array(comm, np.array([float(ga @ d), float(d @ Ad)]))
     if not (dAd > 0.0 and gd < 0.0 and math.isfinite(gd)):
         return None
     t_min = -gd / dAd

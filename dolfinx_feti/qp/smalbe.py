@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import any_rank
 from ..validation import Choice, Integer, Maybe, Option, OptionSet, Real
 from .aitken import Aitken
 from .anderson import Anderson
@@ -450,8 +450,8 @@ class _SMALBESolve:
         if not final and self.anderson is not None:
             # A new active set is a new affine map: the secant memory of the old one misleads.
             comm = self.x.getComm().tompi4py()
-            if self.prev_active is None or comm.allreduce(
-                    bool(np.any(res.active != self.prev_active)), op=MPI.LOR):
+            if self.prev_active is None or any_rank(
+                    comm, bool(np.any(res.active != self.prev_active))):
                 self.anderson.reset()
             step = self.anderson.step(self.mu, step)
             self.prev_active = res.active.copy()

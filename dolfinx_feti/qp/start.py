@@ -13,6 +13,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import any_rank
 from .box import check_finite
 from .norm import estimate_norm
 
@@ -60,7 +61,7 @@ def feasible_start(name: str, project: Callable[[np.ndarray], np.ndarray], mult:
     """
     xa = x.array_r
     xp = project(xa)
-    moved = comm.allreduce(bool(np.any(xp != xa)), op=MPI.LOR)
+    moved = any_rank(comm, bool(np.any(xp != xa)))
     if moved:
         x.array[:] = xp
     if g is None:

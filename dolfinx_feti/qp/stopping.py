@@ -18,6 +18,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from ..parallel.reduce import max_scalar
+
 
 class MaxGradientTest:
     """``max_i w_i |g^P_i| <= tol`` and ``||D x|| <= eq_tol`` (collective).
@@ -42,7 +44,7 @@ class MaxGradientTest:
     def value(self, gP: np.ndarray) -> float:
         """``max_i w_i |g^P_i|`` over all ranks."""
         local = float(np.max(self.weight * np.abs(gP), initial=0.0))
-        return self.comm.allreduce(local, op=MPI.MAX)
+        return max_scalar(self.comm, local)
 
     def __call__(self, gP: np.ndarray, x: PETSc.Vec | None = None) -> bool:
         """Whether the gradient test holds for the local projected gradient ``gP``."""

@@ -59,3 +59,16 @@ def test_tangent_basis_orthonormal(d):
     assert np.allclose(np.linalg.det(frame), 1.0)  # right-handed
     if d == 2:
         assert np.allclose(tangent_basis(np.array([[0.0, 1.0]])), [[[1.0, 0.0]]])
+
+
+def test_tangent_basis_ignores_round_off_in_a_coordinate_plane():
+    """A normal along y with round-off in x and z gets t1 = e_x whichever is larger: the
+    tangents of one node must not swap between Newton iterates (the exact check of the rows
+    of u took 19 iterations of the cone's last step in tests/drivers/
+    test_newton_mortar_friction3d.py instead of 7)."""
+    n = np.array([[1e-17, 1.0, 3e-17], [3e-17, 1.0, 1e-17], [0.0, 1.0, 0.0]])
+    T = tangent_basis(n / np.linalg.norm(n, axis=1)[:, None])
+    assert np.allclose(T[:, 0], [1.0, 0.0, 0.0], atol=1e-15)
+    # a genuine difference still decides
+    m = np.array([[1e-3, 1.0, 1e-6]])
+    assert np.allclose(tangent_basis(m / np.linalg.norm(m))[0, 0], [0.0, 0.0, 1.0], atol=1e-5)

@@ -49,7 +49,10 @@ def _default_sigint():
 
 def interrupt(command: list[str], ranks: int, folder: Path) -> tuple[int, str]:
     """Start the command, wait until every rank iterates, send SIGINT; (status, stderr)."""
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    # Open MPI's mpirun kills the ranks 1 s after it passed them the SIGTERM (3 s here): on a
+    # loaded machine (CI runs two suites side by side) a rank may not have written its line
+    # by then
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "OMPI_MCA_odls_base_sigkill_timeout": "3"}
     proc = subprocess.Popen(command, cwd=folder, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, env=env, preexec_fn=_default_sigint)
 
