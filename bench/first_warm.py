@@ -20,7 +20,17 @@ the last solution enters the store as one more column, its product counted once)
 joined by ``+`` (``base+own``): ``own`` (this solve's CG directions join the store at each new
 face), ``gamma=G`` (MPRGP's Γ for the warm solve), ``noratio`` (the KKT bound's force part
 against the QP's rows alone, as before the calibration), ``nogradient`` (MPRGP's first
-product its own gradient, as before the warm start handed it over).
+product its own gradient, as before the warm start handed it over); the prototypes of history
+§ 39: ``pprop`` (MPRGP's proportioning step along the lumped preconditioner's M⁻¹β instead of
+β; ``pprop=g``: along M⁻¹gᴾ; ``--pprop b|g`` in every solve, the first one too), ``ring1`` /
+``ring2`` (the warm solve's first step a projected Galerkin fit over the store and the start's
+chopped gradient β, and M⁻¹β, each column's product counted).
+
+``--record-steps``: every solve also stores the moves of its expansions and proportioning
+steps with their products (the difference of the gradients: no product), ``--room K`` the
+store's room for the first solve. ``--load-path ARGS`` runs ``bench/load_path.py ARGS`` with
+the prototypes of ``--pprop`` (``--warm-only``: in warm solves alone) and ``--record-steps``
+patched in.
 
 Run (one process, a few minutes): ``python bench/first_warm.py``; writes
 ``output/bench/first_warm.json`` and prints the tables.
@@ -100,6 +110,118 @@ def _galerkin_own(self, active, basis=None):
 
 
 mpgp_steps.MPGPSolve.galerkin = _galerkin_own
+
+# prototypes of history § 39 (issue 22): a proportioning step along the preconditioned chopped
+# gradient, and a start that puts forces on the new ring (a Galerkin fit with ring columns)
+FLAGS.update(pprop=None, ring=0, all_pprop=None, warm_only=False)
+_proportioning = mpgp_steps.MPGPSolve.proportioning
+_face_step = mpgp_steps.MPGPSolve.face_step
+
+
+def _proportioning_pre(self, beta2):
+    """MPRGP's line search along z = M⁻¹β (``pprop``) or M⁻¹gᴾ (``pprop=g``) instead of β.
+
+    z is zero on the rows at the bound with β = 0 and on those at the bound it would push
+    out of the set; the exact line search along z is cut at the boundary. Falls back to β
+    where z is no descent direction. ``FLAGS['warm_only']``: only in solves that start with
+    recycled directions (warm ones; the load paths of history § 39 run with it through
+    :func:`load_path`).
+    """
+    if FLAGS["pprop"] is None or self.prec is None or self.stop is not None or \
+            not self.line_search or (FLAGS["warm_only"] and not len(self.recycle or ())):
+        return _proportioning(self, beta2)
+    x, g, S, z = self.x, self.g, self.S, self.p
+    xa = x.array_r
+    phi_a, beta_a, active = S.split(xa, g.array_r)
+    r = x.duplicate()
+    r.array[:] = phi_a + beta_a if FLAGS["pprop"] == "g" else beta_a
+    self.prec.apply(r, z)
+    r.destroy()
+    za = z.array_r.copy()
+    za[active & (beta_a == 0.0)] = 0.0
+    za[active & (za > 0.0)] = 0.0
+    z.array[:] = za
+    gz = g.dot(z)
+    if not gz > 0.0:
+        return _proportioning(self, beta2)
+    self.mult(z, self.Ap)
+    t = min(gz / z.dot(self.Ap), S.max_step(xa, za))
+    x.array[:] = S.step(xa, za, t)
+    g.axpy(-t, self.Ap)
+    return "proportioning"
+
+
+def _face_step_ring(self, active, phi2):
+    """At a warm solve's first step: the projected Galerkin fit over W and ring columns.
+
+    The ring: the rows at the bound whose gradient pushes them into the set (β ≠ 0) at the
+    start, the rows the first solve's directions all vanish on. Columns β (``ring=1``) and
+    also M⁻¹β on the free rows and the ring (``ring=2``), each with its product, join the
+    store; the Galerkin step over the columns that vanish on the other active rows, projected
+    onto the set, with a fresh gradient; kept if the energy fell.
+    """
+    if not FLAGS["ring"] or self.it != 1 or self.recycle is None or self.stop is not None:
+        return _face_step(self, active, phi2)
+    FLAGS["ring"], n = 0, FLAGS["ring"]  # once, at the warm solve's start
+    ring = self.beta.array_r != 0.0
+    if not self.comm.allreduce(bool(ring.any()), op=MPI.LOR):
+        return _face_step(self, active, phi2)
+    self.p.array[:] = self.beta.array_r
+    self.mult(self.p, self.Ap)
+    self.recycle.record(self.p.array_r, self.Ap.array_r)
+    if n > 1 and self.prec is not None:
+        w = self.beta.duplicate()
+        self.prec.apply(self.beta, w)
+        wa = w.array_r.copy()
+        wa[active & ~ring] = 0.0
+        w.destroy()
+        self.p.array[:] = wa
+        self.mult(self.p, self.Ap)
+        self.recycle.record(self.p.array_r, self.Ap.array_r)
+    self.recycle.commit(self.comm)
+    basis = self.recycle.basis(active & ~ring, self.comm)
+    dAd = None if basis is None else basis.galerkin(self.g.array_r)
+    if dAd is not None:
+        d, Ad = dAd
+        gd, dad = self.comm.allreduce(np.array([float(self.g.array_r @ d), float(d @ Ad)]))
+        if dad > 0.0 and gd < 0.0:
+            f0 = self.energy()
+            x0, g0 = self.x.array_r.copy(), self.g.copy()
+            self.x.array[:] = self.S.project(x0 - gd / dad * d)
+            self.fresh_gradient()
+            REC["ring"] = {"rows": self.comm.allreduce(int(ring.sum())), "f0": f0,
+                           "f": self.energy()}
+            if self.energy() < f0:
+                g0.destroy()
+                return "recycle"
+            self.x.array[:] = x0
+            g0.copy(self.g)
+            g0.destroy()
+    return _face_step(self, active, phi2)
+
+
+
+
+def _recording(step):
+    """Also record the moves of the expansions and proportioning steps with their A-products.
+
+    ``g_after − g_before = A (x_after − x_before)`` exactly where the gradient is kept exact
+    (flat sets): the pair costs no product (``FLAGS['steps']``).
+    """
+    def wrapped(self, *args):
+        if not FLAGS["steps"] or self.recycle is None:
+            return step(self, *args)
+        x0, g0 = self.x.array_r.copy(), self.g.array_r.copy()
+        kind = step(self, *args)
+        if kind in ("expansion", "proportioning"):
+            self.recycle.record(self.x.array_r - x0, self.g.array_r - g0)
+        return kind
+    return wrapped
+
+
+FLAGS["steps"] = False
+mpgp_steps.MPGPSolve.proportioning = _recording(_proportioning_pre)
+mpgp_steps.MPGPSolve.face_step = _recording(_face_step_ring)
 kkt_stop.KKTStop.__init__ = _init_rec
 qp_solve.KKTStop.__init__ = _init_rec
 kkt_stop.KKTStop.make_test = _make_test_rec
@@ -206,6 +328,8 @@ def solve_variant(solver, st, name, rtol, b_norm):
     r = solver.recycle
     extra = 0
     FLAGS["own"] = "own" in name.split("+")
+    FLAGS["pprop"] = FLAGS["all_pprop"]
+    FLAGS["ring"] = 0
     full, name = name, name.split("+")[0]
     if name.startswith(("last:", "first:")):
         n = int(name.split(":")[1])
@@ -233,6 +357,10 @@ def solve_variant(solver, st, name, rtol, b_norm):
             solver.options = opts.replace(mprgp_gamma=float(flag[6:]))
         elif flag == "noratio":  # the bound's force part against the QP's rows alone
             solver._force_ratio = 1.0
+        elif flag in ("pprop", "pprop=g"):
+            FLAGS["pprop"] = flag[6:] or "b"
+        elif flag.startswith("ring"):
+            FLAGS["ring"] = int(flag[4:] or 1)
         elif flag == "nogradient":  # MPRGP's first product its own gradient
             def _start_without(x0, start=start):
                 x, scale, omega, g = start(x0)
@@ -242,6 +370,7 @@ def solve_variant(solver, st, name, rtol, b_norm):
             solver._start = _start_without
     m0 = solver.qp.feti.hessian_mults
     sol = solver.solve()
+    FLAGS["pprop"], FLAGS["ring"] = FLAGS["all_pprop"], 0
     solver.options = opts
     solver._start = start
     tests = list(REC["tests"])
@@ -260,7 +389,27 @@ def main() -> None:
     ap.add_argument("--variants", nargs="*", default=["base"])
     ap.add_argument("--diagnose", action="store_true",
                     help="the per-iterate physical checks and errors of each variant")
+    ap.add_argument("--pprop", choices=("b", "g"), default=None,
+                    help="the prototype proportioning step (flag pprop) in every solve, the "
+                    "first and the reference one too")
+    ap.add_argument("--warm-only", action="store_true",
+                    help="with --pprop: only in solves that start with recycled directions")
+    ap.add_argument("--load-path", nargs=argparse.REMAINDER, default=None,
+                    help="run bench/load_path.py with these arguments under --pprop instead")
+    ap.add_argument("--record-steps", action="store_true",
+                    help="every solve also stores its expansions' and proportioning steps' "
+                    "moves (with --room 160: the first solve's all kept)")
+    ap.add_argument("--room", type=int, default=None,
+                    help="the store's room before the first solve (default: the solver's)")
     args = ap.parse_args()
+    FLAGS["all_pprop"] = FLAGS["pprop"] = args.pprop
+    FLAGS["steps"] = args.record_steps
+    FLAGS["warm_only"] = args.warm_only
+    if args.load_path is not None:
+        import load_path
+        sys.argv = ["load_path.py", *args.load_path]
+        load_path.main()
+        return
     comm = MPI.COMM_WORLD
     mesh = C.sphere_mesh("S3")
     case = pushed3d if args.case == "pushed3d" else sphere3d
@@ -268,6 +417,9 @@ def main() -> None:
     def make(s):
         return case(mesh, s, 8)
     solver = df.FetiSolver(make(1.0), comm=comm, rtol=args.rtol, method="auto")
+    if args.room:  # the first bind clears the store back to base_k
+        solver.recycle.base_k = args.room
+        solver.recycle.grow(args.room)
     REC["runs"].clear()
     sol0 = solver.solve()
     first_hist = [h for run in REC["runs"] for h in run["history"]]
