@@ -28,7 +28,8 @@ chopped gradient β, and M⁻¹β, each column's product counted).
 
 ``--record-steps``: every solve also stores the moves of its expansions and proportioning
 steps with their products (the difference of the gradients: no product), ``--room K`` the
-store's room for the first solve. ``--load-path ARGS`` runs ``bench/load_path.py ARGS`` with
+store's room for the first solve, ``--preconditioner`` the FETI preconditioner of every
+solve. ``--load-path ARGS`` runs ``bench/load_path.py ARGS`` with
 the prototypes of ``--pprop`` (``--warm-only``: in warm solves alone) and ``--record-steps``
 patched in.
 
@@ -396,6 +397,8 @@ def main() -> None:
                     help="with --pprop: only in solves that start with recycled directions")
     ap.add_argument("--load-path", nargs=argparse.REMAINDER, default=None,
                     help="run bench/load_path.py with these arguments under --pprop instead")
+    ap.add_argument("--preconditioner", choices=("lumped", "dirichlet", "none"),
+                    default="lumped", help="the FETI preconditioner (every solve)")
     ap.add_argument("--record-steps", action="store_true",
                     help="every solve also stores its expansions' and proportioning steps' "
                     "moves (with --room 160: the first solve's all kept)")
@@ -416,7 +419,8 @@ def main() -> None:
 
     def make(s):
         return case(mesh, s, 8)
-    solver = df.FetiSolver(make(1.0), comm=comm, rtol=args.rtol, method="auto")
+    solver = df.FetiSolver(make(1.0), comm=comm, rtol=args.rtol, method="auto",
+                           preconditioner=args.preconditioner)
     if args.room:  # the first bind clears the store back to base_k
         solver.recycle.base_k = args.room
         solver.recycle.grow(args.room)
