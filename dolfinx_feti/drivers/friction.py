@@ -44,8 +44,10 @@ ETA_MAX = 1e-2
 #: forces only, which settle long before the floating body's tangential equilibrium (the
 #: equality of the natural coarse space, SMALBE's outer loop) does; near gross sliding that
 #: equilibrium is held by a few sticking nodes, and solving it to 1e-2 in the first Tresca
-#: step took most of a load's F-multiplications (benchmarks.md § 24, history § 40).
-ETA_MAX_DISCS = 3.0
+#: step took most of a load's F-multiplications (benchmarks.md § 24, history § 40). Up to
+#: the forces' scale, not beyond: at 3 the coarse half punch's first Tresca step passed its
+#: test unsolved (one F-multiplication) and the next one cost more than at 1e-2.
+ETA_MAX_DISCS = 1.0
 #: The last Tresca solves are solved to min(rtol, ETA_MIN_FACTOR · the fixed point's tolerance):
 #: the inner error then moves the Coulomb residual by less than its tolerance.
 ETA_MIN_FACTOR = 0.5
