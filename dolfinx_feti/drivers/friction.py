@@ -36,9 +36,19 @@ from ..setup.share import RankRows
 
 #: The inner accuracy of the first Coulomb steps (the KKT residuals of the Tresca solves, in
 #: physical units): the bounds they feed to the next step are far from converged anyway.
-#: (bench/coulomb_sliding.py with 0.1: 27 % fewer F-multiplications over the full punch's
-#: five loads, but the half model at 0.9 𝓕N no longer converged; 0.3: more steps.)
+#: (bench/coulomb_sliding.py with 0.1, before ETA_MAX_DISCS and SMALBE's search: 27 % fewer
+#: F-multiplications over the full punch's five loads, but the half model at 0.9 𝓕N no
+#: longer converged; 0.3: more steps.) Intervals (2D friction) take it: looser, the 2D
+#: Coulomb path's cold solves took more steps (docs/benchmarks_history.md § 40).
 ETA_MAX = 1e-2
+#: The same on discs (3D friction). The first Tresca steps feed the next one their normal
+#: forces only, which settle long before the floating body's tangential equilibrium (the
+#: equality of the natural coarse space, SMALBE's outer loop) does; near gross sliding that
+#: equilibrium is held by a few sticking nodes, and solving it to 1e-2 in the first Tresca
+#: step took most of a load's F-multiplications (benchmarks.md § 24, history § 40). Up to
+#: the forces' scale, not beyond: at 3 the coarse half punch's first Tresca step passed its
+#: test unsolved (one F-multiplication) and the next one cost more than at 1e-2.
+ETA_MAX_DISCS = 1.0
 #: The last Tresca solves are solved to min(rtol, ETA_MIN_FACTOR · the fixed point's tolerance):
 #: the inner error then moves the Coulomb residual by less than its tolerance.
 ETA_MIN_FACTOR = 0.5
@@ -89,6 +99,11 @@ class FrictionSolve:
         self._r = math.inf  # the Coulomb residual of the last fixed-point step
         self._eta: float | None = None  # the inner accuracy of the next step (None: from _r)
         self._predicted = False  # the bounds start from a prediction: every step accurate
+
+    @property
+    def eta_max(self) -> float:
+        """The inner accuracy of the first Coulomb steps: :data:`ETA_MAX_DISCS` on discs."""
+        return ETA_MAX_DISCS if self.nt == 2 else ETA_MAX
 
     def relabel(self, index: np.ndarray) -> None:
         """Renumber the local rows: local row ``i`` becomes ``index[i]``.
@@ -162,7 +177,7 @@ class FrictionSolve:
         𝓕 λ_N,i| / max_i λ_N,i`` over the Coulomb nodes: the iterate solves the Tresca problem
         of g to the inner accuracy, so r is what keeps it from solving Coulomb's (|λ_T| <= 𝓕λ_N
         with equality where it slips). The inner accuracy follows the outer progress (η = r/10
-        between :data:`ETA_MIN_FACTOR`·tolerance and :data:`ETA_MAX`) and is cut tenfold when r
+        between :data:`ETA_MIN_FACTOR`·tolerance and :attr:`eta_max`) and is cut tenfold when r
         stops decreasing, so the inner tolerance cannot stall the fixed point. Called again
         (the KKT check asked for more accuracy) it continues from its state.
         """
@@ -185,7 +200,7 @@ class FrictionSolve:
         fp_converged = False
         c = self.coulomb_rows
         eta = self._eta if self._eta is not None else \
-            eta_min if self._predicted else max(eta_min, min(ETA_MAX, 0.1 * self._r))
+            eta_min if self._predicted else max(eta_min, min(self.eta_max, 0.1 * self._r))
         for _ in range(self.data.max_steps - len(steps)):
             res = run_qp(loosen=eta / rtol)
             results.append(res)
@@ -212,7 +227,7 @@ class FrictionSolve:
             # residual stalls (the inner error is then what it measures)
             stalled = math.isfinite(self._r) and r > STALL * self._r
             eta = eta_min if self._predicted else \
-                max(eta_min, min(ETA_MAX, 0.1 * r, 0.1 * eta if stalled else math.inf))
+                max(eta_min, min(self.eta_max, 0.1 * r, 0.1 * eta if stalled else math.inf))
             self._r = min(r, self._r) if stalled else r
             self.g = g_new
             self.multiplier = res.multiplier
