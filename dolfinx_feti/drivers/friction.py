@@ -99,11 +99,20 @@ class FrictionSolve:
         self._r = math.inf  # the Coulomb residual of the last fixed-point step
         self._eta: float | None = None  # the inner accuracy of the next step (None: from _r)
         self._predicted = False  # the bounds start from a prediction: every step accurate
+        self._cold = True  # neither the iterate nor the bounds start from an earlier solve
 
     @property
     def eta_max(self) -> float:
-        """The inner accuracy of the first Coulomb steps: :data:`ETA_MAX_DISCS` on discs."""
-        return ETA_MAX_DISCS if self.nt == 2 else ETA_MAX
+        """The inner accuracy of the first Coulomb steps.
+
+        :data:`ETA_MAX_DISCS` on discs in a cold solve, else :data:`ETA_MAX`. A warm solve (a
+        load path's later case, a Newton increment) starts from multipliers near its
+        solution, where a loose Tresca step leaves the fixed point nothing to gain: the 3D
+        Newton slide of tests/drivers/test_newton_friction3d.py took 18 350
+        F-multiplications with every increment at 1, 7 982 with its cold first solve alone
+        at 1, and 7 360 all at 1e-2, in the same Newton iterations.
+        """
+        return ETA_MAX_DISCS if self.nt == 2 and self._cold else ETA_MAX
 
     def relabel(self, index: np.ndarray) -> None:
         """Renumber the local rows: local row ``i`` becomes ``index[i]``.
@@ -129,6 +138,7 @@ class FrictionSolve:
                 docs/benchmarks_history.md § 22).
         """
         self.warm = True
+        self._cold = False
         self._predicted = predicted and normal_force is not None
         if normal_force is not None:
             self.g = np.where(self.coulomb_rows,
