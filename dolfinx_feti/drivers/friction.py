@@ -107,10 +107,8 @@ class FrictionSolve:
 
         :data:`ETA_MAX_DISCS` on discs in a cold solve, else :data:`ETA_MAX`. A warm solve (a
         load path's later case, a Newton increment) starts from multipliers near its
-        solution, where a loose Tresca step leaves the fixed point nothing to gain: the 3D
-        Newton slide of tests/drivers/test_newton_friction3d.py took 18 350
-        F-multiplications with every increment at 1, 7 982 with its cold first solve alone
-        at 1, and 7 360 all at 1e-2, in the same Newton iterations.
+        solution, where a loose Tresca step only postpones the work (docs/benchmarks_history.md
+        § 41, item 5).
         """
         return ETA_MAX_DISCS if self.nt == 2 and self._cold else ETA_MAX
 

@@ -141,6 +141,16 @@ def punch_problem(mesh, ratio, scale=1.0, half=False, friction="coulomb"):
         decomposition=df.Parts(2))
 
 
+def check_punch(sol, ratio: float) -> float:
+    """The punch's force balance at the lateral load ratio·𝓕N and the Coulomb conditions;
+    returns the normal force N."""
+    fx, fy, N = sol.total_contact_force
+    assert abs(fx + ratio * MU * N) <= 1e-6 * N and abs(fy) <= 1e-6 * N
+    v = coulomb_violations(sol, MU)
+    assert max(v.values()) <= 1e-5, v
+    return N
+
+
 @pytest.mark.parametrize("scale", [1.0])
 def test_punch_fixed_point_stops(punch_mesh, scale):
     """The lateral load 0.5 𝓕N: the fixed point used to stall at the inner tolerance.
@@ -156,11 +166,8 @@ def test_punch_fixed_point_stops(punch_mesh, scale):
     assert rep.converged, rep.summary()
     fr = rep.extra["friction"]
     assert fr["fixed_point_converged"] and fr["fixed_point_steps"] <= 12
-    fx, fy, N = sol.total_contact_force  # the traction times the (polygonal) load face
+    N = check_punch(sol, 0.5)  # the traction times the (polygonal) load face
     assert N > 0.95 * scale * PRESSURE * np.pi
-    assert abs(fx + 0.5 * MU * N) <= 1e-6 * N and abs(fy) <= 1e-6 * N
-    v = coulomb_violations(sol, MU)
-    assert max(v.values()) <= 1e-5, v
 
 
 @pytest.fixture(scope="module")
@@ -185,10 +192,7 @@ def test_punch_at_07_within_ten_frictionless(punch_mesh_medium):
     assert rep.converged and rep.extra["friction"]["fixed_point_converged"], rep.summary()
     assert rep.hessian_mults <= 10 * base.report.hessian_mults, (
         rep.hessian_mults, base.report.hessian_mults)
-    fx, fy, N = sol.total_contact_force
-    assert abs(fx + 0.7 * MU * N) <= 1e-6 * N and abs(fy) <= 1e-6 * N
-    v = coulomb_violations(sol, MU)
-    assert max(v.values()) <= 1e-5, v
+    check_punch(sol, 0.7)
 
 
 def test_punch_near_gross_sliding_first_steps_loose(punch_mesh_medium):
@@ -213,7 +217,4 @@ def test_punch_near_gross_sliding_first_steps_loose(punch_mesh_medium):
     assert [s["inner_rtol"] for s in fr["steps"][:2]] == [ETA_MAX_DISCS] * 2
     assert rep.hessian_mults <= 6 * base.report.hessian_mults, (
         rep.hessian_mults, base.report.hessian_mults)
-    fx, fy, N = sol.total_contact_force
-    assert abs(fx + 0.99 * MU * N) <= 1e-6 * N and abs(fy) <= 1e-6 * N
-    v = coulomb_violations(sol, MU)
-    assert max(v.values()) <= 1e-5, v
+    check_punch(sol, 0.99)
